@@ -1,0 +1,257 @@
+//! Readers and writers for the standard NLOS capture formats, with format detection from content.
+//!
+//! | format | read | write | module |
+//! |---|---|---|---|
+//! | Stanford LCT `.mat` (O'Toole 2018) | ✓ | – | [`mat`] |
+//! | Tsai 2019 `.mat` | ✓ | – | [`mat`] |
+//! | Stanford f-k `.mat` (Lindell 2019), MAT v5 and v7.3 | ✓ | – | [`mat`], [`hdf5`] |
+//! | Zaragoza Z-NLOS HDF5 | ✓ | – | [`hdf5`] |
+//! | y-tal HDF5_TAL | ✓ | ✓ | [`hdf5`] |
+//! | `.npy` + `.json` sidecar | ✓ | ✓ | [`npy`] |
+//! | OpenEXR | ✓ | ✓ | [`exr`] |
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Result, TransientError};
+use crate::transient::Transient;
+
+pub mod exr;
+pub mod hdf5;
+pub mod mat;
+pub mod npy;
+
+/// A transient file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Format {
+    /// Stanford LCT `.mat` (O'Toole et al. 2018): `rect_data` (N,N,T), `width`; 4 ps bins.
+    LctMat,
+    /// Tsai et al. 2019 `.mat`: `transient` (M,T), `lighting` (M,3).
+    TsaiMat,
+    /// Stanford f-k `.mat` (Lindell et al. 2019): `meas` (N,N,T), `tofgrid` (N,N); 32 ps bins. MAT v5 or v7.3.
+    FkMat,
+    /// Zaragoza Z-NLOS HDF5 (`data`, `deltaT`, `t0`, `cameraGridPositions`, `laserGridPositions`, …).
+    ZNlos,
+    /// y-tal HDF5_TAL (`H`, `H_format`, `sensor_grid_xyz`, `laser_grid_xyz`, `delta_t`, `t_start`, …).
+    Tal,
+    /// NumPy `.npy` (data) with a `.json` sidecar (geometry and time axis): this project's exchange format.
+    NpyJson,
+    /// OpenEXR: one f32 channel, width = bins, height = measurements, geometry in header attributes.
+    Exr,
+}
+
+impl Format {
+    /// Every format, in detection order.
+    pub const ALL: [Format; 7] =
+        [Format::LctMat, Format::TsaiMat, Format::FkMat, Format::ZNlos, Format::Tal, Format::NpyJson, Format::Exr];
+
+    /// Short name, as accepted by [`Format::from_name`] and the CLI.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::LctMat => "lct-mat",
+            Format::TsaiMat => "tsai-mat",
+            Format::FkMat => "fk-mat",
+            Format::ZNlos => "znlos",
+            Format::Tal => "tal",
+            Format::NpyJson => "npy",
+            Format::Exr => "exr",
+        }
+    }
+
+    /// Parses a short name (see [`Format::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.name().eq_ignore_ascii_case(name))
+    }
+
+    /// Whether this project can write the format.
+    pub fn can_write(self) -> bool {
+        matches!(self, Format::Tal | Format::NpyJson | Format::Exr)
+    }
+
+    /// The writable format conventionally used for a file extension (`.hdf5`/`.h5` → HDF5_TAL, `.npy` →
+    /// npy + JSON, `.exr` → EXR).
+    pub fn for_writing_extension(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "hdf5" | "h5" | "tal" => Some(Format::Tal),
+            "npy" | "json" => Some(Format::NpyJson),
+            "exr" => Some(Format::Exr),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The container a file's first bytes announce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Container {
+    /// MATLAB level-5 MAT-file (v5/v6/v7).
+    MatV5,
+    /// MATLAB v7.3: a 512-byte MATLAB header followed by HDF5.
+    MatV73,
+    /// Plain HDF5.
+    Hdf5,
+    /// NumPy `.npy`.
+    Npy,
+    /// OpenEXR.
+    Exr,
+}
+
+/// The HDF5 signature.
+pub(crate) const HDF5_MAGIC: &[u8; 8] = b"\x89HDF\r\n\x1a\n";
+
+pub(crate) fn sniff(bytes: &[u8]) -> Option<Container> {
+    if bytes.starts_with(HDF5_MAGIC) {
+        return Some(Container::Hdf5);
+    }
+    if bytes.starts_with(b"\x93NUMPY") {
+        return Some(Container::Npy);
+    }
+    if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+        return Some(Container::Exr);
+    }
+    if bytes.starts_with(b"MATLAB") && bytes.len() >= 128 {
+        if bytes.len() >= 520 && &bytes[512..520] == HDF5_MAGIC {
+            return Some(Container::MatV73);
+        }
+        return Some(Container::MatV5);
+    }
+    None
+}
+
+/// Detects the format of `bytes` (the content of `file`, which is used for messages and, for `.npy`,
+/// to find the sidecar).
+///
+/// # Errors
+/// [`TransientError::UnknownFormat`] when no format matches; container errors while peeking inside.
+pub fn detect_bytes(bytes: &[u8], file: &Path) -> Result<Format> {
+    match sniff(bytes) {
+        Some(Container::MatV5) => mat::classify(bytes, file),
+        Some(Container::MatV73) => hdf5::classify(&bytes[512..], file),
+        Some(Container::Hdf5) => hdf5::classify(bytes, file),
+        Some(Container::Npy) => Ok(Format::NpyJson),
+        Some(Container::Exr) => Ok(Format::Exr),
+        None if bytes.len() < 8 => Err(TransientError::Truncated {
+            file: file.into(),
+            detail: format!("only {} bytes, too short for any format's header", bytes.len()),
+        }),
+        None => Err(TransientError::UnknownFormat {
+            file: file.into(),
+            reason: format!("first bytes {:02x?} match no known signature", &bytes[..8.min(bytes.len())]),
+        }),
+    }
+}
+
+/// Detects the format of a file from its content.
+///
+/// # Errors
+/// [`TransientError::Io`] when the file cannot be read; as [`detect_bytes`].
+pub fn detect(path: impl AsRef<Path>) -> Result<Format> {
+    let path = path.as_ref();
+    let bytes = read_file(path)?;
+    detect_bytes(&bytes, path)
+}
+
+/// Reads a transient from a file in any supported format, detected from the content.
+///
+/// For the npy format, pass either the `.npy` or its `.json` sidecar.
+///
+/// # Errors
+/// Any [`TransientError`]; each names the file and the field.
+pub fn read(path: impl AsRef<Path>) -> Result<Transient> {
+    let path = path.as_ref();
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
+        return npy::read_pair(&path.with_extension("npy"), path);
+    }
+    let bytes = read_file(path)?;
+    let format = detect_bytes(&bytes, path)?;
+    read_bytes_as(&bytes, format, path)
+}
+
+/// Reads a transient from bytes already in memory, in a known format. `file` names them in errors (and,
+/// for [`Format::NpyJson`], locates the `.json` sidecar beside it).
+///
+/// # Errors
+/// Any [`TransientError`].
+pub fn read_bytes_as(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
+    let t = match format {
+        Format::LctMat | Format::TsaiMat | Format::FkMat if sniff(bytes) == Some(Container::MatV5) => {
+            mat::read(bytes, format, file)?
+        }
+        Format::LctMat | Format::TsaiMat | Format::FkMat if sniff(bytes) == Some(Container::MatV73) => {
+            hdf5::read(&bytes[512..], format, file)?
+        }
+        Format::LctMat | Format::TsaiMat | Format::FkMat => {
+            return Err(TransientError::UnknownFormat { file: file.into(), reason: "not a MAT-file".into() });
+        }
+        Format::ZNlos | Format::Tal => hdf5::read(bytes, format, file)?,
+        Format::NpyJson => {
+            let sidecar = read_file(&file.with_extension("json"))?;
+            npy::read(bytes, &sidecar, file)?
+        }
+        Format::Exr => exr::read(bytes, file)?,
+    };
+    t.validate().map_err(|e| with_file(e, file))?;
+    Ok(t)
+}
+
+/// Writes `transient` to `path` in `format`, atomically: the bytes go to a temporary file beside `path`
+/// which is then renamed over it, so a crash never leaves a half-written file. The npy format also writes
+/// the `.json` sidecar beside the `.npy`.
+///
+/// # Errors
+/// [`TransientError::CannotWrite`] for a read-only format or a transient the format cannot hold;
+/// [`TransientError::Io`].
+pub fn write(transient: &Transient, path: impl AsRef<Path>, format: Format) -> Result<()> {
+    let path = path.as_ref();
+    match format {
+        Format::Tal => write_atomic(path, &hdf5::write_tal(transient, path)?),
+        Format::Exr => write_atomic(path, &exr::write(transient, path)?),
+        Format::NpyJson => {
+            let npy_path = path.with_extension("npy");
+            let (npy, json) = npy::write(transient, &npy_path)?;
+            write_atomic(&npy_path.with_extension("json"), &json)?;
+            write_atomic(&npy_path, &npy)
+        }
+        other => Err(TransientError::CannotWrite {
+            file: path.into(),
+            format: other.name().into(),
+            reason: "this format is read-only; write tal (.hdf5), npy or exr instead".into(),
+        }),
+    }
+}
+
+/// Reads a whole file.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|source| TransientError::Io { file: path.into(), source })
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let io = |source| TransientError::Io { file: path.into(), source };
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(format!(".tmp{}", std::process::id()));
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}
+
+/// Replaces the `<memory>` file name of a validation error with the real file.
+pub(crate) fn with_file(e: TransientError, file: &Path) -> TransientError {
+    use TransientError as E;
+    let f: PathBuf = file.into();
+    match e {
+        E::InvalidValue { field, reason, .. } => E::InvalidValue { file: f, field, reason },
+        E::NonFinite { field, index, .. } => E::NonFinite { file: f, field, index },
+        E::WrongShape { field, expected, found, .. } => E::WrongShape { file: f, field, expected, found },
+        other => other,
+    }
+}

@@ -1,0 +1,275 @@
+//! Operations on transients: cropping, rebinning, leg removal, gating, subsampling, summaries.
+
+use crate::error::{Result, TransientError};
+use crate::scan::{Scan, ScanPattern};
+use crate::time_axis::TimeAxis;
+use crate::transient::Transient;
+
+impl Transient {
+    /// Keeps bins `start..end` (end exclusive); `t0` moves to the start of bin `start`.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when the range is empty or exceeds the axis.
+    pub fn crop_bins(&self, start: usize, end: usize) -> Result<Self> {
+        let bins = self.bins();
+        if start >= end || end > bins {
+            return Err(TransientError::InvalidArgument {
+                name: "range",
+                reason: format!("bins {start}..{end} is empty or outside 0..{bins}"),
+            });
+        }
+        let data = self.histograms().flat_map(|h| h[start..end].iter().copied()).collect();
+        let time = TimeAxis { t0: self.time().bin_start(start), bins: end - start, ..*self.time() };
+        Ok(Self::from_parts_unchecked(self.scan().clone(), time, data))
+    }
+
+    /// Keeps the bins that overlap the path-length window `[t_start, t_end)` (metres).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when the window is not finite, is empty, or misses the axis.
+    pub fn crop_path(&self, t_start: f64, t_end: f64) -> Result<Self> {
+        if !(t_start.is_finite() && t_end.is_finite() && t_start < t_end) {
+            return Err(TransientError::InvalidArgument {
+                name: "window",
+                reason: format!("[{t_start}, {t_end}) is not a finite, non-empty path-length window"),
+            });
+        }
+        let ax = self.time();
+        let to_bin = |t: f64| ((t - ax.t0) / ax.bin_width).clamp(0.0, ax.bins as f64);
+        let start = to_bin(t_start).floor() as usize;
+        let end = to_bin(t_end).ceil() as usize;
+        self.crop_bins(start, end)
+    }
+
+    /// Sums every `k` consecutive bins into one (bin width × k). A trailing group of fewer than `k` bins
+    /// is dropped, so every output bin has the same width.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when `k == 0` or `k > bins`.
+    pub fn rebin(&self, k: usize) -> Result<Self> {
+        let bins = self.bins();
+        if k == 0 || k > bins {
+            return Err(TransientError::InvalidArgument {
+                name: "k",
+                reason: format!("rebin factor {k} must be in 1..={bins} (the number of bins)"),
+            });
+        }
+        let out_bins = bins / k;
+        let mut data = Vec::with_capacity(self.measurements() * out_bins);
+        for h in self.histograms() {
+            data.extend(h[..out_bins * k].chunks_exact(k).map(|c| c.iter().map(|&v| f64::from(v)).sum::<f64>() as f32));
+        }
+        let time = TimeAxis { bins: out_bins, bin_width: self.time().bin_width * k as f64, ..*self.time() };
+        Ok(Self::from_parts_unchecked(self.scan().clone(), time, data))
+    }
+
+    /// Removes the device legs from the times: each measurement's histogram is shifted earlier by
+    /// `|laser_device − l| + |s − sensor_device|`, so that times become the path length of `l → x → s`.
+    ///
+    /// The shift is exact for histograms: the signal is taken as constant inside each bin and each new
+    /// bin receives the integral of that piecewise-constant density over its (shifted) interval, so the
+    /// total is conserved except for what moves off either end of the axis.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when the time axis does not include the legs, or when the
+    /// device positions are unknown.
+    pub fn remove_device_legs(&self) -> Result<Self> {
+        if !self.time().includes_device_legs {
+            return Err(TransientError::InvalidArgument {
+                name: "time",
+                reason: "times already exclude the device legs (includes_device_legs = false)".into(),
+            });
+        }
+        let (Some(laser), Some(sensor)) = (self.scan().laser_device, self.scan().sensor_device) else {
+            return Err(TransientError::InvalidArgument {
+                name: "scan",
+                reason: "laser and sensor device positions are needed to remove the legs; set scan.laser_device \
+                         and scan.sensor_device"
+                    .into(),
+            });
+        };
+        let mut out = self.clone();
+        for m in 0..self.measurements() {
+            let g = self.scan().measurement(m);
+            let d = f64::from(laser.distance(g.laser)) + f64::from(g.sensor.distance(sensor));
+            shift_histogram(self.histogram(m), d / self.time().bin_width, out.histogram_mut(m));
+        }
+        out.time_mut().includes_device_legs = false;
+        Ok(out)
+    }
+
+    /// Zeroes every bin that begins before path length `t` (metres) — e.g. to gate out the direct
+    /// reflection off the wall. Bins that begin at or after `t` are untouched.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when `t` is not finite.
+    pub fn gate(&self, t: f64) -> Result<Self> {
+        if !t.is_finite() {
+            return Err(TransientError::InvalidArgument { name: "t", reason: format!("{t} is not finite") });
+        }
+        let ax = self.time();
+        let n = (0..ax.bins).take_while(|&k| ax.bin_start(k) < t).count();
+        let mut out = self.clone();
+        for m in 0..self.measurements() {
+            out.histogram_mut(m)[..n].fill(0.0);
+        }
+        Ok(out)
+    }
+
+    /// Keeps every `step_x`-th column and `step_y`-th row of a grid scan (both laser and sensor grids of
+    /// an exhaustive scan).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when a step is zero or a point set is not a grid.
+    pub fn subsample(&self, step_x: usize, step_y: usize) -> Result<Self> {
+        if step_x == 0 || step_y == 0 {
+            return Err(TransientError::InvalidArgument { name: "step", reason: "steps must be >= 1".into() });
+        }
+        let not_grid =
+            || TransientError::InvalidArgument { name: "scan", reason: "subsampling needs a grid scan".into() };
+        let (pattern, kept): (ScanPattern, Vec<usize>) = match &self.scan().pattern {
+            ScanPattern::Confocal(p) => {
+                let (sub, kept) = p.subsample(step_x, step_y).ok_or_else(not_grid)?;
+                (ScanPattern::Confocal(sub), kept)
+            }
+            ScanPattern::Exhaustive { lasers, sensors } => {
+                let (ls, lk) = lasers.subsample(step_x, step_y).ok_or_else(not_grid)?;
+                let (ss, sk) = sensors.subsample(step_x, step_y).ok_or_else(not_grid)?;
+                let ns = sensors.len();
+                let kept = lk.iter().flat_map(|&l| sk.iter().map(move |&s| l * ns + s)).collect();
+                (ScanPattern::Exhaustive { lasers: ls, sensors: ss }, kept)
+            }
+        };
+        let data = kept.iter().flat_map(|&m| self.histogram(m).iter().copied()).collect();
+        let scan = Scan { pattern, ..self.scan().clone() };
+        Ok(Self::from_parts_unchecked(scan, *self.time(), data))
+    }
+
+    /// The time-summed (steady-state) value of each measurement; for a confocal grid, an `nx × ny` image
+    /// with x fastest.
+    pub fn time_summed(&self) -> Vec<f32> {
+        self.histograms().map(|h| h.iter().map(|&v| f64::from(v)).sum::<f64>() as f32).collect()
+    }
+
+    /// The bin of the maximum of each histogram (the first one on ties).
+    pub fn peak_bins(&self) -> Vec<usize> {
+        self.histograms()
+            .map(|h| h.iter().enumerate().fold((0, f32::NEG_INFINITY), |b, (k, &v)| if v > b.1 { (k, v) } else { b }).0)
+            .collect()
+    }
+
+    /// The histogram summed over all measurements, accumulated in `f64`.
+    pub fn summed_histogram(&self) -> Vec<f64> {
+        let mut acc = vec![0.0f64; self.bins()];
+        for h in self.histograms() {
+            for (a, &v) in acc.iter_mut().zip(h) {
+                *a += f64::from(v);
+            }
+        }
+        acc
+    }
+
+    /// Estimates where the direct reflection off the wall ends, as a path length (metres).
+    ///
+    /// Heuristic, documented here because it is a choice: the summed histogram is smoothed with a box of
+    /// `max(1, 6 mm / bin_width)` bins; from its maximum among the first 10 % of the axis (the direct
+    /// light, which decays monotonically apart from noise) the running minimum is tracked, and the first
+    /// place where the smoothed signal rises above twice that minimum marks the first return from the
+    /// hidden scene; the running minimum's position is returned. When no such rise exists (no direct light
+    /// on the axis, or it was already gated), the start of the axis is returned.
+    pub fn direct_light_end(&self) -> f64 {
+        let ax = self.time();
+        let h = self.summed_histogram();
+        let w = ((0.006 / ax.bin_width).round() as usize).max(1);
+        let smooth = box_smooth(&h, w);
+        let head = (ax.bins / 10).max(1);
+        let start = (0..head).fold(0, |b, k| if smooth[k] > smooth[b] { k } else { b });
+        let (mut min_k, mut min_v) = (start, smooth[start]);
+        for (k, &v) in smooth.iter().enumerate().skip(start) {
+            if v < min_v {
+                (min_k, min_v) = (k, v);
+            } else if v > 2.0 * min_v && min_v > 0.0 && k > start {
+                return ax.bin_start(min_k);
+            }
+        }
+        ax.t0
+    }
+
+    /// Path length (metres, at the bin centre) of the maximum of the summed histogram among the bins
+    /// that begin at or after `min_path`; `None` for `min_path` means [`Transient::direct_light_end`].
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when no bin begins at or after `min_path`.
+    pub fn summed_peak_path(&self, min_path: Option<f64>) -> Result<f64> {
+        let gate = min_path.unwrap_or_else(|| self.direct_light_end());
+        let ax = self.time();
+        let h = self.summed_histogram();
+        let first = (0..ax.bins).find(|&k| ax.bin_start(k) >= gate).ok_or_else(|| TransientError::InvalidArgument {
+            name: "min_path",
+            reason: format!("no bin begins at or after {gate} m (axis ends at {} m)", ax.end()),
+        })?;
+        let k = (first..ax.bins).fold(first, |b, k| if h[k] > h[b] { k } else { b });
+        Ok(ax.bin_center(k))
+    }
+
+    /// Depth (metres from the wall) of the summed-histogram peak of a confocal scan: half its path length
+    /// (round trip). See [`Transient::summed_peak_path`] for `min_path`.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] for a non-confocal scan, for times that include the device legs,
+    /// or as [`Transient::summed_peak_path`].
+    pub fn summed_peak_depth(&self, min_path: Option<f64>) -> Result<f64> {
+        if !self.scan().is_confocal() {
+            return Err(TransientError::InvalidArgument {
+                name: "scan",
+                reason: "peak depth is defined for confocal scans (use summed_peak_path otherwise)".into(),
+            });
+        }
+        if self.time().includes_device_legs {
+            return Err(TransientError::InvalidArgument {
+                name: "time",
+                reason: "times include the device legs; call remove_device_legs first".into(),
+            });
+        }
+        Ok(self.summed_peak_path(min_path)? / 2.0)
+    }
+}
+
+/// Shifts a histogram earlier by `shift` bins (fractional, may be negative), treating it as piecewise
+/// constant: `out[k] = C(k + 1 + shift) − C(k + shift)` with `C` the cumulative integral.
+pub(crate) fn shift_histogram(input: &[f32], shift: f64, out: &mut [f32]) {
+    let n = input.len();
+    let mut cum = Vec::with_capacity(n + 1);
+    cum.push(0.0f64);
+    for &v in input {
+        cum.push(cum.last().copied().unwrap_or(0.0) + f64::from(v));
+    }
+    let c = |x: f64| -> f64 {
+        if x <= 0.0 {
+            0.0
+        } else if x >= n as f64 {
+            cum[n]
+        } else {
+            let i = x.floor() as usize;
+            cum[i] + (x - i as f64) * f64::from(input[i])
+        }
+    };
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = (c(k as f64 + 1.0 + shift) - c(k as f64 + shift)) as f32;
+    }
+}
+
+fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {
+    let n = h.len();
+    let mut cum = vec![0.0; n + 1];
+    for i in 0..n {
+        cum[i + 1] = cum[i] + h[i];
+    }
+    (0..n)
+        .map(|k| {
+            let lo = k.saturating_sub(w / 2);
+            let hi = (k + w - w / 2).min(n);
+            (cum[hi] - cum[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}

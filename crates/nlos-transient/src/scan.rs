@@ -1,0 +1,269 @@
+//! Scan geometry: where the laser and the sensor looked on the relay wall.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{MEMORY, Result, TransientError};
+
+/// How the points of a [`PointSet`] are arranged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Layout {
+    /// A regular grid of `nx × ny` points stored with x fastest: point `ix + nx·iy`.
+    Grid {
+        /// Points along the first (x) axis.
+        nx: usize,
+        /// Points along the second (y) axis.
+        ny: usize,
+    },
+    /// An unstructured list of points.
+    List,
+}
+
+/// A set of points on the relay wall with their wall normals.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PointSet {
+    /// Positions, metres.
+    pub points: Vec<Vec3>,
+    /// Unit wall normals, one per point.
+    pub normals: Vec<Vec3>,
+    /// Arrangement of the points.
+    pub layout: Layout,
+}
+
+impl PointSet {
+    /// A grid of `nx × ny` points with normal +z on the wall z = 0, x and y each running over
+    /// `linspace(-half_width, half_width, n)` (the Stanford LCT convention).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidValue`] for a zero-sized grid or a non-finite or negative half width.
+    pub fn wall_grid(nx: usize, ny: usize, half_width_x: f64, half_width_y: f64) -> Result<Self> {
+        if nx == 0 || ny == 0 {
+            return Err(invalid("grid", format!("{nx} × {ny} grid has no points")));
+        }
+        for (name, w) in [("half_width_x", half_width_x), ("half_width_y", half_width_y)] {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(invalid(name, format!("{w} must be finite and >= 0 metres")));
+            }
+        }
+        let lin = |i: usize, n: usize, w: f64| if n == 1 { 0.0 } else { -w + 2.0 * w * i as f64 / (n - 1) as f64 };
+        let mut points = Vec::with_capacity(nx * ny);
+        for iy in 0..ny {
+            for ix in 0..nx {
+                points.push(Vec3::new(lin(ix, nx, half_width_x) as f32, lin(iy, ny, half_width_y) as f32, 0.0));
+            }
+        }
+        Ok(Self { normals: vec![Vec3::Z; points.len()], points, layout: Layout::Grid { nx, ny } })
+    }
+
+    /// A list of points, all with wall normal +z.
+    pub fn list(points: Vec<Vec3>) -> Self {
+        Self { normals: vec![Vec3::Z; points.len()], points, layout: Layout::List }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether the set is empty.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// `(nx, ny)` when the layout is a grid.
+    pub fn grid_dims(&self) -> Option<(usize, usize)> {
+        match self.layout {
+            Layout::Grid { nx, ny } => Some((nx, ny)),
+            Layout::List => None,
+        }
+    }
+
+    /// Axis-aligned bounds `(min, max)` of the points; `None` when empty.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.points.first()?;
+        Some(self.points.iter().fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+    }
+
+    /// Checks that normals match points, the grid size matches, every value is finite and normals are unit.
+    ///
+    /// # Errors
+    /// [`TransientError::WrongShape`], [`TransientError::NonFinite`] or [`TransientError::InvalidValue`]
+    /// naming `field`.
+    pub fn validate(&self, field: &str) -> Result<()> {
+        if self.points.is_empty() {
+            return Err(invalid(field, "no points (zero-sized scan)".into()));
+        }
+        if self.normals.len() != self.points.len() {
+            return Err(TransientError::WrongShape {
+                file: MEMORY.into(),
+                field: format!("{field}.normals"),
+                expected: format!("{} normals (one per point)", self.points.len()),
+                found: format!("{}", self.normals.len()),
+            });
+        }
+        if let Layout::Grid { nx, ny } = self.layout {
+            if nx.checked_mul(ny) != Some(self.points.len()) {
+                return Err(TransientError::WrongShape {
+                    file: MEMORY.into(),
+                    field: field.into(),
+                    expected: format!("{nx} × {ny} grid points"),
+                    found: format!("{}", self.points.len()),
+                });
+            }
+        }
+        if let Some(i) = self.points.iter().position(|p| !p.is_finite()) {
+            return Err(TransientError::NonFinite { file: MEMORY.into(), field: format!("{field}.points"), index: i });
+        }
+        if let Some(i) = self.normals.iter().position(|n| !n.is_finite() || (n.length() - 1.0).abs() > 1e-3) {
+            return Err(invalid(
+                &format!("{field}.normals"),
+                format!("normal {i} = {:?} is not a finite unit vector", self.normals[i]),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The points of a sub-grid taking every `step_x`-th column and `step_y`-th row (grids only), and the
+    /// indices of the kept points.
+    pub(crate) fn subsample(&self, step_x: usize, step_y: usize) -> Option<(Self, Vec<usize>)> {
+        let (nx, ny) = self.grid_dims()?;
+        let kept: Vec<usize> =
+            (0..ny).step_by(step_y).flat_map(|iy| (0..nx).step_by(step_x).map(move |ix| ix + nx * iy)).collect();
+        let sub = Self {
+            points: kept.iter().map(|&i| self.points[i]).collect(),
+            normals: kept.iter().map(|&i| self.normals[i]).collect(),
+            layout: Layout::Grid { nx: nx.div_ceil(step_x), ny: ny.div_ceil(step_y) },
+        };
+        Some((sub, kept))
+    }
+}
+
+/// Confocal or exhaustive illumination/detection pattern.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ScanPattern {
+    /// The laser spot and the sensor spot coincide: one measurement per point.
+    Confocal(PointSet),
+    /// Every laser point with every sensor point: measurement `m = il · n_sensors + is`.
+    Exhaustive {
+        /// Laser spots on the wall.
+        lasers: PointSet,
+        /// Sensor spots on the wall.
+        sensors: PointSet,
+    },
+}
+
+/// Scan geometry: the pattern of wall points plus optional device positions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scan {
+    /// Wall points.
+    pub pattern: ScanPattern,
+    /// Position of the laser device (the start of the first leg), if known.
+    pub laser_device: Option<Vec3>,
+    /// Position of the sensor device (the end of the last leg), if known.
+    pub sensor_device: Option<Vec3>,
+}
+
+impl Scan {
+    /// A confocal scan over `points`, device positions unknown.
+    pub fn confocal(points: PointSet) -> Self {
+        Self { pattern: ScanPattern::Confocal(points), laser_device: None, sensor_device: None }
+    }
+
+    /// An exhaustive scan, device positions unknown.
+    pub fn exhaustive(lasers: PointSet, sensors: PointSet) -> Self {
+        Self { pattern: ScanPattern::Exhaustive { lasers, sensors }, laser_device: None, sensor_device: None }
+    }
+
+    /// Whether laser and sensor spots coincide.
+    pub fn is_confocal(&self) -> bool {
+        matches!(self.pattern, ScanPattern::Confocal(_))
+    }
+
+    /// Number of measurements (histograms).
+    pub fn measurements(&self) -> usize {
+        match &self.pattern {
+            ScanPattern::Confocal(p) => p.len(),
+            ScanPattern::Exhaustive { lasers, sensors } => lasers.len() * sensors.len(),
+        }
+    }
+
+    /// The laser points (the scan points when confocal).
+    pub fn lasers(&self) -> &PointSet {
+        match &self.pattern {
+            ScanPattern::Confocal(p) => p,
+            ScanPattern::Exhaustive { lasers, .. } => lasers,
+        }
+    }
+
+    /// The sensor points (the scan points when confocal).
+    pub fn sensors(&self) -> &PointSet {
+        match &self.pattern {
+            ScanPattern::Confocal(p) => p,
+            ScanPattern::Exhaustive { sensors, .. } => sensors,
+        }
+    }
+
+    /// `(laser index, sensor index)` of measurement `m`.
+    ///
+    /// # Panics
+    /// When `m >= self.measurements()`.
+    pub fn indices(&self, m: usize) -> (usize, usize) {
+        assert!(m < self.measurements(), "measurement {m} out of range");
+        match &self.pattern {
+            ScanPattern::Confocal(_) => (m, m),
+            ScanPattern::Exhaustive { sensors, .. } => (m / sensors.len(), m % sensors.len()),
+        }
+    }
+
+    /// Laser spot, laser wall normal, sensor spot and sensor wall normal of measurement `m`.
+    ///
+    /// # Panics
+    /// When `m >= self.measurements()`.
+    pub fn measurement(&self, m: usize) -> Measurement {
+        let (il, is) = self.indices(m);
+        let (l, s) = (self.lasers(), self.sensors());
+        Measurement {
+            laser: l.points[il],
+            laser_normal: l.normals[il],
+            sensor: s.points[is],
+            sensor_normal: s.normals[is],
+        }
+    }
+
+    /// Checks every point set and the device positions.
+    ///
+    /// # Errors
+    /// As [`PointSet::validate`]; [`TransientError::NonFinite`] for a non-finite device position.
+    pub fn validate(&self) -> Result<()> {
+        match &self.pattern {
+            ScanPattern::Confocal(p) => p.validate("scan_points")?,
+            ScanPattern::Exhaustive { lasers, sensors } => {
+                lasers.validate("laser_points")?;
+                sensors.validate("sensor_points")?;
+            }
+        }
+        for (field, d) in [("laser_device", self.laser_device), ("sensor_device", self.sensor_device)] {
+            if d.is_some_and(|d| !d.is_finite()) {
+                return Err(TransientError::NonFinite { file: MEMORY.into(), field: field.into(), index: 0 });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The wall geometry of one measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    /// Laser spot `l` on the wall.
+    pub laser: Vec3,
+    /// Wall normal at `l`.
+    pub laser_normal: Vec3,
+    /// Sensor spot `s` on the wall.
+    pub sensor: Vec3,
+    /// Wall normal at `s`.
+    pub sensor_normal: Vec3,
+}
+
+fn invalid(field: &str, reason: String) -> TransientError {
+    TransientError::InvalidValue { file: MEMORY.into(), field: field.into(), reason }
+}

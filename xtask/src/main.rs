@@ -1,0 +1,5 @@
+//! Project automation. Run `cargo xtask help`.
+
+fn main() {
+    println!("xtask: not yet");
+}
