@@ -1,0 +1,2 @@
+//! Throughput of value+gradient evaluation (placeholder, filled in below).
+fn main() {}

@@ -1,0 +1,49 @@
+//! The one error type of this crate.
+
+/// Why a BRDF could not be built from the given parameters.
+///
+/// Every variant carries the offending value and its message says how to fix it. Values are widened to
+/// `f64` so that one error type serves both precisions.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BrdfError {
+    /// An albedo (Lambertian `albedo`, GGX `albedo_diffuse` or `specular`) is negative, NaN or infinite.
+    #[error(
+        "albedo `{name}` = {value} is invalid: it must be finite and >= 0 (values above 1 are allowed, they \
+         absorb the capture's unknown radiometric scale); build from unconstrained parameters with \
+         `LambertianTheta`/`GgxTheta` to stay in range"
+    )]
+    InvalidAlbedo {
+        /// Which parameter.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// The GGX roughness α is NaN or outside `[ALPHA_MIN, ALPHA_MAX]`.
+    #[error(
+        "GGX roughness alpha = {value} is outside [{min}, {max}]: clamp it into that range (alpha below {min} \
+         is a mirror that f32 cannot evaluate, above {max} the model is not a plausible GGX surface), or \
+         build from an unconstrained parameter with `GgxTheta`"
+    )]
+    InvalidAlpha {
+        /// The value given.
+        value: f64,
+        /// The smallest accepted α ([`crate::ALPHA_MIN`]).
+        min: f64,
+        /// The largest accepted α ([`crate::ALPHA_MAX`]).
+        max: f64,
+    },
+    /// The Schlick reflectance at normal incidence F0 is NaN or outside `[0, 1]`.
+    #[error(
+        "Schlick F0 = {value} is outside [0, 1]: it is a reflectance at normal incidence (about 0.04 for \
+         dielectrics, 0.5-1 for metals); clamp it, use `Fresnel::One` for the seed's model, or build from an \
+         unconstrained parameter with `GgxTheta`"
+    )]
+    InvalidF0 {
+        /// The value given.
+        value: f64,
+    },
+}
+
+/// `Result` with [`BrdfError`].
+pub type Result<T, E = BrdfError> = std::result::Result<T, E>;
