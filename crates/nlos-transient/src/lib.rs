@@ -28,6 +28,7 @@
 pub mod error;
 pub mod formats;
 mod ops;
+mod ops_views;
 pub mod scan;
 pub mod time_axis;
 pub mod transient;
