@@ -18,6 +18,7 @@ use crate::transient::Transient;
 pub mod exr;
 pub mod hdf5;
 pub mod mat;
+mod mat5;
 pub mod npy;
 
 /// A transient file format.

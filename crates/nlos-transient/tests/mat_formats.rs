@@ -1,0 +1,450 @@
+//! MAT v5 formats: Stanford LCT (real captures), Tsai 2019 and Stanford f-k (generated files), and
+//! malformed inputs.
+
+#[path = "support/mat5_writer.rs"]
+mod mat5_writer;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use mat5_writer::{Options, Stored, Var, cell_var, char_var, double, scalar, stored, write};
+use nlos_transient::formats::{Format, detect_bytes, read_bytes_as};
+use nlos_transient::{Layout, Transient, TransientError};
+
+const MEASURED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/");
+
+/// Reads a real capture, or `None` (with a reason on stderr) when the shared data are absent.
+fn real(name: &str) -> Option<Transient> {
+    let path = PathBuf::from(MEASURED).join(name);
+    if !path.is_file() {
+        eprintln!("skipping: {} not found (the shared data live beside the checkout)", path.display());
+        return None;
+    }
+    assert_eq!(nlos_transient::detect(&path).expect("detect"), Format::LctMat);
+    let start = Instant::now();
+    let t = nlos_transient::read(&path).expect("read real LCT capture");
+    eprintln!("{name}: read in {:.3} s", start.elapsed().as_secs_f64());
+    Some(t)
+}
+
+fn total(t: &Transient) -> f64 {
+    t.data().iter().map(|&v| f64::from(v)).sum()
+}
+
+fn check_lct_geometry(t: &Transient, half_width: f32) {
+    let pts = t.scan().lasers();
+    assert!(t.scan().is_confocal());
+    assert_eq!(pts.layout, Layout::Grid { nx: 64, ny: 64 });
+    assert_eq!(t.bins(), 2048);
+    assert_eq!(t.time().bin_width, 0.0012);
+    assert_eq!(t.time().t0, 0.0);
+    assert!(!t.time().includes_device_legs);
+    let (lo, hi) = pts.bounds().expect("points");
+    for (a, b) in [(lo.x, -half_width), (lo.y, -half_width), (hi.x, half_width), (hi.y, half_width)] {
+        assert!((a - b).abs() < 1e-6, "extent {lo:?}..{hi:?}, expected ±{half_width}");
+    }
+    assert!(lo.z == 0.0 && hi.z == 0.0);
+}
+
+#[test]
+fn lct_diffuse_s() {
+    let Some(t) = real("data_diffuse_s.mat") else { return };
+    check_lct_geometry(&t, 0.35);
+    // Independent figure: the sum of rect_data computed with scipy.
+    assert_eq!(total(&t), 71_809_550.0);
+}
+
+#[test]
+fn lct_resolution_chart_peak_depth() {
+    let Some(t) = real("data_resolution_chart_40cm.mat") else { return };
+    check_lct_geometry(&t, 0.2);
+    assert_eq!(total(&t), 239_775_059.0);
+    let auto = t.summed_peak_depth(None).expect("depth");
+    assert!((auto - 0.425).abs() <= 0.005, "auto-gated peak depth {auto}");
+    let gated = t.summed_peak_depth(Some(0.72)).expect("depth");
+    assert!((gated - 0.425).abs() <= 0.005, "peak depth after 0.72 m {gated}");
+}
+
+#[test]
+fn lct_s_u() {
+    let Some(t) = real("data_s_u.mat") else { return };
+    check_lct_geometry(&t, 0.35);
+    assert_eq!(total(&t), 53_190_216.0);
+}
+
+/// The LCT axis mapping documented in `formats::mat`: MAT index i runs along −x, j along −y.
+#[test]
+fn lct_axis_mapping_and_class() {
+    let (n, bins) = (4usize, 6usize);
+    let mut v = vec![0u16; n * n * bins];
+    for t in 0..bins {
+        for j in 0..n {
+            for i in 0..n {
+                v[i + n * j + n * n * t] = (1 + i + 10 * j + 100 * t) as u16;
+            }
+        }
+    }
+    let dims = [n as i32, n as i32, bins as i32];
+    for opt in [
+        Options::default(),
+        Options { compress: true, big_endian: false },
+        Options { compress: false, big_endian: true },
+    ] {
+        // Class double, stored as uint16: the MATLAB layout of the real files.
+        let bytes = write(
+            &[stored("rect_data", &dims, mat5_writer::DOUBLE, Stored::U16(v.clone())), scalar("width", 0.25)],
+            opt,
+        );
+        let f = Path::new("lct.mat");
+        assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::LctMat);
+        let t = read_bytes_as(&bytes, Format::LctMat, f).expect("read");
+        let lin = |k: usize| -0.25 + 0.5 * k as f32 / (n - 1) as f32;
+        for j in 0..n {
+            for i in 0..n {
+                let m = (n - 1 - i) + n * (n - 1 - j);
+                let p = t.scan().lasers().points[m];
+                assert!((p.x + lin(i)).abs() < 1e-6 && (p.y + lin(j)).abs() < 1e-6, "{p:?} for ({i}, {j})");
+                for k in 0..bins {
+                    assert_eq!(t.histogram(m)[k], (1 + i + 10 * j + 100 * k) as f32);
+                }
+            }
+        }
+    }
+}
+
+fn tsai_vars(m: usize, bins: usize, transient: Stored, class: u8) -> Vec<Var> {
+    let lighting: Vec<f64> = (0..3)
+        .flat_map(|c| (0..m).map(move |r| if c == 2 { 0.0 } else { 0.1 * (r as f64) - 0.05 * c as f64 }))
+        .collect();
+    vec![stored("transient", &[m as i32, bins as i32], class, transient), double("lighting", &[m as i32, 3], lighting)]
+}
+
+#[test]
+fn tsai_layout_in_several_storage_classes() {
+    let (m, bins) = (5usize, 7usize);
+    // transient(r, k) = r + 10 k, column-major.
+    let vals: Vec<f64> = (0..bins).flat_map(|k| (0..m).map(move |r| (r + 10 * k) as f64)).collect();
+    let cases = [
+        (Stored::F64(vals.clone()), mat5_writer::DOUBLE),
+        (Stored::F32(vals.iter().map(|&v| v as f32).collect()), mat5_writer::SINGLE),
+        (Stored::U8(vals.iter().map(|&v| v as u8).collect()), mat5_writer::DOUBLE),
+        (Stored::I16(vals.iter().map(|&v| v as i16).collect()), mat5_writer::INT16),
+        (Stored::I32(vals.iter().map(|&v| v as i32).collect()), mat5_writer::INT32),
+    ];
+    for (data, class) in cases {
+        for compress in [false, true] {
+            let bytes = write(&tsai_vars(m, bins, data.clone(), class), Options { compress, big_endian: false });
+            let f = Path::new("tsai.mat");
+            assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::TsaiMat);
+            let t = read_bytes_as(&bytes, Format::TsaiMat, f).expect("read");
+            assert!(t.scan().is_confocal());
+            assert_eq!(t.scan().lasers().layout, Layout::List);
+            assert_eq!((t.measurements(), t.bins()), (m, bins));
+            assert_eq!((t.time().t0, t.time().bin_width), (0.0, 0.0012));
+            for r in 0..m {
+                let p = t.scan().lasers().points[r];
+                assert!((p.x - 0.1 * r as f32).abs() < 1e-6 && (p.y - (0.1 * r as f32 - 0.05)).abs() < 1e-6);
+                for k in 0..bins {
+                    assert_eq!(t.histogram(r)[k], (r + 10 * k) as f32);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn tsai_bin_width_gt_transient_and_sensor() {
+    let (m, bins) = (3usize, 4usize);
+    let mut vars = tsai_vars(m, bins, Stored::F64(vec![1.0; m * bins]), mat5_writer::DOUBLE);
+    vars[0].name = "gt_transient".into();
+    vars.push(scalar("bin_width", 0.003));
+    let lighting = vars[1].clone();
+    let mut sensor = lighting.clone();
+    sensor.name = "sensor".into();
+    vars.push(sensor);
+    let f = Path::new("setup.mat");
+    let bytes = write(&vars, Options::default());
+    assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::TsaiMat);
+    let t = read_bytes_as(&bytes, Format::TsaiMat, f).expect("read");
+    assert_eq!(t.time().bin_width, 0.003);
+    // A sensor that differs from the lighting is a non-confocal capture: refused, typed.
+    let mut other = lighting;
+    other.name = "sensor".into();
+    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut other.body {
+        v[0] += 1.0;
+    }
+    *vars.last_mut().expect("sensor") = other;
+    let r = read_bytes_as(&write(&vars, Options::default()), Format::TsaiMat, f);
+    assert!(matches!(r, Err(TransientError::Unsupported { .. })), "{r:?}");
+}
+
+/// An f-k file: rows × cols × bins, pixel (i, j) with one count at bin 20, tofgrid(i, j) in ps.
+fn fk_vars(rows: usize, cols: usize, bins: usize, tof: &dyn Fn(usize, usize) -> f64) -> Vec<Var> {
+    let mut meas = vec![0u16; rows * cols * bins];
+    let mut tofgrid = vec![0.0; rows * cols];
+    for i in 0..rows {
+        for j in 0..cols {
+            meas[i + rows * j + rows * cols * 20] = (1 + i + 10 * j) as u16;
+            tofgrid[i + rows * j] = tof(i, j);
+        }
+    }
+    vec![
+        stored("meas", &[rows as i32, cols as i32, bins as i32], mat5_writer::DOUBLE, Stored::U16(meas)),
+        double("tofgrid", &[rows as i32, cols as i32], tofgrid),
+    ]
+}
+
+#[test]
+fn fk_integer_shift_is_exact_and_orientation_documented() {
+    let (rows, cols, bins) = (3usize, 4usize, 32usize);
+    let vars = fk_vars(rows, cols, bins, &|i, j| 32.0 * (i + 2 * j) as f64);
+    for compress in [false, true] {
+        let bytes = write(&vars, Options { compress, big_endian: false });
+        let f = Path::new("/nonexistent-nlos-dir/fk.mat");
+        assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::FkMat);
+        let t = read_bytes_as(&bytes, Format::FkMat, f).expect("read");
+        assert_eq!(t.scan().lasers().layout, Layout::Grid { nx: cols, ny: rows });
+        assert!(!t.time().includes_device_legs);
+        assert_eq!((t.time().t0, t.time().bin_width), (0.0, 0.0096));
+        let (lo, hi) = t.scan().lasers().bounds().expect("points");
+        assert!((lo.x + 1.0).abs() < 1e-6 && (hi.y - 1.0).abs() < 1e-6, "default 2 m × 2 m wall");
+        for i in 0..rows {
+            for j in 0..cols {
+                // Column j is x; row 0 is the top (largest y).
+                let m = j + cols * (rows - 1 - i);
+                let h = t.histogram(m);
+                let mut expected = vec![0.0f32; bins];
+                expected[20 - (i + 2 * j)] = (1 + i + 10 * j) as f32;
+                assert_eq!(h, expected.as_slice(), "pixel ({i}, {j})");
+            }
+        }
+    }
+}
+
+#[test]
+fn fk_fractional_shift_splits_counts() {
+    // 48 ps = 1.5 bins: a count at bin 20 moves to the interval [18.5, 19.5): half in bin 18, half in 19.
+    let vars = fk_vars(2, 2, 32, &|_, _| 48.0);
+    let t = read_bytes_as(&write(&vars, Options::default()), Format::FkMat, Path::new("/nonexistent/fk.mat"))
+        .expect("read");
+    for m in 0..4 {
+        let h = t.histogram(m);
+        let c: f32 = h.iter().sum();
+        assert!((h[18] - c / 2.0).abs() < 1e-6 && (h[19] - c / 2.0).abs() < 1e-6, "{h:?}");
+    }
+}
+
+#[test]
+fn fk_wall_size_and_sibling_tof_file() {
+    let dir = std::env::temp_dir().join(format!(
+        "nlos-mat-test-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos())
+    ));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let mut vars = fk_vars(2, 3, 24, &|i, _| 32.0 * i as f64);
+    let tof = vars.pop().expect("tofgrid");
+    vars.push(scalar("wall_size", 0.5));
+    let meas_path = dir.join("meas_10min.mat");
+    std::fs::write(&meas_path, write(&vars, Options { compress: true, big_endian: false })).expect("write");
+    // Without tof.mat: a typed error naming the field.
+    let r = nlos_transient::read(&meas_path);
+    assert!(matches!(r, Err(TransientError::MissingField { ref field, .. }) if field == "tofgrid"), "{r:?}");
+    std::fs::write(dir.join("tof.mat"), write(&[tof], Options::default())).expect("write");
+    let t = nlos_transient::read(&meas_path).expect("read with tof.mat beside");
+    let (_, hi) = t.scan().lasers().bounds().expect("points");
+    assert!((hi.x - 0.25).abs() < 1e-6);
+    // Row i = 1 (bottom row, iy = 0) was shifted by one bin.
+    assert_eq!(t.histogram(0)[19], 2.0);
+    assert_eq!(t.histogram(3)[20], 1.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn lct_vars() -> Vec<Var> {
+    let vals: Vec<u16> = (0..4 * 4 * 8).map(|k| (k % 7) as u16).collect();
+    vec![stored("rect_data", &[4, 4, 8], mat5_writer::DOUBLE, Stored::U16(vals)), scalar("width", 0.3)]
+}
+
+fn read_err(vars: &[Var], format: Format) -> TransientError {
+    let f = Path::new("bad.mat");
+    let bytes = write(vars, Options::default());
+    match read_bytes_as(&bytes, format, f) {
+        Ok(_) => panic!("read a malformed {format} file"),
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(msg.contains("bad.mat"), "error does not name the file: {msg}");
+            e
+        }
+    }
+}
+
+#[test]
+fn every_prefix_is_an_error() {
+    let small_fk = fk_vars(2, 2, 24, &|_, _| 0.0);
+    let files: [(&str, Vec<Var>, Format); 3] = [
+        ("lct", lct_vars(), Format::LctMat),
+        ("tsai", tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE), Format::TsaiMat),
+        ("fk", small_fk, Format::FkMat),
+    ];
+    let f = Path::new("/nonexistent-nlos-dir/prefix.mat");
+    for (name, vars, format) in files {
+        for opt in [
+            Options::default(),
+            Options { compress: true, big_endian: false },
+            Options { compress: false, big_endian: true },
+        ] {
+            let bytes = write(&vars, opt);
+            assert!(read_bytes_as(&bytes, format, f).is_ok(), "{name} full file");
+            for n in 0..bytes.len() {
+                let p = &bytes[..n];
+                if let Ok(detected) = detect_bytes(p, f) {
+                    assert!(read_bytes_as(p, detected, f).is_err(), "{name} {opt:?}: prefix {n} read as {detected}");
+                }
+                assert!(read_bytes_as(p, format, f).is_err(), "{name} {opt:?}: prefix {n} read");
+            }
+        }
+    }
+}
+
+#[test]
+fn wrong_types_are_typed_errors() {
+    let mut vars = lct_vars();
+    vars[0] = char_var("rect_data", "not numbers");
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "rect_data"), "{e:?}");
+    vars[0] = cell_var("rect_data");
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "rect_data"), "{e:?}");
+    let mut vars = lct_vars();
+    vars[1] = char_var("width", "0.3");
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "width"), "{e:?}");
+    // Complex data.
+    let mut vars = lct_vars();
+    if let mat5_writer::Body::Numeric { complex, .. } = &mut vars[0].body {
+        *complex = true;
+    }
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongType { .. }), "{e:?}");
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    vars[1] = cell_var("lighting");
+    let e = read_err(&vars, Format::TsaiMat);
+    assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "lighting"), "{e:?}");
+}
+
+#[test]
+fn wrong_shapes_are_typed_errors() {
+    let mut vars = lct_vars();
+    vars[0] = double("rect_data", &[4, 32], vec![1.0; 128]);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "rect_data"), "{e:?}");
+    vars[0] = double("rect_data", &[4, 2, 16], vec![1.0; 128]);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "rect_data"), "{e:?}");
+    let mut vars = lct_vars();
+    vars[1] = double("width", &[1, 2], vec![0.3, 0.3]);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "width"), "{e:?}");
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    vars[1] = double("lighting", &[3, 2], vec![0.0; 6]);
+    let e = read_err(&vars, Format::TsaiMat);
+    assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "lighting"), "{e:?}");
+    let mut vars = fk_vars(2, 3, 24, &|_, _| 0.0);
+    vars[1] = double("tofgrid", &[3, 2], vec![0.0; 6]);
+    let e = read_err(&vars, Format::FkMat);
+    assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "tofgrid"), "{e:?}");
+}
+
+#[test]
+fn zero_sized_grid_nan_and_bad_width() {
+    let mut vars = lct_vars();
+    vars[0] = double("rect_data", &[0, 0, 8], vec![]);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::InvalidValue { ref field, .. } if field == "rect_data"), "{e:?}");
+    let mut vars = lct_vars();
+    let mut v = vec![1.0; 128];
+    v[77] = f64::NAN;
+    vars[0] = double("rect_data", &[4, 4, 8], v);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::NonFinite { ref field, index: 77, .. } if field == "rect_data"), "{e:?}");
+    let mut vars = lct_vars();
+    vars[1] = scalar("width", -0.3);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::InvalidValue { ref field, .. } if field == "width"), "{e:?}");
+    vars[1] = scalar("width", f64::INFINITY);
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::NonFinite { ref field, .. } if field == "width"), "{e:?}");
+    let vars = tsai_vars(3, 4, Stored::F64(vec![f64::INFINITY; 12]), mat5_writer::DOUBLE);
+    let e = read_err(&vars, Format::TsaiMat);
+    assert!(matches!(e, TransientError::NonFinite { ref field, index: 0, .. } if field == "transient"), "{e:?}");
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    vars[1] = double("lighting", &[3, 3], vec![0.0, 0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let e = read_err(&vars, Format::TsaiMat);
+    assert!(matches!(e, TransientError::NonFinite { ref field, .. } if field == "lighting"), "{e:?}");
+    let mut vars = fk_vars(2, 2, 24, &|_, _| 0.0);
+    vars[1] = double("tofgrid", &[2, 2], vec![0.0, f64::NAN, 0.0, 0.0]);
+    let e = read_err(&vars, Format::FkMat);
+    assert!(matches!(e, TransientError::NonFinite { ref field, .. } if field == "tofgrid"), "{e:?}");
+}
+
+#[test]
+fn missing_fields_and_unknown_layouts() {
+    let vars = vec![lct_vars().remove(0)];
+    let e = read_err(&vars, Format::LctMat);
+    assert!(matches!(e, TransientError::MissingField { ref field, .. } if field == "width"), "{e:?}");
+    let bytes = write(&[scalar("foo", 1.0), char_var("bar", "x")], Options::default());
+    match detect_bytes(&bytes, Path::new("other.mat")) {
+        Err(TransientError::UnknownFormat { reason, .. }) => {
+            assert!(reason.contains("`foo`") && reason.contains("`bar`"), "{reason}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn bad_zlib_stream_is_malformed() {
+    let bytes = write(&lct_vars(), Options { compress: true, big_endian: false });
+    let f = Path::new("z.mat");
+    // Corrupt the first compressed element beyond its zlib header: the deflate data.
+    let mut broken = bytes.clone();
+    for b in &mut broken[128 + 8 + 2..128 + 8 + 40] {
+        *b ^= 0x5a;
+    }
+    let r = read_bytes_as(&broken, Format::LctMat, f);
+    assert!(matches!(r, Err(TransientError::Malformed { .. } | TransientError::Truncated { .. })), "{r:?}");
+    // A stream that is not zlib at all.
+    let mut broken = bytes;
+    broken[128 + 8] = 0xff;
+    let r = detect_bytes(&broken, f);
+    assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
+}
+
+#[test]
+fn absurd_dimensions_do_not_allocate() {
+    // 2^20 × 2^20 = 2^40 elements declared, 16 bytes present.
+    let vars = vec![double("rect_data", &[1 << 20, 1 << 20, 1], vec![1.0, 2.0]), scalar("width", 0.3)];
+    for compress in [false, true] {
+        let r =
+            read_bytes_as(&write(&vars, Options { compress, big_endian: false }), Format::LctMat, Path::new("x.mat"));
+        assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
+    }
+    // Negative dimension, and an absurd element length in a tag.
+    let vars = vec![double("rect_data", &[-1, 4, 8], vec![]), scalar("width", 0.3)];
+    let r = read_bytes_as(&write(&vars, Options::default()), Format::LctMat, Path::new("x.mat"));
+    assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
+    let mut bytes = write(&lct_vars(), Options::default());
+    bytes[132..136].copy_from_slice(&u32::MAX.to_le_bytes());
+    let r = read_bytes_as(&bytes, Format::LctMat, Path::new("x.mat"));
+    assert!(matches!(r, Err(TransientError::Truncated { .. })), "{r:?}");
+}
+
+#[test]
+fn unsupported_version_and_bad_endian() {
+    let mut bytes = write(&lct_vars(), Options::default());
+    bytes[124..126].copy_from_slice(&0x0300u16.to_le_bytes());
+    let r = detect_bytes(&bytes, Path::new("v.mat"));
+    assert!(matches!(r, Err(TransientError::Unsupported { .. })), "{r:?}");
+    bytes[126..128].copy_from_slice(b"XX");
+    let r = detect_bytes(&bytes, Path::new("v.mat"));
+    assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
+}
