@@ -95,6 +95,7 @@ pub fn random_config(rng: &mut Pcg32, alpha: f64) -> (DVec3, DVec3, DVec3) {
 /// Textbook f64 reference of the GGX BRDF, written from the papers and independent of the crate:
 /// W07 eq. 20 with D from eq. 33 (tan form), G1 from eq. 34, G2 from H14 eq. 99 if `height_correlated`,
 /// Schlick F if `f0` is `Some`. Inputs are normalised first.
+#[allow(clippy::too_many_arguments)]
 pub fn reference_ggx(
     l: DVec3,
     s: DVec3,
