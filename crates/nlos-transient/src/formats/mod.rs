@@ -20,6 +20,7 @@ pub mod hdf5;
 pub mod mat;
 mod mat5;
 pub mod npy;
+mod sidecar;
 
 /// A transient file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
