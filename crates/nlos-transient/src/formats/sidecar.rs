@@ -162,12 +162,70 @@ pub(crate) fn to_json(
             sensor_device: scan.sensor_device.map(arr),
         },
     };
-    let out = if pretty { serde_json::to_vec_pretty(&header) } else { serde_json::to_vec(&header) };
+    let out = if pretty {
+        let mut buf = Vec::new();
+        let mut ser = serde_json::Serializer::with_formatter(&mut buf, ObjectsPretty::default());
+        header.serialize(&mut ser).map(|()| buf)
+    } else {
+        serde_json::to_vec(&header)
+    };
     out.map_err(|e| TransientError::CannotWrite {
         file: file.into(),
         format: format.into(),
         reason: format!("the geometry cannot be encoded as JSON: {e}"),
     })
+}
+
+/// A JSON formatter that indents objects (one key per line) but prints arrays on one line, so that a
+/// sidecar stays readable: `"x": [-0.25,0.0,0.25]` rather than one number per line.
+#[derive(Default)]
+struct ObjectsPretty {
+    indent: usize,
+    has_value: bool,
+}
+
+impl ObjectsPretty {
+    fn newline<W: ?Sized + std::io::Write>(&self, w: &mut W) -> std::io::Result<()> {
+        w.write_all(b"\n")?;
+        (0..self.indent).try_for_each(|_| w.write_all(b"  "))
+    }
+}
+
+impl serde_json::ser::Formatter for ObjectsPretty {
+    fn begin_array_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W, first: bool) -> std::io::Result<()> {
+        if first { Ok(()) } else { w.write_all(b",") }
+    }
+
+    fn begin_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        self.indent += 1;
+        self.has_value = false;
+        w.write_all(b"{")
+    }
+
+    fn end_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        self.indent = self.indent.saturating_sub(1);
+        if self.has_value {
+            self.newline(w)?;
+        }
+        self.has_value = true;
+        w.write_all(b"}")
+    }
+
+    fn begin_object_key<W: ?Sized + std::io::Write>(&mut self, w: &mut W, first: bool) -> std::io::Result<()> {
+        if !first {
+            w.write_all(b",")?;
+        }
+        self.newline(w)
+    }
+
+    fn begin_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        w.write_all(b": ")
+    }
+
+    fn end_object_value<W: ?Sized + std::io::Write>(&mut self, _w: &mut W) -> std::io::Result<()> {
+        self.has_value = true;
+        Ok(())
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------------
