@@ -1,29 +1,94 @@
-//! The `nlos` command line.
+//! The `nlos` command line: inspect, convert and preview transient captures.
+//!
+//! Every subcommand composes calls into the library crates ([`nlos_transient`] for data and operations,
+//! [`nlos_viz`] for figures); the command line itself only parses arguments and prints.
+//!
+//! Exit codes: 0 on success, 2 for bad input (an unreadable, truncated or malformed file, an argument out
+//! of range, a usage error), 1 for other failures (an output that cannot be written, a figure that cannot
+//! be encoded). Errors are printed to stderr as `error: <message>`.
 
-use clap::Parser;
+mod convert;
+mod info;
+mod preview;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use nlos_transient::TransientError;
 
 /// Non-line-of-sight imaging: inspect, convert and preview transient captures.
 #[derive(Debug, Parser)]
 #[command(name = "nlos", version, about)]
-enum Cli {
-    /// Print format, geometry and time axis of a capture.
-    Info {
-        /// The capture file.
-        file: std::path::PathBuf,
-    },
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
 }
 
-fn main() -> std::process::ExitCode {
-    match Cli::parse() {
-        Cli::Info { file } => match nlos_transient::read(&file) {
-            Ok(t) => {
-                println!("{} measurements × {} bins", t.measurements(), t.bins());
-                std::process::ExitCode::SUCCESS
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print the format, scan geometry, time axis, total counts and peak depth of a capture.
+    Info {
+        /// The capture file (any readable format, detected from its content).
+        file: PathBuf,
+        /// Print machine-readable JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a capture to another format, optionally transforming it on the way.
+    ///
+    /// Transformations apply in this order: --remove-legs, --crop-bins, --gate, --rebin, --subsample.
+    Convert(convert::Args),
+    /// Draw a PNG preview: the time-summed image beside an x–t slice (log scale), axes in metres.
+    ///
+    /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
+    /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
+    Preview(preview::Args),
+}
+
+/// A failure, with the exit code it maps to.
+#[derive(Debug)]
+pub(crate) enum CliError {
+    /// Bad input: exit code 2.
+    Input(String),
+    /// Anything else: exit code 1.
+    Failure(String),
+}
+
+impl CliError {
+    /// An error from reading or transforming the input: bad input (exit 2).
+    pub(crate) fn input(e: TransientError) -> Self {
+        CliError::Input(e.to_string())
+    }
+
+    /// An error from writing an output: exit 2 when the transient cannot be represented in the format
+    /// (the user's choice), 1 otherwise.
+    pub(crate) fn output(e: TransientError) -> Self {
+        match e {
+            TransientError::CannotWrite { .. } | TransientError::InvalidArgument { .. } => {
+                CliError::Input(e.to_string())
             }
-            Err(e) => {
-                eprintln!("error: {e}");
-                std::process::ExitCode::FAILURE
-            }
-        },
+            other => CliError::Failure(other.to_string()),
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Info { file, json } => info::run(&file, json),
+        Command::Convert(args) => convert::run(&args),
+        Command::Preview(args) => preview::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Input(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(2)
+        }
+        Err(CliError::Failure(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(1)
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! A small embedded bitmap font: 5 × 7 pixel glyphs (plus one descender row) in a 6 × 10 cell.
 //!
-//! Covers digits, ASCII letters, space and `. , - + ( ) / : = _ % [ ] < > ' | * # ? ! "` plus `×` and
+//! Covers digits, ASCII letters, space and `. , ; - + ( ) / : = _ % [ ] < > ' | * # ? ! "` plus `×` and
 //! `µ`; any other character draws as a hollow box. Text is drawn at an integer `scale` (each font pixel
 //! becomes a `scale × scale` block).
 
@@ -83,6 +83,7 @@ pub fn glyph(c: char) -> [u8; 8] {
         'z' => [0, 0, 0b11111, 0b00010, 0b00100, 0b01000, 0b11111, 0],
         '.' => [0, 0, 0, 0, 0, 0b01100, 0b01100, 0],
         ',' => [0, 0, 0, 0, 0, 0b01100, 0b00100, 0b01000],
+        ';' => [0, 0b01100, 0b01100, 0, 0, 0b01100, 0b00100, 0b01000],
         '-' | '–' | '−' => [0, 0, 0, 0b01110, 0, 0, 0, 0],
         '+' => [0, 0b00100, 0b00100, 0b11111, 0b00100, 0b00100, 0, 0],
         '(' => [0b00010, 0b00100, 0b01000, 0b01000, 0b01000, 0b00100, 0b00010, 0],
@@ -221,7 +222,7 @@ mod tests {
     #[test]
     fn every_listed_character_has_a_glyph_and_unknown_is_a_box() {
         let boxed = glyph('\u{2603}');
-        for c in "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz.-+()/: ,=_%[]<>'|*#?!\"×µ".chars() {
+        for c in "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz.-+()/: ,;=_%[]<>'|*#?!\"×µ".chars() {
             assert!(glyph(c) != boxed, "{c}");
             assert!(glyph(c).iter().all(|&r| r < 32), "{c}");
         }

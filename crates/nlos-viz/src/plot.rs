@@ -265,13 +265,15 @@ impl<'a> Panel<'a> {
         let ch = text_height(s);
         let (pad, gap, tick) = (4 * s, 2 * s, 4 * s);
 
-        let x_ticks = axis_ticks(&xn, w, text_width("-0.00", s) + 4 * ch);
-        let y_ticks = axis_ticks(&yn, h, 3 * ch);
+        let along_x = |l: &str| text_width(l, s);
+        let along_y = |_: &str| ch;
+        let x_ticks = axis_ticks(&xn, w, 2 * ch, &along_x);
+        let y_ticks = axis_ticks(&yn, h, 2 * ch, &along_y);
         let y_label_w = y_ticks.iter().map(|(_, l)| text_width(l, s)).max().unwrap_or(0);
 
         let colorbar = match &self.content {
             PanelContent::Image { norm, colormap, colorbar: Some(label), .. } => {
-                let ticks = axis_ticks(norm, h, 3 * ch);
+                let ticks = axis_ticks(norm, h, 2 * ch, &along_y);
                 let lw = ticks.iter().map(|(_, l)| text_width(l, s)).max().unwrap_or(0);
                 Some((norm, *colormap, label.as_str(), ticks, lw))
             }
@@ -411,21 +413,32 @@ fn pos(norm: &Norm, v: f64, n: usize, flip: bool) -> i64 {
     if flip { n as i64 - 1 - p } else { p }
 }
 
-/// Tick values and labels for an axis of `len` pixels, keeping about `spacing` pixels between ticks.
-fn axis_ticks(norm: &Norm, len: usize, spacing: usize) -> Vec<(f64, String)> {
+/// Tick values and labels for an axis of `len` pixels: the most ticks whose labels keep `gap` pixels
+/// between neighbours, where `extent` gives a label's size along the axis (its width on a horizontal axis).
+fn axis_ticks(norm: &Norm, len: usize, gap: usize, extent: &dyn Fn(&str) -> usize) -> Vec<(f64, String)> {
     let (lo, hi) = norm.range();
-    match norm.scale() {
+    let fits = |ticks: &[(f64, String)]| {
+        ticks.windows(2).all(|p| {
+            let d = (f64::from(norm.apply(p[1].0)) - f64::from(norm.apply(p[0].0))).abs() * len as f64;
+            d >= ((extent(&p[0].1) + extent(&p[1].1)) / 2 + gap) as f64
+        })
+    };
+    let candidates: Vec<Vec<(f64, String)>> = match norm.scale() {
         Scale::Log { .. } => {
             let t = log_ticks(lo, hi);
-            let stride = t.len().div_ceil((len / spacing.max(1)).max(2));
-            t.into_iter().step_by(stride.max(1)).map(|v| (v, format_log_tick(v))).collect()
+            (1..=t.len().max(1))
+                .map(|stride| t.iter().step_by(stride).map(|&v| (v, format_log_tick(v))).collect())
+                .collect()
         }
-        Scale::Linear => {
-            let max_ticks = (len / spacing.max(1)).max(2);
-            let step = nice_step(hi - lo, max_ticks).unwrap_or(1.0);
-            nice_ticks(lo, hi, max_ticks).into_iter().map(|v| (v, format_tick(v, step))).collect()
-        }
-    }
+        Scale::Linear => (2..=(len / gap.max(1)).clamp(2, 40))
+            .rev()
+            .map(|n| {
+                let step = nice_step(hi - lo, n).unwrap_or(1.0);
+                nice_ticks(lo, hi, n).into_iter().map(|v| (v, format_tick(v, step))).collect()
+            })
+            .collect(),
+    };
+    candidates.iter().find(|t| fits(t)).or(candidates.last()).cloned().unwrap_or_default()
 }
 
 /// Panels laid out in rows under a title and optional note lines.

@@ -1,0 +1,185 @@
+//! `nlos info`: what a capture holds.
+
+use std::path::Path;
+
+use nlos_transient::{Format, Layout, PointSet, SPEED_OF_LIGHT, Transient};
+use serde_json::{Value, json};
+
+use crate::CliError;
+
+/// The depth (or path) of the summed-histogram peak, as far as it is defined for this capture.
+struct Peak {
+    /// Depth from the wall (confocal only), metres.
+    depth: Option<f64>,
+    /// Path length of the peak, metres.
+    path: Option<f64>,
+    /// The direct-light gate used, metres of path.
+    gate: Option<f64>,
+    /// How it was obtained, or why it is missing.
+    note: String,
+}
+
+fn peak(t: &Transient) -> Peak {
+    let mut note = String::new();
+    let removed;
+    let t = if t.time().includes_device_legs {
+        match t.remove_device_legs() {
+            Ok(r) => {
+                removed = r;
+                note.push_str("after removing the device legs; ");
+                &removed
+            }
+            Err(e) => {
+                return Peak { depth: None, path: None, gate: None, note: format!("not computed: {e}") };
+            }
+        }
+    } else {
+        t
+    };
+    let gate = t.direct_light_end();
+    note.push_str(&format!("summed histogram after gating the direct light before {gate:.4} m of path"));
+    let path = t.summed_peak_path(Some(gate));
+    let depth = if t.scan().is_confocal() { t.summed_peak_depth(Some(gate)).ok() } else { None };
+    match path {
+        Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), note },
+        Err(e) => Peak { depth: None, path: None, gate: Some(gate), note: format!("not computed: {e}") },
+    }
+}
+
+fn points_json(p: &PointSet) -> Value {
+    match p.layout {
+        Layout::Grid { nx, ny } => json!({ "layout": "grid", "nx": nx, "ny": ny, "points": p.len() }),
+        Layout::List => json!({ "layout": "list", "points": p.len() }),
+    }
+}
+
+fn points_text(p: &PointSet) -> String {
+    match p.layout {
+        Layout::Grid { nx, ny } => format!("grid {nx} × {ny} ({} points)", p.len()),
+        Layout::List => format!("list of {} points", p.len()),
+    }
+}
+
+/// An `f32` as the `f64` with the same shortest decimal form (`0.2f32` → `0.2`, not `0.20000000298…`).
+fn short(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(f64::from(v))
+}
+
+/// Formats `v` with at most `decimals` decimals, trailing zeros removed.
+fn num(v: f64, decimals: usize) -> String {
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s };
+    if s == "-0" { "0".into() } else { s }
+}
+
+/// Runs `nlos info`.
+pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
+    let t = nlos_transient::read(file).map_err(CliError::input)?;
+    let format = detected_format(file)?;
+    let scan = t.scan();
+    let ax = t.time();
+    let all_points: Vec<_> = scan.lasers().points.iter().chain(&scan.sensors().points).copied().collect();
+    let (lo, hi) = PointSet::list(all_points).bounds().unwrap_or_default();
+    let total: f64 = t.summed_histogram().iter().sum();
+    let peak = peak(&t);
+    let ps = ax.bin_width / SPEED_OF_LIGHT * 1e12;
+
+    if as_json {
+        let device = |d: Option<[f32; 3]>| d.map_or(Value::Null, |d| json!(d.map(short)));
+        let out = json!({
+            "file": file.display().to_string(),
+            "format": format.name(),
+            "format_description": describe(format),
+            "scan": {
+                "pattern": if scan.is_confocal() { "confocal" } else { "exhaustive" },
+                "measurements": t.measurements(),
+                "lasers": points_json(scan.lasers()),
+                "sensors": points_json(scan.sensors()),
+                "wall_extent_m": { "min": lo.to_array().map(short), "max": hi.to_array().map(short) },
+                "laser_device_m": device(scan.laser_device.map(|d| d.to_array())),
+                "sensor_device_m": device(scan.sensor_device.map(|d| d.to_array())),
+            },
+            "time": {
+                "bins": ax.bins,
+                "bin_width_m": ax.bin_width,
+                "bin_width_ps": ps,
+                "t0_m": ax.t0,
+                "t_end_m": ax.end(),
+                "includes_device_legs": ax.includes_device_legs,
+            },
+            "total_counts": total,
+            "peak": {
+                "depth_m": peak.depth,
+                "path_m": peak.path,
+                "direct_light_gate_m": peak.gate,
+                "note": peak.note,
+            },
+        });
+        let text = serde_json::to_string_pretty(&out).map_err(|e| CliError::Failure(e.to_string()))?;
+        println!("{text}");
+        return Ok(());
+    }
+
+    let geometry = if scan.is_confocal() {
+        format!("confocal, {}", points_text(scan.sensors()))
+    } else {
+        format!("exhaustive, lasers: {}; sensors: {}", points_text(scan.lasers()), points_text(scan.sensors()))
+    };
+    let device = |d: Option<[f32; 3]>| {
+        d.map_or("unknown".to_string(), |[x, y, z]| {
+            format!("({}, {}, {}) m", num(f64::from(x), 4), num(f64::from(y), 4), num(f64::from(z), 4))
+        })
+    };
+    println!("file:          {}", file.display());
+    println!("format:        {} ({})", format.name(), describe(format));
+    println!("scan:          {geometry}, {} measurements", t.measurements());
+    println!(
+        "wall extent:   x {} .. {} m, y {} .. {} m, z {} .. {} m",
+        num(f64::from(lo.x), 4),
+        num(f64::from(hi.x), 4),
+        num(f64::from(lo.y), 4),
+        num(f64::from(hi.y), 4),
+        num(f64::from(lo.z), 4),
+        num(f64::from(hi.z), 4)
+    );
+    println!(
+        "devices:       laser {}, sensor {}",
+        device(scan.laser_device.map(|d| d.to_array())),
+        device(scan.sensor_device.map(|d| d.to_array()))
+    );
+    println!("time axis:     {} bins of {} mm ({} ps) of path length", ax.bins, num(ax.bin_width * 1e3, 4), num(ps, 3));
+    println!(
+        "path range:    {} .. {} m ({} the device legs)",
+        num(ax.t0, 4),
+        num(ax.end(), 4),
+        if ax.includes_device_legs { "times include" } else { "times exclude" }
+    );
+    println!("total counts:  {}", num(total, 3));
+    match (peak.depth, peak.path) {
+        (Some(d), _) => println!("peak depth:    {} m ({})", num(d, 4), peak.note),
+        (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
+        _ => println!("peak depth:    n/a ({})", peak.note),
+    }
+    Ok(())
+}
+
+/// The format of a readable file; a `.json` sidecar stands for its `.npy`.
+pub(crate) fn detected_format(file: &Path) -> Result<Format, CliError> {
+    nlos_transient::detect(file)
+        .or_else(|e| if file.extension().is_some_and(|x| x == "json") { Ok(Format::NpyJson) } else { Err(e) })
+        .map_err(CliError::input)
+}
+
+/// A one-line description of a format.
+pub(crate) fn describe(f: Format) -> &'static str {
+    match f {
+        Format::LctMat => "Stanford LCT .mat",
+        Format::TsaiMat => "Tsai 2019 .mat",
+        Format::FkMat => "Stanford f-k .mat",
+        Format::ZNlos => "Zaragoza Z-NLOS HDF5",
+        Format::Tal => "y-tal HDF5_TAL",
+        Format::NpyJson => ".npy + .json sidecar",
+        Format::Exr => "OpenEXR",
+        _ => "other",
+    }
+}
