@@ -89,7 +89,8 @@ impl SurfaceMesh {
             for k in 0..3 {
                 mesh.set_next(hs[k], hs[(k + 1) % 3]);
             }
-            mesh.fhalfedge[f.idx()] = hs[0];
+            // store the halfedge ending at t[0] so that `face_vertices` returns the input order
+            mesh.fhalfedge[f.idx()] = hs[2];
         }
 
         // Outgoing face halfedges per vertex, to find fans.

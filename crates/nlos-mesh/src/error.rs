@@ -120,7 +120,6 @@ pub enum MeshError {
 
 impl MeshError {
     /// Shorthand for [`MeshError::Format`].
-    #[allow(dead_code)]
     pub(crate) fn format(file: &str, field: impl Into<String>, message: impl Into<String>) -> Self {
         MeshError::Format { file: file.to_owned(), field: field.into(), message: message.into() }
     }

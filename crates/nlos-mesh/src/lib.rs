@@ -30,6 +30,7 @@ mod analysis;
 mod build;
 mod error;
 mod handles;
+pub mod io;
 mod property;
 pub mod shapes;
 mod surface_mesh;

@@ -1,0 +1,81 @@
+//! Mesh files: OBJ (read through `tobj`, written here), PLY (ASCII and binary, read and written here) and
+//! GLB export (glTF 2.0 binary container, written here).
+//!
+//! Readers take bytes plus a file name (used only in messages) so they can be fuzzed; writers return
+//! bytes. [`load`] and [`save`] add the file system: `load` detects the format from the content (PLY and
+//! GLB by their magic, anything else is parsed as OBJ), `save` picks it from the extension and writes
+//! atomically (temporary file + rename). Every reader returns a [`MeshError`] on malformed input and
+//! never panics; allocations are bounded by the input size.
+
+mod glb;
+mod obj;
+mod ply;
+
+use std::path::Path;
+
+pub use glb::{read_glb, write_glb};
+pub use obj::{read_obj, write_obj};
+pub use ply::{PlyEncoding, read_ply, write_ply};
+
+use crate::build::BuildOptions;
+use crate::error::MeshError;
+use crate::surface_mesh::SurfaceMesh;
+
+/// Indexed triangles as read from a file, before half-edge construction (so that callers can repair
+/// them, e.g. with [`crate::orient_triangles`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriangleSoup {
+    /// Vertex positions.
+    pub positions: Vec<glam::Vec3>,
+    /// Triangles (polygons are fan-triangulated by the readers).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriangleSoup {
+    /// Builds the half-edge mesh (see [`SurfaceMesh::from_triangles_with`]).
+    pub fn into_mesh(self, options: BuildOptions) -> Result<SurfaceMesh, MeshError> {
+        SurfaceMesh::from_triangles_with(&self.positions, &self.triangles, options)
+    }
+}
+
+/// Reads a mesh file of any supported format, detected from its content, and builds the half-edge mesh
+/// with default [`BuildOptions`].
+pub fn load(path: impl AsRef<Path>) -> Result<SurfaceMesh, MeshError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io { file: path.to_owned(), source })?;
+    read_any(&bytes, &path.display().to_string())?.into_mesh(BuildOptions::default())
+}
+
+/// Parses bytes of any supported format (detected from the content) into a triangle soup.
+pub fn read_any(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
+    if bytes.starts_with(b"ply") {
+        read_ply(bytes, file)
+    } else if bytes.starts_with(b"glTF") {
+        read_glb(bytes, file)
+    } else {
+        read_obj(bytes, file)
+    }
+}
+
+/// Writes `mesh` to `path` in the format named by the extension (`obj`, `ply` = binary little-endian PLY,
+/// `glb`), atomically.
+pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError> {
+    let path = path.as_ref();
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let bytes = match ext.as_str() {
+        "obj" => write_obj(mesh),
+        "ply" => write_ply(mesh, PlyEncoding::BinaryLittleEndian),
+        "glb" => write_glb(mesh),
+        _ => {
+            return Err(MeshError::format(
+                &path.display().to_string(),
+                "extension",
+                "unknown mesh extension; use .obj, .ply or .glb",
+            ));
+        }
+    };
+    let io = |source| MeshError::Io { file: path.to_owned(), source };
+    let tmp = path.with_extension(format!("{ext}.tmp"));
+    std::fs::write(&tmp, &bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
