@@ -527,3 +527,19 @@ mod smallvec {
         list
     }
 }
+
+#[test]
+fn large_point_lists_round_trip() -> R {
+    // 20 000 irregular points: a long JSON in the sidecar and in the EXR text attribute.
+    let mut set = PointSet::list(odd_points(20_000, 0.77));
+    set.normals[7] = Vec3::new(0.6, 0.0, 0.8);
+    let t = make(Scan::confocal(set), false, 2)?;
+    let dir = tmp_dir("large_lists");
+    for (format, ext) in [(Format::NpyJson, "npy"), (Format::Exr, "exr")] {
+        let path = dir.join(format!("big.{ext}"));
+        nlos_transient::write(&t, &path, format)?;
+        assert_bit_exact(&t, &nlos_transient::read(&path)?, ext);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    Ok(())
+}
