@@ -1,0 +1,58 @@
+//! [`RenderBrdf`]: what the renderer needs from an `nlos_brdf` model beyond [`Brdf`] — its parameters as a
+//! flat vector, so gradients and finite differences can be written once for every model.
+
+use nlos_brdf::{Brdf, Fresnel, Ggx, GgxGrad, Lambertian, LambertianGrad};
+
+use crate::error::Result;
+
+/// An `f32` BRDF whose parameters the renderer differentiates.
+pub trait RenderBrdf: Brdf<Scalar = f32> {
+    /// Parameter names, in the order of [`RenderBrdf::params`] and of `Gradient::brdf`.
+    const PARAM_NAMES: &'static [&'static str];
+    /// The parameter vector.
+    fn params(&self) -> Vec<f32>;
+    /// The same model with other parameter values (validated by the model's constructor).
+    ///
+    /// # Errors
+    /// [`crate::RenderError::Brdf`] when a value is out of the model's domain.
+    fn with_params(&self, params: &[f32]) -> Result<Self>;
+    /// `∂f/∂(parameters)` as an array (first `PARAM_NAMES.len()` entries used).
+    fn param_grad_array(g: &Self::ParamGrad) -> [f32; 4];
+}
+
+impl RenderBrdf for Lambertian<f32> {
+    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
+    fn params(&self) -> Vec<f32> {
+        vec![self.albedo()]
+    }
+    fn with_params(&self, params: &[f32]) -> Result<Self> {
+        Ok(Lambertian::new(params.first().copied().unwrap_or(f32::NAN))?)
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &LambertianGrad<f32>) -> [f32; 4] {
+        [g.albedo, 0.0, 0.0, 0.0]
+    }
+}
+
+impl RenderBrdf for Ggx<f32> {
+    const PARAM_NAMES: &'static [&'static str] = &["albedo_diffuse", "specular", "alpha", "f0"];
+    fn params(&self) -> Vec<f32> {
+        let f0 = match self.fresnel() {
+            Fresnel::One => 1.0,
+            Fresnel::Schlick { f0 } => f0,
+        };
+        vec![self.albedo_diffuse(), self.specular(), self.alpha(), f0]
+    }
+    fn with_params(&self, p: &[f32]) -> Result<Self> {
+        let get = |i: usize| p.get(i).copied().unwrap_or(f32::NAN);
+        let fresnel = match self.fresnel() {
+            Fresnel::One => Fresnel::One,
+            Fresnel::Schlick { .. } => Fresnel::Schlick { f0: get(3) },
+        };
+        Ok(Ggx::new(get(0), get(1), get(2), fresnel)?.with_masking(self.masking()))
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &GgxGrad<f32>) -> [f32; 4] {
+        [g.albedo_diffuse, g.specular, g.alpha, g.f0]
+    }
+}

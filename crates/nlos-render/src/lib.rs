@@ -1,0 +1,94 @@
+//! # nlos-render
+//!
+//! Forward and adjoint (reverse-mode) transient renderer of a triangle mesh for non-line-of-sight surface
+//! reconstruction, after Tsai, Sankaranarayanan & Gkioulekas, "Beyond Volumetric Albedo — A Surface
+//! Optimization Framework for Non-Line-of-Sight Imaging", CVPR 2019 (equation numbers below are theirs).
+//! It takes plain positions `&[Vec3]` and triangles `&[[u32; 3]]` and knows no file formats.
+//!
+//! ```
+//! use glam::Vec3;
+//! use nlos_brdf::Lambertian;
+//! use nlos_render::{Renderer, RenderParams};
+//! use nlos_transient::{PointSet, Scan, TimeAxis};
+//! let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.2, 0.2)?);
+//! let time = TimeAxis::new(0.0, 0.01, 200)?;
+//! // A small square at z = 0.5 facing the wall (normal (v1−v0)×(v2−v0) = −z).
+//! let p = [Vec3::new(-0.1, -0.1, 0.5), Vec3::new(0.1, 0.1, 0.5), Vec3::new(0.1, -0.1, 0.5), Vec3::new(-0.1, 0.1, 0.5)];
+//! let r = Renderer::new(&p, &[[0, 1, 2], [0, 3, 1]], &scan, &time, RenderParams::default())?;
+//! let brdf = Lambertian::new(1.0f32)?;
+//! let data = r.forward(&brdf);
+//! assert!(data.iter().sum::<f32>() > 0.0);
+//! let grad = r.adjoint(&brdf, &vec![1.0; data.len()])?; // d(Σ I)/d(vertices)
+//! assert_eq!(grad.vertices.len(), 4);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! ## The model (eq. 1–5)
+//! For a measurement with laser spot `l` (wall normal `n_l`) and sensor spot `s` (wall normal `n_s`),
+//! ```text
+//! I_k(l, s) = ∫_S K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x),          τ(x) = |x − l| + |x − s|     (1), (4)
+//! f(x) = f_s(ω_l, ω_s, n) · ⟨−ω_l, n_l⟩⟨ω_l, n⟩/|x − l|² · ⟨−ω_s, n_s⟩⟨ω_s, n⟩/|x − s|²         (2)
+//! ```
+//! with `ω_l = (l − x)/|l − x|`, `ω_s = (s − x)/|s − x|`, every cosine clamped at 0, and `K_k` the
+//! temporal kernel of bin k ([`Kernel`]: the box of eq. (3), or a differentiable tent / Gaussian). Faces are
+//! one-sided: triangle `(v0, v1, v2)` reflects only when `l` and `s` are both on the side of its geometric
+//! normal `N = (v1 − v0) × (v2 − v0)` ([`RenderParams::two_sided`] lifts this). Only three-bounce paths
+//! `l → x → s` are modelled (no interreflection).
+//!
+//! ## Scale convention
+//! The relay wall is Lambertian and its own BRDF factors (`ρ_w/π` at l and at s) are **left out**: a unit
+//! transient is "f integrated", nothing more. The shared reference data
+//! (`shared/data/reference/README.md`, section 3) include `(ρ_w/π)²` with `ρ_w = 1`, so for the same
+//! surface BRDF **reference = ours / π²** (for a Lambertian ρ = 1 surface, `f_s = 1/π` and the reference is
+//! `π⁻³ ∫ cos²θ_s cos²θ_x / r⁴ dA`; ours is `π⁻¹ ∫ …`). The tests check this factor against the references.
+//!
+//! ## Discretisation
+//! Per triangle, with `x(u, v) = v0 + u e1 + v e2` (`e1 = v1 − v0`, `e2 = v2 − v0`) and area `A = |N|/2`,
+//! `∫_t h dA = A ∫∫ h(x(u,v)) 2 du dv`, estimated as `A Σ_i w_i h(x(u_i, v_i))` with `Σ w_i = 1`
+//! ([`Sampling::Deterministic`]: centroids of `n²` sub-triangles; [`Sampling::Stratified`]: jittered
+//! area samples). Writing everything in the unnormalised `a = l − x`, `b = s − x`, `N`:
+//! ```text
+//! A · f = f_s(a, b, N) · Q,   Q = c_l p_l c_s p_s / (2 |N| |a|⁴ |b|⁴)
+//! c_l = −n_l·a, p_l = N·a, c_s = −n_s·b, p_s = N·b
+//! ```
+//! (the area `|N|/2` times the two unit-normal cosines `p/(|N| r)` leaves one `1/|N|`).
+//!
+//! ## Gradients (Proposition 1, complete)
+//! The adjoint pass receives `a_k = dE/dI_k` and, per sample, gathers `A_val = Σ_k a_k K_k(τ)` and
+//! `A_der = Σ_k a_k dK_k/dτ` with the SAME kernel as the forward pass. With `h = f_s Q` and the samples'
+//! barycentric coordinates held fixed (so the integration domain moves with the vertices, which turns the
+//! area change into the `1/|N|` and `|N|`-terms of Q), visibility held fixed:
+//! ```text
+//! dE/da = w [A_val (f_s ∂Q/∂a + Q ∂f_s/∂ω_l) + h A_der a/|a|]          (likewise b)
+//! dE/dN = w A_val (f_s ∂Q/∂N + Q ∂f_s/∂n)
+//! ∂Q/∂a = c_s p_s/(2|N||a|⁴|b|⁴) (c_l N − p_l n_l) − 4 Q a/|a|²
+//! ∂Q/∂N = c_l c_s (p_s a + p_l b)/(2|N||a|⁴|b|⁴) − Q N/|N|²
+//! ```
+//! and then `dE/dx = −(dE/da + dE/db)` distributed to the vertices with weights `(1−u−v, u, v)` (the
+//! position term), `dE/de1 = e2 × dE/dN`, `dE/de2 = dE/dN × e1` (the normal and area terms; `e1 = v1 − v0`,
+//! `e2 = v2 − v0`). The BRDF gradients `∂f_s/∂ω_l, ∂f_s/∂ω_s, ∂f_s/∂n` of `nlos_brdf` are with respect to
+//! the raw vectors, so they chain straight into `a, b, N`. The original implementation dropped the
+//! `∂/∂N` term and used different kernels in the two passes; both are fixed here.
+//!
+//! ## Performance
+//! Parallel over measurements with rayon: the forward pass owns one histogram per measurement, the adjoint
+//! folds per-thread f64 vertex accumulators and reduces them, so the hot loop takes no lock. Triangles are
+//! stored as structure of arrays (`v0`, `e1`, `e2`, `N`).
+#![warn(missing_docs)]
+// `!(x > 0.0)` is deliberate: it is also true for NaN, which is how non-finite values fall into the skip
+// branches.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod brdf;
+pub mod error;
+pub mod kernel;
+pub mod loss;
+pub mod render;
+mod rng;
+mod visibility;
+
+pub use brdf::RenderBrdf;
+pub use error::{RenderError, Result};
+pub use kernel::Kernel;
+pub use loss::Loss;
+pub use render::{DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, Sampling, Visibility};

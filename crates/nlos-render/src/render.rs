@@ -1,0 +1,693 @@
+//! The renderer: geometry in structure-of-arrays form, the forward pass (eq. 1–5 of Tsai et al. 2019) and
+//! the adjoint pass (Proposition 1, with the normal and area terms). See the crate docs for the derivation.
+
+use glam::{DVec3, Vec3};
+use nlos_transient::{Scan, TimeAxis, Transient};
+use rayon::prelude::*;
+
+use crate::brdf::RenderBrdf;
+use crate::error::{RenderError, Result};
+use crate::kernel::{Kernel, KernelEval};
+use crate::loss::Loss;
+use crate::rng::SplitMix64;
+use crate::visibility::Bvh;
+
+/// The deterministic barycentric rule: triangle `t` is cut, for measurement `m`, into `n²` congruent
+/// sub-triangles (n per edge) and each contributes its centroid value times its area (the centroid rule).
+/// `n` is the smallest level at which a sub-triangle spans at most `max_bin_fraction` bins of path length,
+/// estimated as `range/n + e²/(n² r_min)` (the range of τ over the three vertices, plus the deviation of τ
+/// from linear: its Hessian has norm ≤ 2/r_min, r_min the smallest vertex–spot distance, e the longest
+/// edge), clamped to `[min_level, max_level]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeterministicRule {
+    /// Largest path-length span of a sub-triangle, in bins (> 0). Default 0.5.
+    pub max_bin_fraction: f32,
+    /// Smallest subdivision level n (≥ 1). Default 1.
+    pub min_level: u32,
+    /// Largest subdivision level n (≥ min_level); caps the cost at n² samples per (triangle, measurement).
+    /// Default 64. Set `min_level = max_level` for a fixed rule (smooth in the vertices: use it for finite
+    /// differences).
+    pub max_level: u32,
+}
+
+impl Default for DeterministicRule {
+    fn default() -> Self {
+        Self { max_bin_fraction: 0.5, min_level: 1, max_level: 64 }
+    }
+}
+
+impl DeterministicRule {
+    /// A fixed level `n` for every (triangle, measurement).
+    pub fn fixed(n: u32) -> Self {
+        Self { max_bin_fraction: 1.0, min_level: n, max_level: n }
+    }
+}
+
+/// How the surface integral of eq. (1) is estimated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Sampling {
+    /// Noise-free quadrature (see [`DeterministicRule`]). The default.
+    Deterministic(DeterministicRule),
+    /// The seed's stratified area sampling: per measurement, `samples_per_measurement` samples are spread
+    /// over the mesh in proportion to triangle area (triangle t gets ⌊c_t⌋ or ⌈c_t⌉ samples, c_t = N A_t/A,
+    /// randomised so the expected count is c_t), each sample weighted `A/N`, jittered (stratified along the
+    /// area-preserving square-to-triangle map). Unbiased; seeded per (seed, measurement, triangle).
+    Stratified {
+        /// Expected samples per measurement over the whole mesh (> 0).
+        samples_per_measurement: u32,
+        /// Seed.
+        seed: u64,
+    },
+}
+
+impl Default for Sampling {
+    fn default() -> Self {
+        Sampling::Deterministic(DeterministicRule::default())
+    }
+}
+
+/// How v(x, l) v(x, s) of eq. (1) is evaluated. In the adjoint pass visibility is always held fixed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Visibility {
+    /// Everything visible (convex scenes, or to ignore occlusion).
+    Off,
+    /// A shadow ray per sample (toward l, and toward s when not confocal). The default.
+    #[default]
+    Live,
+    /// A visible fraction per (triangle, measurement), from the `level²` sub-triangle centroids, stored as
+    /// a byte and multiplied into every sample of that pair. Computed by [`Renderer::new`] and
+    /// [`Renderer::refresh_visibility`] only; [`Renderer::set_positions`] keeps it (refresh after remeshing or
+    /// large moves). Memory: one byte per (triangle, measurement).
+    Cached {
+        /// Sub-triangle level of the visibility rays (≥ 1; 1 = one ray at the centroid).
+        level: u32,
+    },
+}
+
+/// Parameters of a [`Renderer`] (defaults: tent kernel, deterministic default rule, live visibility,
+/// one-sided faces).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderParams {
+    /// Temporal kernel, used in both passes.
+    pub kernel: Kernel,
+    /// Surface sampling.
+    pub sampling: Sampling,
+    /// Visibility.
+    pub visibility: Visibility,
+    /// Whether back faces reflect too (default false: a face reflects only when l and s are both on the
+    /// side of its geometric normal `(v1−v0)×(v2−v0)`).
+    pub two_sided: bool,
+}
+
+/// dE/d(vertex positions) and dE/d(BRDF parameters) from the adjoint pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gradient {
+    /// One gradient per vertex.
+    pub vertices: Vec<Vec3>,
+    /// One per BRDF parameter, in the order of [`RenderBrdf::PARAM_NAMES`].
+    pub brdf: Vec<f32>,
+}
+
+/// What [`Renderer::loss_and_gradient`] returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LossAndGradient {
+    /// The loss E (summed in f64).
+    pub loss: f64,
+    /// dE/d(vertices), dE/d(BRDF parameters).
+    pub gradient: Gradient,
+    /// The rendered transient, measurement-major.
+    pub rendered: Vec<f32>,
+}
+
+/// Per-measurement wall geometry, structure of arrays.
+#[derive(Debug, Clone)]
+struct Wall {
+    l: Vec<Vec3>,
+    n_l: Vec<Vec3>,
+    s: Vec<Vec3>,
+    n_s: Vec<Vec3>,
+    confocal: bool,
+}
+
+/// Triangles as structure of arrays.
+#[derive(Debug, Clone, Default)]
+struct Tris {
+    v0: Vec<Vec3>,
+    e1: Vec<Vec3>,
+    e2: Vec<Vec3>,
+    /// Unnormalised geometric normal `e1 × e2` (|N| = 2 × area).
+    n: Vec<Vec3>,
+    /// Longest edge.
+    e_max: Vec<f32>,
+    valid: Vec<bool>,
+}
+
+/// A transient renderer for one mesh topology, scan and time axis.
+///
+/// Build once per topology ([`Renderer::new`]), move vertices with [`Renderer::set_positions`], render with
+/// [`Renderer::forward`], differentiate with [`Renderer::adjoint`] or [`Renderer::loss_and_gradient`].
+#[derive(Debug)]
+pub struct Renderer {
+    triangles: Vec<[u32; 3]>,
+    n_vertices: usize,
+    tris: Tris,
+    total_area: f32,
+    wall: Wall,
+    scan: Scan,
+    time: TimeAxis,
+    params: RenderParams,
+    kernel: KernelEval,
+    bvh: Option<Bvh>,
+    /// Visible fraction × 255 per (measurement, triangle), measurement-major.
+    cache: Option<Vec<u8>>,
+}
+
+/// Sample sink for the forward pass and the adjoint pass.
+struct Frame {
+    l: Vec3,
+    n_l: Vec3,
+    s: Vec3,
+    n_s: Vec3,
+}
+
+impl Renderer {
+    /// Validates the inputs and builds the geometry (and the BVH and cache the visibility mode needs).
+    ///
+    /// Degenerate triangles (zero or non-finite area) are skipped: they have no area to integrate over.
+    ///
+    /// # Errors
+    /// [`RenderError::NonFiniteVertex`], [`RenderError::IndexOutOfRange`], [`RenderError::InvalidSetup`]
+    /// for an invalid or empty scan / time axis, [`RenderError::InvalidParameter`] for bad params.
+    pub fn new(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        scan: &Scan,
+        time: &TimeAxis,
+        params: RenderParams,
+    ) -> Result<Self> {
+        scan.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
+        time.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
+        if scan.measurements() == 0 {
+            return Err(RenderError::InvalidSetup("the scan has no measurements".into()));
+        }
+        check_params(&params)?;
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                if v as usize >= positions.len() {
+                    return Err(RenderError::IndexOutOfRange { triangle: t, vertex: v, vertices: positions.len() });
+                }
+            }
+        }
+        let m = scan.measurements();
+        let mut wall = Wall {
+            l: Vec::with_capacity(m),
+            n_l: Vec::with_capacity(m),
+            s: Vec::with_capacity(m),
+            n_s: Vec::with_capacity(m),
+            confocal: scan.is_confocal(),
+        };
+        for i in 0..m {
+            let g = scan.measurement(i);
+            wall.l.push(g.laser);
+            wall.n_l.push(g.laser_normal);
+            wall.s.push(g.sensor);
+            wall.n_s.push(g.sensor_normal);
+        }
+        let mut r = Self {
+            triangles: triangles.to_vec(),
+            n_vertices: positions.len(),
+            tris: Tris::default(),
+            total_area: 0.0,
+            wall,
+            scan: scan.clone(),
+            time: *time,
+            params,
+            kernel: KernelEval::new(params.kernel, time.t0, time.bin_width, time.bins),
+            bvh: None,
+            cache: None,
+        };
+        r.set_positions(positions)?;
+        if matches!(params.visibility, Visibility::Cached { .. }) {
+            r.refresh_visibility();
+        }
+        Ok(r)
+    }
+
+    /// Moves the vertices (same topology). With [`Visibility::Live`] the BVH is rebuilt; with
+    /// [`Visibility::Cached`] the cache is kept (visibility held fixed) until [`Renderer::refresh_visibility`].
+    ///
+    /// # Errors
+    /// [`RenderError::TopologyChanged`] for a different vertex count, [`RenderError::NonFiniteVertex`].
+    pub fn set_positions(&mut self, positions: &[Vec3]) -> Result<()> {
+        if positions.len() != self.n_vertices {
+            return Err(RenderError::TopologyChanged { expected: self.n_vertices, got: positions.len() });
+        }
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(RenderError::NonFiniteVertex { index: i, value: positions[i].to_array() });
+        }
+        let nt = self.triangles.len();
+        let mut tris = Tris {
+            v0: Vec::with_capacity(nt),
+            e1: Vec::with_capacity(nt),
+            e2: Vec::with_capacity(nt),
+            n: Vec::with_capacity(nt),
+            e_max: Vec::with_capacity(nt),
+            valid: Vec::with_capacity(nt),
+        };
+        let mut area = 0.0f64;
+        for &[a, b, c] in &self.triangles {
+            let (p0, p1, p2) = (positions[a as usize], positions[b as usize], positions[c as usize]);
+            let (e1, e2) = (p1 - p0, p2 - p0);
+            let n = e1.cross(e2);
+            let len = n.length();
+            // Guard: a zero-area (or overflowing) face has no integral and no defined normal: skipped.
+            let valid = len > 0.0 && len.is_finite();
+            if valid {
+                area += 0.5 * f64::from(len);
+            }
+            tris.v0.push(p0);
+            tris.e1.push(e1);
+            tris.e2.push(e2);
+            tris.n.push(n);
+            tris.e_max.push(e1.length().max(e2.length()).max((p2 - p1).length()));
+            tris.valid.push(valid);
+        }
+        self.tris = tris;
+        self.total_area = area as f32;
+        if self.params.visibility == Visibility::Live {
+            self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
+        }
+        Ok(())
+    }
+
+    /// Rebuilds the BVH at the current positions and, in [`Visibility::Cached`] mode, recomputes the cache.
+    pub fn refresh_visibility(&mut self) {
+        if self.params.visibility == Visibility::Off {
+            return;
+        }
+        self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
+        let Visibility::Cached { level } = self.params.visibility else { return };
+        let nt = self.tris.v0.len();
+        let mut cache = vec![0u8; nt * self.wall.l.len()];
+        let this = &*self;
+        cache.par_chunks_mut(nt.max(1)).enumerate().for_each(|(m, row)| {
+            let fr = this.frame(m);
+            for (t, out) in row.iter_mut().enumerate() {
+                if this.orientation(t, &fr).is_none() {
+                    continue;
+                }
+                let mut visible = 0u32;
+                this.centroids(level, |u, v, _| {
+                    let x = this.point(t, u, v);
+                    visible += u32::from(this.visible_live(x, t, &fr));
+                });
+                let total = level * level;
+                *out = ((visible * 255 + total / 2) / total) as u8;
+            }
+        });
+        self.cache = Some(cache);
+    }
+
+    /// The scan.
+    pub fn scan(&self) -> &Scan {
+        &self.scan
+    }
+
+    /// The time axis.
+    pub fn time(&self) -> &TimeAxis {
+        &self.time
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &RenderParams {
+        &self.params
+    }
+
+    /// Number of skipped degenerate triangles.
+    pub fn degenerate_triangles(&self) -> usize {
+        self.tris.valid.iter().filter(|v| !**v).count()
+    }
+
+    /// Number of values of a transient (measurements × bins).
+    pub fn len(&self) -> usize {
+        self.wall.l.len() * self.time.bins
+    }
+
+    /// Whether the transient is empty (never: the scan and time axis are validated non-empty).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The forward pass, eq. (1): `I[m·bins + k] = Σ_t ∫_t K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x)` with f the
+    /// product of eq. (2) (see the crate docs for the scale convention).
+    pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
+        let bins = self.time.bins;
+        let mut data = vec![0.0f32; self.len()];
+        data.par_chunks_mut(bins).enumerate().for_each(|(m, hist)| {
+            let fr = self.frame(m);
+            for t in 0..self.tris.v0.len() {
+                self.forward_tm(brdf, m, t, &fr, hist);
+            }
+        });
+        data
+    }
+
+    /// [`Renderer::forward`] wrapped as a [`Transient`] with the renderer's scan and time axis.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSetup`] if the transient crate rejects the combination (it should not).
+    pub fn forward_transient<B: RenderBrdf>(&self, brdf: &B) -> Result<Transient> {
+        Transient::new(self.scan.clone(), self.time, self.forward(brdf))
+            .map_err(|e| RenderError::InvalidSetup(e.to_string()))
+    }
+
+    /// The adjoint pass: given `d_loss[m·bins + k] = dE/dI`, returns dE/d(vertices) and dE/d(BRDF
+    /// parameters) of the same estimator the forward pass computes (same samples, same kernel, visibility
+    /// held fixed). Samples are recomputed, nothing is stored between passes.
+    ///
+    /// # Errors
+    /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
+    pub fn adjoint<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        if d_loss.len() != self.len() {
+            return Err(RenderError::LengthMismatch { what: "d_loss", expected: self.len(), got: d_loss.len() });
+        }
+        let bins = self.time.bins;
+        let nv = self.n_vertices;
+        let (dv, dp) = (0..self.wall.l.len())
+            .into_par_iter()
+            .fold(
+                || (vec![DVec3::ZERO; nv], [0.0f64; 4]),
+                |(mut dv, mut dp), m| {
+                    let adj = &d_loss[m * bins..(m + 1) * bins];
+                    if adj.iter().all(|a| *a == 0.0) {
+                        return (dv, dp);
+                    }
+                    let fr = self.frame(m);
+                    for t in 0..self.tris.v0.len() {
+                        self.adjoint_tm(brdf, m, t, &fr, adj, &mut dv, &mut dp);
+                    }
+                    (dv, dp)
+                },
+            )
+            .reduce(
+                || (vec![DVec3::ZERO; nv], [0.0f64; 4]),
+                |(mut a, mut pa), (b, pb)| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        *x += *y;
+                    }
+                    for i in 0..4 {
+                        pa[i] += pb[i];
+                    }
+                    (a, pa)
+                },
+            );
+        Ok(Gradient {
+            vertices: dv.iter().map(|g| g.as_vec3()).collect(),
+            brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
+        })
+    }
+
+    /// Forward pass, loss, adjoint pass: `E(I; measured)` and its gradient (eq. 6–7 of Tsai et al. 2019 for
+    /// [`Loss::L2`]).
+    ///
+    /// # Errors
+    /// As [`Loss::evaluate`].
+    pub fn loss_and_gradient<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        measured: &[f32],
+        loss: Loss,
+        weights: Option<&[f32]>,
+    ) -> Result<LossAndGradient> {
+        let rendered = self.forward(brdf);
+        let (e, adj) = loss.evaluate(&rendered, measured, weights)?;
+        let gradient = self.adjoint(brdf, &adj)?;
+        Ok(LossAndGradient { loss: e, gradient, rendered })
+    }
+
+    // ----- internals -----
+
+    #[inline(always)]
+    fn frame(&self, m: usize) -> Frame {
+        Frame { l: self.wall.l[m], n_l: self.wall.n_l[m], s: self.wall.s[m], n_s: self.wall.n_s[m] }
+    }
+
+    #[inline(always)]
+    fn point(&self, t: usize, u: f32, v: f32) -> Vec3 {
+        self.tris.v0[t] + u * self.tris.e1[t] + v * self.tris.e2[t]
+    }
+
+    /// +1 when l and s are both on the front side of triangle t, −1 when both behind and two-sided, else
+    /// None. Exact for the whole face: N·(l − x) does not depend on x in the plane.
+    #[inline(always)]
+    fn orientation(&self, t: usize, fr: &Frame) -> Option<f32> {
+        if !self.tris.valid[t] {
+            return None;
+        }
+        let (n, v0) = (self.tris.n[t], self.tris.v0[t]);
+        let (dl, ds) = (n.dot(fr.l - v0), n.dot(fr.s - v0));
+        if dl > 0.0 && ds > 0.0 {
+            Some(1.0)
+        } else if self.params.two_sided && dl < 0.0 && ds < 0.0 {
+            Some(-1.0)
+        } else {
+            None
+        }
+    }
+
+    #[inline(always)]
+    fn visible_live(&self, x: Vec3, t: usize, fr: &Frame) -> bool {
+        match &self.bvh {
+            None => true,
+            Some(b) => b.visible(x, fr.l, t as u32) && (self.wall.confocal || b.visible(x, fr.s, t as u32)),
+        }
+    }
+
+    /// Calls `f(u, v, w)` for the `n²` sub-triangle centroids of level n (barycentric coordinates u along
+    /// e1, v along e2; weight `w = 1/n²`, the fraction of the triangle's area).
+    #[inline(always)]
+    fn centroids(&self, n: u32, mut f: impl FnMut(f32, f32, f32)) {
+        let inv = 1.0 / n as f32;
+        let w = inv * inv;
+        for i in 0..n {
+            for j in 0..n - i {
+                // "Up" sub-triangle with corner (i, j), centroid at (i + 1/3, j + 1/3)/n.
+                f((i as f32 + 1.0 / 3.0) * inv, (j as f32 + 1.0 / 3.0) * inv, w);
+                if j + 1 < n - i {
+                    // "Down" sub-triangle, centroid at (i + 2/3, j + 2/3)/n.
+                    f((i as f32 + 2.0 / 3.0) * inv, (j as f32 + 2.0 / 3.0) * inv, w);
+                }
+            }
+        }
+    }
+
+    /// Deterministic level for (t, m): see [`DeterministicRule`].
+    #[inline(always)]
+    fn level(&self, rule: &DeterministicRule, t: usize, fr: &Frame) -> u32 {
+        if rule.min_level >= rule.max_level {
+            return rule.max_level;
+        }
+        let v = [self.tris.v0[t], self.tris.v0[t] + self.tris.e1[t], self.tris.v0[t] + self.tris.e2[t]];
+        let (mut lo, mut hi, mut r_min) = (f32::INFINITY, 0.0f32, f32::INFINITY);
+        for p in v {
+            let (a, b) = ((fr.l - p).length(), (fr.s - p).length());
+            lo = lo.min(a + b);
+            hi = hi.max(a + b);
+            r_min = r_min.min(a).min(b);
+        }
+        let tol = rule.max_bin_fraction * self.time.bin_width as f32;
+        // Guard: a vertex on a wall spot (r_min = 0) would make the curvature bound infinite; the clamp to
+        // max_level below handles it, and 1e-6 m keeps the arithmetic finite.
+        let curv = self.tris.e_max[t] * self.tris.e_max[t] / r_min.max(1e-6);
+        let range = hi - lo;
+        // Smallest n with tol·n² − range·n − curv ≥ 0.
+        let n = (range + (range * range + 4.0 * tol * curv).sqrt()) / (2.0 * tol);
+        if !(n < rule.max_level as f32) { rule.max_level } else { (n.ceil() as u32).max(rule.min_level) }
+    }
+
+    /// Calls `f(u, v, w)` for every sample of (t, m); `w` is the sample's weight as a fraction of the
+    /// triangle's area (the estimator of `∫_t h dA` is `A_t Σ w h(x)`).
+    #[inline(always)]
+    fn samples(&self, m: usize, t: usize, fr: &Frame, mut f: impl FnMut(f32, f32, f32)) {
+        match self.params.sampling {
+            Sampling::Deterministic(rule) => {
+                let n = self.level(&rule, t, fr);
+                self.centroids(n, f);
+            }
+            Sampling::Stratified { samples_per_measurement, seed } => {
+                let area = 0.5 * self.tris.n[t].length();
+                let c = samples_per_measurement as f32 * area / self.total_area;
+                // Guard: c is finite and > 0 for a valid triangle (total_area ≥ area > 0).
+                if !(c > 0.0) {
+                    return;
+                }
+                let mut rng = SplitMix64::new(seed, m as u64, t as u64);
+                let base = c.floor();
+                let n = base as u32 + u32::from(rng.next_f32() < c - base);
+                // Weight 1/c per sample (fraction of the triangle): E[n]/c = 1, so the estimator is unbiased
+                // even though n is random; 1/c is held constant when differentiating (it is a sampling
+                // weight, not part of the integrand).
+                let w = 1.0 / c;
+                let inv_n = 1.0 / n.max(1) as f32;
+                for i in 0..n {
+                    // Stratified along the first coordinate of the area-preserving map
+                    // (r1, r2) ↦ (√r1 (1 − r2), √r1 r2).
+                    let r1 = (i as f32 + rng.next_f32()) * inv_n;
+                    let r2 = rng.next_f32();
+                    let sr = r1.sqrt();
+                    f(sr * (1.0 - r2), sr * r2, w);
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn vis_factor(&self, m: usize, t: usize) -> f32 {
+        match (&self.params.visibility, &self.cache) {
+            (Visibility::Cached { .. }, Some(c)) => f32::from(c[m * self.tris.v0.len() + t]) * (1.0 / 255.0),
+            _ => 1.0,
+        }
+    }
+
+    fn forward_tm<B: RenderBrdf>(&self, brdf: &B, m: usize, t: usize, fr: &Frame, hist: &mut [f32]) {
+        let Some(sign) = self.orientation(t, fr) else { return };
+        let vis_c = self.vis_factor(m, t);
+        if vis_c == 0.0 {
+            return;
+        }
+        let live = self.params.visibility == Visibility::Live;
+        let n = sign * self.tris.n[t];
+        let inv_2n = 0.5 / n.length();
+        self.samples(m, t, fr, |u, v, w| {
+            let x = self.point(t, u, v);
+            let (a, b) = (fr.l - x, fr.s - x);
+            let (cl, cs) = (-fr.n_l.dot(a), -fr.n_s.dot(b));
+            let (pl, ps) = (n.dot(a), n.dot(b));
+            // One-sided wall and surface cosines (max(0, ·) of eq. 2).
+            if !(cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0) {
+                return;
+            }
+            if live && !self.visible_live(x, t, fr) {
+                return;
+            }
+            let (ra2, rb2) = (a.length_squared(), b.length_squared());
+            let tau = ra2.sqrt() + rb2.sqrt();
+            let fs = if self.wall.confocal { brdf.eval_confocal(a, n) } else { brdf.eval(a, b, n) };
+            let q = cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2);
+            self.kernel.splat(tau, w * vis_c * fs * q, hist);
+        });
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn adjoint_tm<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        m: usize,
+        t: usize,
+        fr: &Frame,
+        adj: &[f32],
+        dv: &mut [DVec3],
+        dp: &mut [f64; 4],
+    ) {
+        let Some(sign) = self.orientation(t, fr) else { return };
+        let vis_c = self.vis_factor(m, t);
+        if vis_c == 0.0 {
+            return;
+        }
+        let live = self.params.visibility == Visibility::Live;
+        let n = sign * self.tris.n[t];
+        let n2 = n.length_squared();
+        let inv_2n = 0.5 / n2.sqrt();
+        let (mut g0, mut g1, mut g2, mut g_n) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        let mut g_p = [0.0f32; 4];
+        self.samples(m, t, fr, |u, v, w| {
+            let x = self.point(t, u, v);
+            let (a, b) = (fr.l - x, fr.s - x);
+            let (cl, cs) = (-fr.n_l.dot(a), -fr.n_s.dot(b));
+            let (pl, ps) = (n.dot(a), n.dot(b));
+            if !(cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0) {
+                return;
+            }
+            let (ra2, rb2) = (a.length_squared(), b.length_squared());
+            let (ra, rb) = (ra2.sqrt(), rb2.sqrt());
+            let (a_val, a_der) = self.kernel.gather(ra + rb, adj);
+            if a_val == 0.0 && a_der == 0.0 {
+                return;
+            }
+            if live && !self.visible_live(x, t, fr) {
+                return;
+            }
+            let (fs, df_a, df_b, df_n, df_p) = if self.wall.confocal {
+                let g = brdf.eval_grad_confocal(a, n);
+                // Total derivative along the shared direction: only d/da + d/db is ever used below.
+                (g.value, g.d_omega, Vec3::ZERO, g.d_n, B::param_grad_array(&g.d_params))
+            } else {
+                let g = brdf.eval_grad(a, b, n);
+                (g.value, g.d_omega_l, g.d_omega_s, g.d_n, B::param_grad_array(&g.d_params))
+            };
+            // Q = cl pl cs ps / (2|N| ra⁴ rb⁴): the geometry of eq. (2) times the area |N|/2 (see crate docs).
+            let denom = inv_2n / (ra2 * ra2 * rb2 * rb2);
+            let q = cl * pl * cs * ps * denom;
+            let dq_a = cs * ps * denom * (cl * n - pl * fr.n_l) - (4.0 * q / ra2) * a;
+            let dq_b = cl * pl * denom * (cs * n - ps * fr.n_s) - (4.0 * q / rb2) * b;
+            let dq_n = cl * cs * denom * (ps * a + pl * b) - (q / n2) * n;
+            let s = w * vis_c;
+            let h = fs * q;
+            // dE = A_val dh + h A_der dτ, dτ/da = a/ra, dτ/db = b/rb.
+            let ga = s * (a_val * (fs * dq_a + q * df_a) + (h * a_der / ra) * a);
+            let gb = s * (a_val * (fs * dq_b + q * df_b) + (h * a_der / rb) * b);
+            let gn = s * a_val * (fs * dq_n + q * df_n);
+            // x = v0 + u e1 + v e2 and a = l − x, b = s − x ⇒ dE/dx = −(ga + gb).
+            let gx = -(ga + gb);
+            g0 += (1.0 - u - v) * gx;
+            g1 += u * gx;
+            g2 += v * gx;
+            g_n += gn;
+            let sp = s * a_val * q;
+            for i in 0..4 {
+                g_p[i] += sp * df_p[i];
+            }
+        });
+        // N = sign·(e1 × e2): dE/de1 = e2 × G_N', dE/de2 = G_N' × e1 with G_N' = sign·G_N.
+        let g_n = sign * g_n;
+        let (e1, e2) = (self.tris.e1[t], self.tris.e2[t]);
+        let (d_e1, d_e2) = (e2.cross(g_n), g_n.cross(e1));
+        let [i0, i1, i2] = self.triangles[t];
+        dv[i0 as usize] += (g0 - d_e1 - d_e2).as_dvec3();
+        dv[i1 as usize] += (g1 + d_e1).as_dvec3();
+        dv[i2 as usize] += (g2 + d_e2).as_dvec3();
+        for i in 0..4 {
+            dp[i] += f64::from(g_p[i]);
+        }
+    }
+}
+
+fn check_params(p: &RenderParams) -> Result<()> {
+    let bad = |name, value: f64, reason| Err(RenderError::InvalidParameter { name, value, reason });
+    if let Kernel::Gaussian { fwhm_bins } = p.kernel
+        && !(fwhm_bins > 0.0 && fwhm_bins.is_finite())
+    {
+        return bad("Kernel::Gaussian.fwhm_bins", f64::from(fwhm_bins), "must be finite and > 0 bins");
+    }
+    match p.sampling {
+        Sampling::Deterministic(r) => {
+            if !(r.max_bin_fraction > 0.0 && r.max_bin_fraction.is_finite()) {
+                return bad("max_bin_fraction", f64::from(r.max_bin_fraction), "must be finite and > 0");
+            }
+            if r.min_level == 0 || r.max_level < r.min_level || r.max_level > 4096 {
+                return bad("max_level", f64::from(r.max_level), "need 1 ≤ min_level ≤ max_level ≤ 4096");
+            }
+        }
+        Sampling::Stratified { samples_per_measurement, .. } => {
+            if samples_per_measurement == 0 {
+                return bad("samples_per_measurement", 0.0, "must be > 0");
+            }
+        }
+    }
+    if let Visibility::Cached { level } = p.visibility
+        && !(1..=64).contains(&level)
+    {
+        return bad("Visibility::Cached.level", f64::from(level), "must be in 1..=64");
+    }
+    Ok(())
+}
