@@ -28,15 +28,20 @@
 
 mod analysis;
 mod build;
+pub mod bvh;
+pub mod distance;
 mod error;
 mod handles;
+pub mod intersect;
 pub mod io;
 mod property;
+pub mod quality;
 pub mod shapes;
 mod surface_mesh;
 
 pub use analysis::triangle_normal_raw;
 pub use build::{BuildOptions, orient_triangles};
+pub use bvh::{ClosestPoint, TriangleBvh};
 pub use error::MeshError;
 pub use handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 pub use property::{EdgeProperty, FaceProperty, VertexProperty};

@@ -1,0 +1,251 @@
+//! Closest-point queries on a triangle set through a bounding volume hierarchy.
+//!
+//! The hierarchy is built by `obvhs` (PLOC, Meister & Bittner 2018; the same crate the renderer uses for
+//! rays); the nearest-point traversal is written here: children are visited nearest box first and pruned
+//! by the best squared distance so far.
+
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+
+use crate::error::MeshError;
+use crate::handles::FaceId;
+use crate::surface_mesh::SurfaceMesh;
+
+/// Result of a closest-point query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosestPoint {
+    /// The closest point on the triangle set.
+    pub point: Vec3,
+    /// Squared distance from the query to `point`.
+    pub distance_squared: f32,
+    /// Index of the triangle it lies on (into the triangle list given at construction; for
+    /// [`TriangleBvh::from_mesh`], see [`TriangleBvh::face_id`]).
+    pub triangle: u32,
+    /// Barycentric coordinates of `point` in that triangle (weights of its corners 0, 1, 2).
+    pub barycentric: Vec3,
+}
+
+impl ClosestPoint {
+    /// Distance from the query to the closest point.
+    pub fn distance(&self) -> f32 {
+        self.distance_squared.sqrt()
+    }
+}
+
+/// A static BVH over triangles for closest-point and box-overlap queries.
+pub struct TriangleBvh {
+    bvh: Bvh2,
+    tris: Vec<[Vec3A; 3]>,
+    faces: Vec<FaceId>,
+}
+
+impl std::fmt::Debug for TriangleBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TriangleBvh")
+            .field("triangles", &self.tris.len())
+            .field("nodes", &self.bvh.nodes.len())
+            .finish()
+    }
+}
+
+impl TriangleBvh {
+    /// BVH over the live faces of `mesh`. Errors on a mesh without faces or with non-finite positions.
+    pub fn from_mesh(mesh: &SurfaceMesh) -> Result<Self, MeshError> {
+        let faces: Vec<FaceId> = mesh.faces().collect();
+        let tris: Vec<[Vec3A; 3]> = faces.iter().map(|&f| mesh.face_points(f).map(Vec3A::from)).collect();
+        Self::build(tris, faces)
+    }
+
+    /// BVH over indexed triangles. Errors on an empty list, out-of-range indices or non-finite positions.
+    pub fn from_triangles(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, MeshError> {
+        let mut tris = Vec::with_capacity(triangles.len());
+        for (i, t) in triangles.iter().enumerate() {
+            let mut c = [Vec3A::ZERO; 3];
+            for k in 0..3 {
+                let p = positions.get(t[k] as usize).ok_or(MeshError::IndexOutOfRange {
+                    face: i,
+                    index: t[k] as u64,
+                    vertex_count: positions.len(),
+                })?;
+                c[k] = Vec3A::from(*p);
+            }
+            tris.push(c);
+        }
+        let faces = (0..triangles.len()).map(FaceId::new).collect();
+        Self::build(tris, faces)
+    }
+
+    fn build(tris: Vec<[Vec3A; 3]>, faces: Vec<FaceId>) -> Result<Self, MeshError> {
+        if tris.is_empty() {
+            return Err(MeshError::EmptyMesh { what: "a closest-point BVH" });
+        }
+        for (i, t) in tris.iter().enumerate() {
+            if !t.iter().all(|p| p.is_finite()) {
+                return Err(MeshError::NonFinitePosition { vertex: i, position: Vec3::from(t[0]).to_array() });
+            }
+        }
+        let aabbs: Vec<Aabb> =
+            tris.iter().map(|t| Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
+        let mut time = std::time::Duration::ZERO;
+        let bvh = obvhs::bvh2::builder::build_bvh2(&aabbs, obvhs::BvhBuildParams::fast_build(), &mut time);
+        Ok(Self { bvh, tris, faces })
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Whether there are no triangles (never true for a constructed BVH).
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// The mesh face of triangle `i` (for [`Self::from_mesh`]; the identity for [`Self::from_triangles`]).
+    pub fn face_id(&self, triangle: u32) -> FaceId {
+        self.faces.get(triangle as usize).copied().unwrap_or(FaceId::INVALID)
+    }
+
+    /// Corners of triangle `i`.
+    pub fn triangle(&self, i: u32) -> [Vec3; 3] {
+        self.tris[i as usize].map(Vec3::from)
+    }
+
+    /// The closest point on the triangles to `p`.
+    pub fn closest_point(&self, p: Vec3) -> ClosestPoint {
+        // The BVH is never empty, so a result always exists.
+        self.closest_point_within(p, f32::INFINITY).unwrap_or(ClosestPoint {
+            point: p,
+            distance_squared: f32::INFINITY,
+            triangle: u32::MAX,
+            barycentric: Vec3::ZERO,
+        })
+    }
+
+    /// The closest point if one lies within `max_distance` of `p`.
+    pub fn closest_point_within(&self, p: Vec3, max_distance: f32) -> Option<ClosestPoint> {
+        let q = Vec3A::from(p);
+        let mut best_d2 = if max_distance.is_finite() { max_distance * max_distance } else { f32::INFINITY };
+        let mut best: Option<ClosestPoint> = None;
+        let nodes = &self.bvh.nodes;
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
+        stack.push((0, box_distance_squared(nodes[0].aabb(), q)));
+        while let Some((ni, d2)) = stack.pop() {
+            if d2 > best_d2 {
+                continue;
+            }
+            let node = &nodes[ni as usize];
+            if node.is_leaf() {
+                let start = node.first_index as usize;
+                for k in start..start + node.prim_count as usize {
+                    let ti = self.bvh.primitive_indices[k];
+                    let t = &self.tris[ti as usize];
+                    let (c, bary) = closest_point_on_triangle(q, t[0], t[1], t[2]);
+                    let d = c.distance_squared(q);
+                    if d <= best_d2 {
+                        best_d2 = d;
+                        best = Some(ClosestPoint {
+                            point: Vec3::from(c),
+                            distance_squared: d,
+                            triangle: ti,
+                            barycentric: bary,
+                        });
+                    }
+                }
+            } else {
+                let l = node.first_index;
+                let r = l + 1;
+                let dl = box_distance_squared(nodes[l as usize].aabb(), q);
+                let dr = box_distance_squared(nodes[r as usize].aabb(), q);
+                // push the farther child first so the nearer one is visited first
+                if dl <= dr {
+                    stack.push((r, dr));
+                    stack.push((l, dl));
+                } else {
+                    stack.push((l, dl));
+                    stack.push((r, dr));
+                }
+            }
+        }
+        best
+    }
+
+    /// Calls `f(triangle)` for every triangle whose bounding box overlaps the box `[lo, hi]`.
+    pub fn for_each_overlapping(&self, lo: Vec3, hi: Vec3, mut f: impl FnMut(u32)) {
+        let query = Aabb::new(Vec3A::from(lo), Vec3A::from(hi));
+        self.bvh.aabb_traverse(query, |bvh, node_index| {
+            let node = &bvh.nodes[node_index as usize];
+            let start = node.first_index as usize;
+            for k in start..start + node.prim_count as usize {
+                let ti = bvh.primitive_indices[k];
+                let t = &self.tris[ti as usize];
+                let tlo = t[0].min(t[1]).min(t[2]);
+                let thi = t[0].max(t[1]).max(t[2]);
+                if tlo.cmple(query.max).all() && thi.cmpge(query.min).all() {
+                    f(ti);
+                }
+            }
+            true
+        });
+    }
+}
+
+#[inline]
+fn box_distance_squared(b: &Aabb, p: Vec3A) -> f32 {
+    let d = (b.min - p).max(p - b.max).max(Vec3A::ZERO);
+    d.length_squared()
+}
+
+/// Closest point on triangle `(a, b, c)` to `p` and its barycentric coordinates (Ericson, *Real-Time
+/// Collision Detection*, §5.1.5: Voronoi regions of vertices, then edges, then the face).
+pub(crate) fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> (Vec3A, Vec3) {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, Vec3::X);
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, Vec3::Y);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        // Guard: d1 - d3 = |ab|² > 0 here unless ab is degenerate, in which case a is as good as any.
+        let den = d1 - d3;
+        let v = if den > 0.0 { d1 / den } else { 0.0 };
+        return (a + ab * v, Vec3::new(1.0 - v, v, 0.0));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, Vec3::Z);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let den = d2 - d6;
+        let w = if den > 0.0 { d2 / den } else { 0.0 };
+        return (a + ac * w, Vec3::new(1.0 - w, 0.0, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let den = (d4 - d3) + (d5 - d6);
+        let w = if den > 0.0 { (d4 - d3) / den } else { 0.0 };
+        return (b + (c - b) * w, Vec3::new(0.0, 1.0 - w, w));
+    }
+    let sum = va + vb + vc;
+    // Guard: a degenerate (zero-area) triangle that reached the face region: fall back to vertex a.
+    if sum.is_nan() || sum <= 0.0 || sum.is_infinite() {
+        return (a, Vec3::X);
+    }
+    let denom = 1.0 / sum;
+    let v = vb * denom;
+    let w = vc * denom;
+    (a + ab * v + ac * w, Vec3::new(1.0 - v - w, v, w))
+}
