@@ -74,14 +74,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         }
     };
     let name = args.file.file_name().map_or_else(|| args.file.display().to_string(), |n| n.to_string_lossy().into());
-    let fig = match gated.sensor_grid() {
+    match gated.sensor_grid() {
         Some((nx, ny)) => {
             let iy = args.row.unwrap_or(ny / 2);
             grid_figure(&gated, &name, nx, ny, iy, gate, &gate_note, &args.out)
         }
         None => list_figure(&gated, &name, gate, &gate_note, &args.out),
-    };
-    fig
+    }
 }
 
 /// The physical extents (x, y) of the sensor grid, from its corner points.
