@@ -24,7 +24,7 @@ pub(crate) struct Args {
     #[arg(long, value_name = "A..B", value_parser = parse_range)]
     crop_bins: Option<(usize, usize)>,
     /// 3. Zero every bin that begins before this path length (metres), e.g. to gate out direct light.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     gate: Option<f64>,
     /// 4. Sum every K consecutive bins into one.
     #[arg(long, value_name = "K")]

@@ -21,8 +21,18 @@ pub(crate) struct Args {
     out: PathBuf,
     /// Zero the bins before this path length (metres) so the direct light off the wall does not drown the
     /// hidden scene; `auto` estimates where the direct light ends, `off` shows everything.
-    #[arg(long, value_name = "METRES|auto|off", default_value = "auto", value_parser = parse_gate)]
+    #[arg(
+        long,
+        value_name = "METRES|auto|off",
+        default_value = "auto",
+        value_parser = parse_gate,
+        allow_hyphen_values = true
+    )]
     gate: Gate,
+    /// Show only path lengths before this (metres): the time-summed image then sums the gated window up
+    /// to it instead of the whole axis, whose late bins hold mostly background.
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
+    until: Option<f64>,
     /// Sensor grid row of the x–t slice (default: the middle row).
     #[arg(long, value_name = "IY")]
     row: Option<usize>,
@@ -71,6 +81,15 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             } else {
                 (t, "no direct light found to gate (auto)".to_string(), None)
             }
+        }
+    };
+    let (gated, gate_note) = match args.until {
+        None => (gated, gate_note),
+        Some(u) => {
+            let ax = *gated.time();
+            let cropped = gated.crop_path(ax.t0, u).map_err(CliError::input)?;
+            let end = cropped.time().end();
+            (cropped, format!("{gate_note}; path lengths after {end:.3} m not shown (--until)"))
         }
     };
     let name = args.file.file_name().map_or_else(|| args.file.display().to_string(), |n| n.to_string_lossy().into());

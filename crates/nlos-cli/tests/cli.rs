@@ -140,6 +140,8 @@ fn absurd_arguments_exit_2_without_panicking() {
         vec!["preview", f, "--out", p, "--gate", "1e9"],
         vec!["preview", f, "--out", p, "--gate", "soon"],
         vec!["preview", f, "--out", p, "--row", "6"],
+        vec!["preview", f, "--out", p, "--until", "-5"],
+        vec!["preview", f, "--out", p, "--until", "inf"],
         vec!["preview", f, "--out", p, "--row", "18446744073709551615"],
     ];
     for args in cases {
@@ -159,8 +161,10 @@ fn preview_writes_png_for_grid_and_list() {
     assert!(o.status.success(), "{}", stderr(&o));
     let (w, h) = png_size(&png);
     assert!(w > 360 + 480 && h > 360 && w < 2000 && h < 1000, "{w} × {h}");
-    for gate in ["off", "0.3"] {
-        let o = nlos(&["preview", file.to_str().expect("utf8"), "--out", png.to_str().expect("utf8"), "--gate", gate]);
+    for extra in [["--gate", "off"], ["--gate", "0.3"], ["--gate", "-1"], ["--until", "1.0"]] {
+        let o = nlos(
+            &[&["preview", file.to_str().expect("utf8"), "--out", png.to_str().expect("utf8")], &extra[..]].concat(),
+        );
         assert!(o.status.success(), "{}", stderr(&o));
     }
 
