@@ -18,7 +18,7 @@
 //! Design:
 //! - [`MatFile::parse`] reads the header and the *headers* of every variable (name, class, dimensions)
 //!   without decoding their data; a compressed variable is inflated only up to its header (at most
-//!   [`HEADER_PREFIX`] bytes). Format detection uses only this.
+//!   [`HEADER_PREFIX`] bytes, usually [`SMALL_PREFIX`]). Format detection uses only this.
 //! - [`MatFile::numeric`] decodes one variable fully. Its data must match its dimensions exactly, so the
 //!   element count is bounded by the bytes present before anything is allocated; a zlib stream is
 //!   inflated up to the size its inner tag declares, which must itself be possible for the compressed
@@ -32,7 +32,11 @@ use std::path::Path;
 
 use crate::error::{Result, TransientError};
 
-/// Bytes of a compressed variable inflated to read its header (flags, dimensions, name).
+/// Bytes of a compressed variable inflated first to read its header (flags, dimensions, name).
+pub(crate) const SMALL_PREFIX: usize = 1024;
+
+/// Most bytes of a compressed variable inflated to read its header (a header with very many dimensions
+/// or a long name); a header longer than this is reported as malformed.
 pub(crate) const HEADER_PREFIX: usize = 64 * 1024;
 
 /// Upper bound of the expansion ratio of a zlib/deflate stream (the format's theoretical maximum is
@@ -322,31 +326,7 @@ impl<'a> MatFile<'a> {
                     pos = end.saturating_add(pad8(len)).min(bytes.len());
                 }
                 MI_COMPRESSED => {
-                    let prefix = inflate(data, HEADER_PREFIX).map_err(|e| {
-                        err.malformed(format!("{}: bad zlib stream in miCOMPRESSED element: {e}", what()))
-                    })?;
-                    let inner = prefix.get(..8).ok_or_else(|| {
-                        err.truncated(format!("{}: the compressed stream ends before its inner tag", what()))
-                    })?;
-                    let inner_type = endian.u32([inner[0], inner[1], inner[2], inner[3]]);
-                    let inner_len = endian.u32([inner[4], inner[5], inner[6], inner[7]]) as usize;
-                    if inner_type != MI_MATRIX {
-                        return Err(err.malformed(format!(
-                            "{}: a compressed element holds {}, expected miMATRIX",
-                            what(),
-                            type_name(inner_type)
-                        )));
-                    }
-                    if inner_len > len.saturating_mul(MAX_INFLATE_RATIO).saturating_add(64) {
-                        return Err(err.malformed(format!(
-                            "{}: the inner element declares {inner_len} bytes, more than {len} compressed bytes can \
-                             hold",
-                            what()
-                        )));
-                    }
-                    let avail = prefix.len() - 8;
-                    let body = &prefix[8..8 + inner_len.min(avail)];
-                    let header = parse_header(body, endian, &err, &what())?;
+                    let (inner_len, header) = compressed_header(data, endian, &err, &what())?;
                     entries.push(Entry { offset, len, compressed: true, inner_len, header });
                     pos = end;
                 }
@@ -599,6 +579,43 @@ fn inflate(data: &[u8], limit: usize) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
+/// Reads the inner tag and the header of an `miCOMPRESSED` element by inflating a prefix of its stream:
+/// first [`SMALL_PREFIX`] bytes (enough for nearly every header), then [`HEADER_PREFIX`] when the header
+/// did not fit. Returns the inner `miMATRIX` byte count and the header.
+fn compressed_header(data: &[u8], endian: Endian, err: &Errs<'_>, what: &str) -> Result<(usize, VarHeader)> {
+    let mut limit = SMALL_PREFIX;
+    loop {
+        let prefix = inflate(data, limit)
+            .map_err(|e| err.malformed(format!("{what}: bad zlib stream in miCOMPRESSED element: {e}")))?;
+        let inner = prefix
+            .get(..8)
+            .ok_or_else(|| err.truncated(format!("{what}: the compressed stream ends before its inner tag")))?;
+        let inner_type = endian.u32([inner[0], inner[1], inner[2], inner[3]]);
+        let inner_len = endian.u32([inner[4], inner[5], inner[6], inner[7]]) as usize;
+        if inner_type != MI_MATRIX {
+            return Err(err.malformed(format!(
+                "{what}: a compressed element holds {}, expected miMATRIX",
+                type_name(inner_type)
+            )));
+        }
+        if inner_len > data.len().saturating_mul(MAX_INFLATE_RATIO).saturating_add(64) {
+            return Err(err.malformed(format!(
+                "{what}: the inner element declares {inner_len} bytes, more than {} compressed bytes can hold",
+                data.len()
+            )));
+        }
+        let avail = prefix.len() - 8;
+        let body = &prefix[8..8 + inner_len.min(avail)];
+        match parse_header(body, endian, err, what) {
+            // The header may continue beyond the prefix: inflate more.
+            Err(TransientError::Truncated { .. }) if prefix.len() == limit && limit < HEADER_PREFIX => {
+                limit = HEADER_PREFIX;
+            }
+            r => return r.map(|h| (inner_len, h)),
+        }
+    }
+}
+
 /// One sub-element: its data type, and the byte range of its data within the parent, and where the next
 /// sub-element begins.
 struct Sub {
@@ -773,6 +790,26 @@ mod tests {
         let m = MatFile::parse(&f, path)?;
         assert_eq!(m.header("a").map(|h| h.dims.clone()), Some(vec![1, 2]));
         assert_eq!(m.numeric("a", "")?.to_f32(path)?, vec![1.5, -2.0]);
+        Ok(())
+    }
+
+    #[test]
+    fn compressed_header_longer_than_the_first_prefix() -> Result<()> {
+        use std::io::Write;
+        // 400 dimensions of 1 (1600 bytes of header): more than SMALL_PREFIX.
+        let dims = vec![1i32; 400];
+        let plain = file_with(6, &dims, "many", MI_DOUBLE, &2.5f64.to_le_bytes());
+        let element = &plain[128..];
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(element).map_err(|e| TransientError::Io { file: "z".into(), source: e })?;
+        let c = z.finish().map_err(|e| TransientError::Io { file: "z".into(), source: e })?;
+        let mut bytes = plain[..128].to_vec();
+        bytes.extend(tag(MI_COMPRESSED, c.len()));
+        bytes.extend(c);
+        let path = Path::new("z.mat");
+        let m = MatFile::parse(&bytes, path)?;
+        assert_eq!(m.header("many").map(|h| h.dims.len()), Some(400));
+        assert_eq!(m.numeric("many", "")?.scalar(path)?, 2.5);
         Ok(())
     }
 
