@@ -82,3 +82,65 @@ fn hand_checkable_voxel() {
     eprintln!("voxel (31,31,200): {v}");
     assert!((v / 0.0062232 - 1.0).abs() < 0.01, "{v}");
 }
+
+fn bunny() -> Option<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    let path = reference("bunny_world.obj")?;
+    let (v, f) = parse_obj(&std::fs::read_to_string(path).expect("readable OBJ"));
+    assert_eq!((v.len(), f.len()), (1839, 3674));
+    Some((v, f))
+}
+
+#[test]
+fn bunny_matches_quadrature_subset() {
+    // README sections 5 and 7: the 256-pixel visibility quadrature (0.057 % image noise): sum within 0.3 %,
+    // image rel-L2 ≤ 0.5 %, per-pixel mean-bin RMS ≤ 0.05, pooled-8 ≤ 1 %.
+    let (Some((v, f)), Some(qp), Some(pp)) =
+        (bunny(), reference("bunny_quadrature_stride4.npy"), reference("bunny_quadrature_stride4_pixels.npy"))
+    else {
+        return;
+    };
+    let (quad, shape) = npy(&qp);
+    assert_eq!(shape, vec![256, 512]);
+    let (pix, _) = npy(&pp);
+    let all = reference_scan();
+    let pts: Vec<Vec3> = pix.chunks(2).map(|c| all.lasers().points[c[0] as usize + 64 * c[1] as usize]).collect();
+    let scan = nlos_transient::Scan::confocal(nlos_transient::PointSet::list(pts));
+    let params = RenderParams {
+        kernel: Kernel::Box,
+        sampling: Sampling::Deterministic(DeterministicRule { max_bin_fraction: 1.0, min_level: 1, max_level: 8 }),
+        visibility: Visibility::Live,
+        two_sided: false,
+    };
+    let t = Instant::now();
+    let r = Renderer::new(&v, &f, &scan, &reference_time(), params).expect("valid scene");
+    let ours: Vec<f32> = r.forward(&Lambertian::new(1.0f32).expect("valid")).iter().map(|x| x / (PI * PI)).collect();
+    eprintln!("bunny subset render: {:.2} s", t.elapsed().as_secs_f64());
+    let m = metrics(&ours, &quad, 512);
+    eprintln!("bunny_quadrature_stride4: {m:?}");
+    assert!((m.total_ratio - 1.0).abs() < 0.003, "total ratio {}", m.total_ratio);
+    assert!(m.image_rel_l2 < 0.005, "image rel-L2 {}", m.image_rel_l2);
+    assert!(m.mean_bin_pixel_rms < 0.05, "per-pixel mean-bin RMS {}", m.mean_bin_pixel_rms);
+    assert!(m.pooled8_rel_l2 < 0.01, "pooled-8 rel-L2 {}", m.pooled8_rel_l2);
+}
+
+#[test]
+fn bunny_matches_path_tracer() {
+    // README section 7, `bunny_mc` row: total within 0.5 %, image rel-L2 ≤ 1.5·0.0065 (+ mesh error),
+    // |Δ mean bin| ≤ 0.05 (MC is ≈ 0.03 bins early, quirk 1), pooled-8 ≤ 1.5·0.0140.
+    let (Some((v, f)), Some(mc)) = (bunny(), reference("bunny_mc.npy")) else { return };
+    let (mc, shape) = npy(&mc);
+    assert_eq!(shape, vec![64, 64, 512]);
+    let params = RenderParams {
+        kernel: Kernel::Box,
+        sampling: Sampling::Deterministic(DeterministicRule { max_bin_fraction: 2.0, min_level: 1, max_level: 8 }),
+        visibility: Visibility::Cached { level: 1 },
+        two_sided: false,
+    };
+    let ours = render_reference(&v, &f, &Lambertian::new(1.0f32).expect("valid"), params);
+    let m = metrics(&ours, &mc, 512);
+    eprintln!("bunny_mc: {m:?}");
+    assert!((m.total_ratio - 1.0).abs() < 0.005, "total ratio {}", m.total_ratio);
+    assert!(m.image_rel_l2 < 1.5 * 0.0065, "image rel-L2 {}", m.image_rel_l2);
+    assert!(m.mean_bin_global_delta.abs() < 0.05, "global mean-bin Δ {}", m.mean_bin_global_delta);
+    assert!(m.pooled8_rel_l2 < 1.5 * 0.0140, "pooled-8 rel-L2 {}", m.pooled8_rel_l2);
+}
