@@ -527,3 +527,19 @@ fn write_tal_samples_for_h5py() {
         eprintln!("{} first {:?} t0 {:?}", path.display(), t.histogram(0)[0], t.time().t0);
     }
 }
+
+/// Fuzz finding (`fuzz/fuzz_targets/hdf5.rs`): a corrupt chunk index makes `hdf5-pure` 0.47 overflow
+/// in `chunked_read.rs` (a panic when overflow checks are on). The reader's `catch_unwind` guard turns
+/// it into a typed error naming the dataset.
+#[test]
+fn regression_hdf5_pure_chunk_offset_overflow_is_malformed() {
+    let bytes = include_bytes!("../../../fuzz/regressions/hdf5/hdf5_pure_chunk_offset_overflow.bin");
+    let f = Path::new("crash.hdf5");
+    let e = formats::read_bytes_as(bytes, Format::Tal, f).unwrap_err();
+    assert!(matches!(e, TransientError::Malformed { .. } | TransientError::Truncated { .. }), "{e}");
+    assert!(e.to_string().contains("crash.hdf5"), "{e}");
+    for format in [Format::ZNlos, Format::FkMat, Format::LctMat] {
+        assert!(formats::read_bytes_as(bytes, format, f).is_err());
+    }
+    let _ = formats::detect_bytes(bytes, f);
+}

@@ -24,15 +24,15 @@ const NUMERIC_CLASSES: [&str; 10] =
 /// Checks the `MATLAB_class` attribute of `name` (when present) is numeric.
 fn check_class(h: &H5<'_>, name: &str) -> Result<()> {
     let attrs = h.dataset_attrs(name);
-    if let Some(class) = attrs.get("MATLAB_class").and_then(attr_text) {
-        if !NUMERIC_CLASSES.contains(&class.as_str()) {
-            return Err(TransientError::WrongType {
-                file: h.path().into(),
-                field: name.into(),
-                expected: "a numeric MATLAB class (double, single, intN, uintN)".into(),
-                found: format!("MATLAB class `{class}`"),
-            });
-        }
+    if let Some(class) = attrs.get("MATLAB_class").and_then(attr_text)
+        && !NUMERIC_CLASSES.contains(&class.as_str())
+    {
+        return Err(TransientError::WrongType {
+            file: h.path().into(),
+            field: name.into(),
+            expected: "a numeric MATLAB class (double, single, intN, uintN)".into(),
+            found: format!("MATLAB class `{class}`"),
+        });
     }
     Ok(())
 }

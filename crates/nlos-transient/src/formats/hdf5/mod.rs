@@ -278,7 +278,7 @@ impl<'a> H5<'a> {
 
     /// Whether the root group holds a dataset `name`.
     pub(crate) fn has(&self, name: &str) -> bool {
-        matches!(guard(self.path, name, || self.file.dataset(name)), Ok(_))
+        guard(self.path, name, || self.file.dataset(name)).is_ok()
     }
 
     /// The first of `names` that exists.
@@ -303,7 +303,7 @@ impl<'a> H5<'a> {
         let dtype = guard(self.path, name, || d.dtype())?;
         let shape: Vec<usize> = shape
             .into_iter()
-            .map(|s| usize::try_from(s))
+            .map(usize::try_from)
             .collect::<Result<_, _>>()
             .map_err(|_| self.malformed(name, "a dimension does not fit in memory"))?;
         Ok((shape, dtype))

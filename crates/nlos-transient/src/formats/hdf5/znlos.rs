@@ -141,14 +141,12 @@ fn read_points(h: &H5<'_>, reversed: bool, who: &str, names: [&[&str]; 3]) -> Re
         [a, b] => Layout::Grid { nx: *b, ny: *a },
         _ => Layout::List,
     };
-    if dims.len() == 1 {
-        if let Some(c) = h.first_of(count_names) {
-            let counts = h.f64_array(c, "")?.values;
-            if let [fast, slow] = counts.as_slice() {
-                let (nx, ny) = (*fast as usize, *slow as usize);
-                if nx as f64 == *fast && ny as f64 == *slow && nx.checked_mul(ny) == Some(n) {
-                    layout = Layout::Grid { nx, ny };
-                }
+    if let (1, Some(c)) = (dims.len(), h.first_of(count_names)) {
+        let counts = h.f64_array(c, "")?.values;
+        if let [fast, slow] = counts.as_slice() {
+            let (nx, ny) = (*fast as usize, *slow as usize);
+            if nx as f64 == *fast && ny as f64 == *slow && nx.checked_mul(ny) == Some(n) {
+                layout = Layout::Grid { nx, ny };
             }
         }
     }
@@ -280,15 +278,14 @@ pub(super) fn read(h: &H5<'_>) -> Result<Transient> {
     let delta_name = h.first_of(&["deltaT", "deltat"]).unwrap_or("deltaT");
     let delta_t = h.finite_scalar(delta_name, "bin width in metres of optical path")?;
     let t0 = h.finite_scalar("t0", "path length at the start of bin 0, metres")?;
-    let mut time = TimeAxis { t0, bin_width: delta_t, bins, includes_device_legs: true };
-    if !(delta_t > 0.0) {
+    let time = TimeAxis { t0, bin_width: delta_t, bins, includes_device_legs: true };
+    if delta_t <= 0.0 {
         return Err(TransientError::InvalidValue {
             file: file.into(),
             field: delta_name.into(),
             reason: format!("{delta_t} must be > 0 metres"),
         });
     }
-    time.includes_device_legs = true;
     let mut sensor_device = device(h, &["cameraPosition", "cameraOrigin"])?;
     let mut laser_device = device(h, &["laserPosition", "laserOrigin"])?;
     let (mut cam, mut las) = (camera.set, laser.set);
