@@ -29,6 +29,7 @@
 mod analysis;
 mod build;
 pub mod bvh;
+pub mod curvature;
 pub mod distance;
 mod error;
 mod handles;
@@ -36,6 +37,7 @@ pub mod intersect;
 pub mod io;
 mod property;
 pub mod quality;
+pub mod remeshing;
 pub mod shapes;
 mod surface_mesh;
 

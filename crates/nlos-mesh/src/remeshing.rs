@@ -1,0 +1,677 @@
+//! Isotropic remeshing (Botsch & Kobbelt, *A Remeshing Approach to Multiresolution Modeling*, SGP 2004),
+//! following pmp-library's `uniform_remeshing` / `adaptive_remeshing` (Dunyach et al. 2013 for the
+//! curvature-adaptive sizing).
+//!
+//! Each iteration: split edges longer than 4/3·L; collapse edges shorter than 4/5·L unless that would
+//! create an edge longer than 4/3·L, flip a face normal or break the manifold; flip edges that bring
+//! valences closer to 6 (4 on the boundary); move vertices tangentially toward the area-weighted centroid
+//! of their one-ring; project them back onto the input surface (closest point through a BVH, with the
+//! input normals and sizes interpolated there). `L` is the target length: a constant for the uniform
+//! variant, a per-vertex field derived from curvature for the adaptive one.
+//!
+//! Preconditions: a valid, non-empty mesh with finite positions. The input surface is copied as the
+//! projection reference, so the result stays within a fraction of `L` of it.
+
+use glam::Vec3;
+
+use crate::bvh::TriangleBvh;
+use crate::curvature::max_abs_curvature;
+use crate::error::MeshError;
+use crate::handles::{EdgeId, HalfedgeId, VertexId};
+use crate::surface_mesh::SurfaceMesh;
+
+/// What happens to the boundary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoundaryMode {
+    /// Boundary vertices and edges are kept exactly as they are (no split, collapse or motion).
+    Fixed,
+    /// Boundary edges are split and collapsed along the boundary like interior edges; boundary vertices
+    /// slide along the input boundary curve (projected back onto it). Boundary corners sharper than
+    /// [`RemeshParams::boundary_corner_angle`] stay fixed.
+    Remesh,
+}
+
+/// Parameters shared by the uniform and adaptive variants. Start from a preset.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RemeshParams {
+    /// Split/collapse/flip/relax rounds (pmp default 10).
+    pub iterations: u32,
+    /// Tangential relaxation passes per round (pmp: 5).
+    pub smoothing_iterations: u32,
+    /// Project vertices back onto the input surface after relaxation.
+    pub projection: bool,
+    /// Boundary treatment.
+    pub boundary: BoundaryMode,
+    /// In [`BoundaryMode::Remesh`], boundary vertices whose boundary turns by more than this angle
+    /// (degrees) are kept fixed.
+    pub boundary_corner_angle: f32,
+    /// Flip edges opposite very obtuse angles (> 170°) at the end, as pmp's `remove_caps`.
+    pub remove_caps: bool,
+}
+
+impl RemeshParams {
+    /// pmp's defaults: 10 rounds, 5 relaxation passes, projection, fixed boundary.
+    pub const fn pmp() -> Self {
+        Self {
+            iterations: 10,
+            smoothing_iterations: 5,
+            projection: true,
+            boundary: BoundaryMode::Fixed,
+            boundary_corner_angle: 45.0,
+            remove_caps: true,
+        }
+    }
+    /// A quicker setting for use inside an optimisation loop: 5 rounds, 3 relaxation passes.
+    pub const fn fast() -> Self {
+        Self { iterations: 5, smoothing_iterations: 3, ..Self::pmp() }
+    }
+    /// Like [`Self::pmp`] but remeshing the boundary along the input boundary curve.
+    pub const fn remesh_boundary() -> Self {
+        Self { boundary: BoundaryMode::Remesh, ..Self::pmp() }
+    }
+}
+
+impl Default for RemeshParams {
+    fn default() -> Self {
+        Self::pmp()
+    }
+}
+
+/// Sizing for [`adaptive_remeshing`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdaptiveSizing {
+    /// Shortest target edge length (m).
+    pub min_edge_length: f32,
+    /// Longest target edge length (m).
+    pub max_edge_length: f32,
+    /// Allowed deviation of an edge from the surface it approximates (m): the target length at a vertex
+    /// with largest curvature `κ` is `√(6ε/κ − 3ε²)` (pmp), clamped to `[min, max]`.
+    pub approximation_error: f32,
+}
+
+/// What a remeshing run did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RemeshReport {
+    /// Edge splits performed.
+    pub splits: usize,
+    /// Edge collapses performed.
+    pub collapses: usize,
+    /// Edge flips performed (valence and caps).
+    pub flips: usize,
+    /// Collapses refused because they would flip a face normal.
+    pub refused_normal_flips: usize,
+}
+
+/// Uniform isotropic remeshing to target edge length `target_edge_length` (metres). The mesh is
+/// garbage-collected on return, so all handles held before are invalid.
+///
+/// Errors: [`MeshError::InvalidParameter`] for a non-positive or non-finite length,
+/// [`MeshError::EmptyMesh`], [`MeshError::Invariant`] if the input fails [`SurfaceMesh::validate`].
+pub fn uniform_remeshing(
+    mesh: &mut SurfaceMesh,
+    target_edge_length: f32,
+    params: &RemeshParams,
+) -> Result<RemeshReport, MeshError> {
+    if !(target_edge_length.is_finite() && target_edge_length > 0.0) {
+        return Err(MeshError::InvalidParameter {
+            name: "target_edge_length",
+            value: target_edge_length as f64,
+            reason: "must be a positive finite length in metres",
+        });
+    }
+    let sizing = vec![target_edge_length; mesh.vertices_size()];
+    Remesher::new(mesh, sizing, true, params)?.run()
+}
+
+/// Curvature-adaptive isotropic remeshing (pmp's `adaptive_remeshing`): the target length at each vertex
+/// follows the largest principal curvature of the input, within `[min, max]`. Same errors and
+/// postconditions as [`uniform_remeshing`].
+pub fn adaptive_remeshing(
+    mesh: &mut SurfaceMesh,
+    sizing: &AdaptiveSizing,
+    params: &RemeshParams,
+) -> Result<RemeshReport, MeshError> {
+    let ok = |x: f32| x.is_finite() && x > 0.0;
+    if !ok(sizing.min_edge_length) || !ok(sizing.max_edge_length) || sizing.min_edge_length > sizing.max_edge_length {
+        return Err(MeshError::InvalidParameter {
+            name: "min_edge_length/max_edge_length",
+            value: sizing.min_edge_length as f64,
+            reason: "lengths must be positive, finite and min <= max",
+        });
+    }
+    if !ok(sizing.approximation_error) {
+        return Err(MeshError::InvalidParameter {
+            name: "approximation_error",
+            value: sizing.approximation_error as f64,
+            reason: "must be a positive finite length in metres",
+        });
+    }
+    if mesh.has_garbage() {
+        mesh.garbage_collect();
+    }
+    let kappa = max_abs_curvature(mesh, 2);
+    let e = sizing.approximation_error;
+    let lengths: Vec<f32> = kappa
+        .iter()
+        .map(|&k| {
+            // Guard: flat regions (κ → 0) and tiny ε give an unbounded or imaginary length: clamp.
+            let h = if k > 1e-12 { (6.0 * e / k - 3.0 * e * e).max(0.0).sqrt() } else { f32::INFINITY };
+            h.clamp(sizing.min_edge_length, sizing.max_edge_length)
+        })
+        .collect();
+    Remesher::new(mesh, lengths, false, params)?.run()
+}
+
+/// The projection target: a copy of the input surface with its vertex normals and sizes.
+struct Reference {
+    bvh: TriangleBvh,
+    normals: Vec<[Vec3; 3]>,
+    sizing: Vec<[f32; 3]>,
+    boundary: Option<TriangleBvh>,
+}
+
+struct Remesher<'a> {
+    mesh: &'a mut SurfaceMesh,
+    params: RemeshParams,
+    uniform: bool,
+    // per-vertex state, indexed by VertexId::idx; kept in step with the mesh by `push_vertex` and `compact`
+    sizing: Vec<f32>,
+    normal: Vec<Vec3>,
+    locked: Vec<bool>,
+    reference: Reference,
+    report: RemeshReport,
+}
+
+impl<'a> Remesher<'a> {
+    fn new(
+        mesh: &'a mut SurfaceMesh,
+        sizing: Vec<f32>,
+        uniform: bool,
+        params: &RemeshParams,
+    ) -> Result<Self, MeshError> {
+        if mesh.n_faces() == 0 {
+            return Err(MeshError::EmptyMesh { what: "remeshing" });
+        }
+        mesh.validate()?;
+        let mut sizing = sizing;
+        if mesh.has_garbage() {
+            let remap = mesh.garbage_collect();
+            let mut s = vec![0.0; mesh.vertices_size()];
+            for (old, new) in remap.vertices.iter().enumerate() {
+                if new.is_valid() {
+                    s[new.idx()] = sizing[old];
+                }
+            }
+            sizing = s;
+        }
+        let normal = mesh.vertex_normals();
+        let bvh = TriangleBvh::from_mesh(mesh)?;
+        let mut rn = Vec::with_capacity(bvh.len());
+        let mut rs = Vec::with_capacity(bvh.len());
+        for t in 0..bvh.len() as u32 {
+            let vs = mesh.face_vertices(bvh.face_id(t));
+            rn.push(vs.map(|v| normal[v.idx()]));
+            rs.push(vs.map(|v| sizing[v.idx()]));
+        }
+        // boundary curve as degenerate triangles (a, b, b): closest point on them is closest point on the
+        // segment
+        let mut bpos = Vec::new();
+        let mut btri = Vec::new();
+        for e in mesh.edges() {
+            if mesh.is_boundary_edge(e) {
+                let [a, b] = mesh.edge_vertices(e);
+                let i = bpos.len() as u32;
+                bpos.push(mesh.position(a));
+                bpos.push(mesh.position(b));
+                btri.push([i, i + 1, i + 1]);
+            }
+        }
+        let boundary = if btri.is_empty() { None } else { Some(TriangleBvh::from_triangles(&bpos, &btri)?) };
+        let mut locked = vec![false; mesh.vertices_size()];
+        for v in mesh.vertices() {
+            if !mesh.is_boundary_vertex(v) {
+                continue;
+            }
+            locked[v.idx()] = match params.boundary {
+                BoundaryMode::Fixed => true,
+                BoundaryMode::Remesh => {
+                    // turning angle between the incoming and outgoing boundary edges
+                    let hout = mesh.vertex_halfedge(v);
+                    let hin = mesh.prev(hout);
+                    let p = mesh.position(v);
+                    let d0 = (p - mesh.position(mesh.from_vertex(hin))).normalize_or_zero();
+                    let d1 = (mesh.position(mesh.to_vertex(hout)) - p).normalize_or_zero();
+                    d0.dot(d1).clamp(-1.0, 1.0).acos().to_degrees() > params.boundary_corner_angle
+                }
+            };
+        }
+        Ok(Self {
+            mesh,
+            params: *params,
+            uniform,
+            sizing,
+            normal,
+            locked,
+            reference: Reference { bvh, normals: rn, sizing: rs, boundary },
+            report: RemeshReport::default(),
+        })
+    }
+
+    fn run(mut self) -> Result<RemeshReport, MeshError> {
+        for _ in 0..self.params.iterations {
+            self.split_long_edges();
+            self.collapse_short_edges();
+            self.compact();
+            self.flip_edges();
+            self.tangential_smoothing(self.params.smoothing_iterations);
+        }
+        if self.params.remove_caps {
+            self.remove_caps();
+        }
+        self.compact();
+        Ok(self.report)
+    }
+
+    // --- helpers ---------------------------------------------------------------------------------------
+
+    fn compact(&mut self) {
+        if !self.mesh.has_garbage() {
+            return;
+        }
+        let remap = self.mesh.garbage_collect();
+        let n = self.mesh.vertices_size();
+        let mut sizing = vec![0.0; n];
+        let mut normal = vec![Vec3::ZERO; n];
+        let mut locked = vec![false; n];
+        for (old, new) in remap.vertices.iter().enumerate() {
+            if new.is_valid() {
+                sizing[new.idx()] = self.sizing[old];
+                normal[new.idx()] = self.normal[old];
+                locked[new.idx()] = self.locked[old];
+            }
+        }
+        self.sizing = sizing;
+        self.normal = normal;
+        self.locked = locked;
+    }
+
+    /// Target length of edge (a, b): the mean of the endpoint sizes.
+    #[inline]
+    fn target(&self, a: VertexId, b: VertexId) -> f32 {
+        if self.uniform { self.sizing[a.idx()] } else { 0.5 * (self.sizing[a.idx()] + self.sizing[b.idx()]) }
+    }
+
+    #[inline]
+    fn is_too_long(&self, a: VertexId, b: VertexId) -> bool {
+        let l = 4.0 / 3.0 * self.target(a, b);
+        self.mesh.position(a).distance_squared(self.mesh.position(b)) > l * l
+    }
+
+    #[inline]
+    fn is_too_short(&self, a: VertexId, b: VertexId) -> bool {
+        let l = 4.0 / 5.0 * self.target(a, b);
+        self.mesh.position(a).distance_squared(self.mesh.position(b)) < l * l
+    }
+
+    fn edge_locked(&self, e: EdgeId) -> bool {
+        self.params.boundary == BoundaryMode::Fixed && self.mesh.is_boundary_edge(e)
+    }
+
+    // --- split -----------------------------------------------------------------------------------------
+
+    fn split_long_edges(&mut self) {
+        for _ in 0..10 {
+            let mut changed = false;
+            let n_edges = self.mesh.edges_size();
+            for ei in 0..n_edges {
+                let e = EdgeId::new(ei);
+                if self.mesh.is_deleted_edge(e) || self.edge_locked(e) {
+                    continue;
+                }
+                let [a, b] = self.mesh.edge_vertices(e);
+                if !self.is_too_long(a, b) {
+                    continue;
+                }
+                let boundary = self.mesh.is_boundary_edge(e);
+                let p = (self.mesh.position(a) + self.mesh.position(b)) * 0.5;
+                let v = self.mesh.split_edge(e, p);
+                let s = 0.5 * (self.sizing[a.idx()] + self.sizing[b.idx()]);
+                self.sizing.push(s);
+                self.normal.push((self.normal[a.idx()] + self.normal[b.idx()]).normalize_or_zero());
+                self.locked.push(false);
+                debug_assert_eq!(self.sizing.len(), v.idx() + 1);
+                if boundary {
+                    self.project_boundary(v);
+                }
+                self.report.splits += 1;
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+    }
+
+    // --- collapse --------------------------------------------------------------------------------------
+
+    /// Where the surviving vertex goes when `h` collapses (`from(h)` is removed, `to(h)` kept): the edge
+    /// midpoint (Botsch & Kobbelt), except that a locked vertex, or a boundary vertex absorbing an interior
+    /// one, stays where it is.
+    fn collapse_target(&self, h: HalfedgeId) -> Vec3 {
+        let m = &*self.mesh;
+        let v0 = m.from_vertex(h);
+        let v1 = m.to_vertex(h);
+        let keep_v1 = self.locked[v1.idx()] || (m.is_boundary_vertex(v1) && !m.is_boundary_vertex(v0));
+        if keep_v1 { m.position(v1) } else { (m.position(v0) + m.position(v1)) * 0.5 }
+    }
+
+    /// Whether collapsing `h` (removing `from(h)`, moving `to(h)` to `target`) passes every remeshing rule.
+    fn collapse_allowed(&mut self, h: HalfedgeId, target: Vec3) -> bool {
+        let m = &*self.mesh;
+        let v0 = m.from_vertex(h);
+        let v1 = m.to_vertex(h);
+        if self.locked[v0.idx()] {
+            return false;
+        }
+        let b0 = m.is_boundary_vertex(v0);
+        let b1 = m.is_boundary_vertex(v1);
+        let boundary_edge = m.is_boundary_edge(h.edge());
+        // a boundary vertex may only slide along a boundary edge, and never into the interior
+        if b0 && (!b1 || !boundary_edge) {
+            return false;
+        }
+        if !m.is_collapse_ok(h) {
+            return false;
+        }
+        // never create a too long edge, and never flip (or degenerate) a face normal: check every face
+        // around either endpoint that survives, with its endpoint moved to `target`
+        for (v, other) in [(v0, v1), (v1, v0)] {
+            let p = m.position(v);
+            for hh in m.vertex_halfedges(v) {
+                let a = m.to_vertex(hh);
+                if a != other {
+                    let l = 4.0 / 3.0 * self.target(a, v1);
+                    if m.position(a).distance_squared(target) > l * l {
+                        return false;
+                    }
+                }
+                if m.is_boundary_halfedge(hh) {
+                    continue;
+                }
+                let b = m.to_vertex(m.next(hh));
+                if a == other || b == other {
+                    continue;
+                }
+                let (pa, pb) = (m.position(a), m.position(b));
+                let n_old = (pa - p).cross(pb - p);
+                let n_new = (pa - target).cross(pb - target);
+                // Guard: the new face must keep its orientation and not become (numerically) degenerate.
+                if n_old.dot(n_new) <= 0.0 || n_new.length_squared() <= 1e-12 * n_old.length_squared() {
+                    self.report.refused_normal_flips += 1;
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    fn collapse_short_edges(&mut self) {
+        for _ in 0..10 {
+            let mut changed = false;
+            let n_edges = self.mesh.edges_size();
+            for ei in 0..n_edges {
+                let e = EdgeId::new(ei);
+                if self.mesh.is_deleted_edge(e) || self.edge_locked(e) {
+                    continue;
+                }
+                let h10 = e.halfedge(0); // v1 -> v0 in pmp's naming below: from(h) is removed
+                let h01 = e.halfedge(1);
+                let [va, vb] = self.mesh.edge_vertices(e);
+                if !self.is_too_short(va, vb) {
+                    continue;
+                }
+                // prefer removing the vertex of lower valence (pmp)
+                let (first, second) =
+                    if self.mesh.valence(va) < self.mesh.valence(vb) { (h10, h01) } else { (h01, h10) };
+                // h10 = va -> vb removes va; h01 = vb -> va removes vb
+                let t_first = self.collapse_target(first);
+                let t_second = self.collapse_target(second);
+                let chosen = if self.collapse_allowed(first, t_first) {
+                    Some((first, t_first))
+                } else if self.collapse_allowed(second, t_second) {
+                    Some((second, t_second))
+                } else {
+                    None
+                };
+                if let Some((h, target)) = chosen {
+                    let keep = self.mesh.to_vertex(h);
+                    let gone = self.mesh.from_vertex(h);
+                    self.mesh.collapse(h);
+                    self.mesh.set_position(keep, target);
+                    self.normal[keep.idx()] =
+                        (self.normal[keep.idx()] + self.normal[gone.idx()]).normalize_or(self.normal[keep.idx()]);
+                    self.report.collapses += 1;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+    }
+
+    // --- flip ------------------------------------------------------------------------------------------
+
+    fn flip_edges(&mut self) {
+        let mut valence: Vec<i32> = vec![0; self.mesh.vertices_size()];
+        for v in self.mesh.vertices() {
+            valence[v.idx()] = self.mesh.valence(v) as i32;
+        }
+        let opt = |m: &SurfaceMesh, v: VertexId| if m.is_boundary_vertex(v) { 4 } else { 6 };
+        for _ in 0..10 {
+            let mut changed = false;
+            for ei in 0..self.mesh.edges_size() {
+                let e = EdgeId::new(ei);
+                if self.mesh.is_deleted_edge(e) || self.mesh.is_boundary_edge(e) {
+                    continue;
+                }
+                let m = &*self.mesh;
+                let h0 = e.halfedge(0);
+                let h1 = e.halfedge(1);
+                let v0 = m.to_vertex(h0);
+                let v2 = m.to_vertex(m.next(h0));
+                let v1 = m.to_vertex(h1);
+                let v3 = m.to_vertex(m.next(h1));
+                if [v0, v1, v2, v3].iter().any(|v| self.locked[v.idx()]) {
+                    continue;
+                }
+                let dev = |v: VertexId, d: i32| {
+                    let x = valence[v.idx()] + d - opt(m, v);
+                    x * x
+                };
+                let before = dev(v0, 0) + dev(v1, 0) + dev(v2, 0) + dev(v3, 0);
+                let after = dev(v0, -1) + dev(v1, -1) + dev(v2, 1) + dev(v3, 1);
+                if after >= before || !m.is_flip_ok(e) || !self.flip_keeps_orientation(v0, v1, v2, v3) {
+                    continue;
+                }
+                self.mesh.flip(e);
+                valence[v0.idx()] -= 1;
+                valence[v1.idx()] -= 1;
+                valence[v2.idx()] += 1;
+                valence[v3.idx()] += 1;
+                self.report.flips += 1;
+                changed = true;
+            }
+            if !changed {
+                break;
+            }
+        }
+    }
+
+    /// Edge (v1 → v0 = halfedge 0) with opposite vertices v2 (face of halfedge 0) and v3: the faces
+    /// (v1, v0, v2) and (v0, v1, v3) become (v3, v0, v2) and (v2, v1, v3); both must face the way the old
+    /// pair faced.
+    fn flip_keeps_orientation(&self, v0: VertexId, v1: VertexId, v2: VertexId, v3: VertexId) -> bool {
+        let m = &*self.mesh;
+        let (p0, p1, p2, p3) = (m.position(v0), m.position(v1), m.position(v2), m.position(v3));
+        // old faces: h0 = v1 -> v0, then v0 -> v2: face (v1, v0, v2); h1: face (v0, v1, v3)
+        let n_old = (p0 - p1).cross(p2 - p1) + (p1 - p0).cross(p3 - p0);
+        let na = (p0 - p3).cross(p2 - p3); // (v3, v0, v2)
+        let nb = (p1 - p2).cross(p3 - p2); // (v2, v1, v3)
+        // Guard: reject flips creating (near-)degenerate or folded triangles.
+        na.dot(n_old) > 0.0 && nb.dot(n_old) > 0.0 && na.dot(nb) > 0.0
+    }
+
+    // --- relaxation and projection -----------------------------------------------------------------------
+
+    fn tangential_smoothing(&mut self, iterations: u32) {
+        if self.params.projection {
+            self.project_all();
+        }
+        let n = self.mesh.vertices_size();
+        let mut update = vec![Vec3::ZERO; n];
+        for _ in 0..iterations {
+            for v in self.mesh.vertices() {
+                update[v.idx()] = Vec3::ZERO;
+                if self.locked[v.idx()] {
+                    continue;
+                }
+                if self.mesh.is_boundary_vertex(v) {
+                    if self.params.boundary == BoundaryMode::Remesh {
+                        update[v.idx()] = self.boundary_update(v);
+                    }
+                    continue;
+                }
+                let c = self.weighted_centroid(v);
+                let p = self.mesh.position(v);
+                let nrm = self.normal[v.idx()];
+                let u = c - p;
+                update[v.idx()] = u - nrm * nrm.dot(u);
+            }
+            for (v, u) in update.iter().enumerate() {
+                // locked and unchanged vertices are not touched at all (adding zero would turn -0.0 into 0.0)
+                if *u != Vec3::ZERO && !self.mesh.is_deleted_vertex(VertexId::new(v)) {
+                    self.mesh.positions_mut()[v] += *u;
+                }
+            }
+        }
+        if self.params.projection {
+            self.project_all();
+        }
+    }
+
+    /// pmp's `weighted_centroid`: centroids of the incident triangles weighted by area / size².
+    fn weighted_centroid(&self, v: VertexId) -> Vec3 {
+        let m = &*self.mesh;
+        let p = m.position(v);
+        let mut c = Vec3::ZERO;
+        let mut ww = 0.0f32;
+        for h in m.vertex_halfedges(v) {
+            let a = m.to_vertex(h);
+            let b = m.to_vertex(m.next(h));
+            let (pa, pb) = (m.position(a), m.position(b));
+            // Guard: degenerate faces get weight as if unit area so that weights never all vanish.
+            let mut area = (pa - p).cross(pb - p).length();
+            if area == 0.0 {
+                area = 1.0;
+            }
+            let w = if self.uniform {
+                area
+            } else {
+                let s = (self.sizing[v.idx()] + self.sizing[a.idx()] + self.sizing[b.idx()]) / 3.0;
+                area / (s * s)
+            };
+            c += w * (p + pa + pb) / 3.0;
+            ww += w;
+        }
+        if ww > 0.0 { c / ww } else { p }
+    }
+
+    /// 1D relaxation along the boundary: toward the midpoint of the two boundary neighbours, along the
+    /// boundary tangent.
+    fn boundary_update(&self, v: VertexId) -> Vec3 {
+        let m = &*self.mesh;
+        let hout = m.vertex_halfedge(v);
+        let hin = m.prev(hout);
+        let a = m.position(m.from_vertex(hin));
+        let b = m.position(m.to_vertex(hout));
+        let p = m.position(v);
+        let t = (b - a).normalize_or_zero();
+        let u = (a + b) * 0.5 - p;
+        t * t.dot(u)
+    }
+
+    fn project_all(&mut self) {
+        for vi in 0..self.mesh.vertices_size() {
+            let v = VertexId::new(vi);
+            if self.mesh.is_deleted_vertex(v) || self.locked[vi] {
+                continue;
+            }
+            if self.mesh.is_boundary_vertex(v) {
+                self.project_boundary(v);
+            } else {
+                self.project_interior(v);
+            }
+        }
+    }
+
+    fn project_interior(&mut self, v: VertexId) {
+        let cp = self.reference.bvh.closest_point(self.mesh.position(v));
+        if cp.triangle == u32::MAX {
+            return;
+        }
+        let t = cp.triangle as usize;
+        let b = cp.barycentric;
+        let [n0, n1, n2] = self.reference.normals[t];
+        let n = (n0 * b.x + n1 * b.y + n2 * b.z).normalize_or_zero();
+        self.mesh.set_position(v, cp.point);
+        if n != Vec3::ZERO {
+            self.normal[v.idx()] = n;
+        }
+        if !self.uniform {
+            let [s0, s1, s2] = self.reference.sizing[t];
+            self.sizing[v.idx()] = s0 * b.x + s1 * b.y + s2 * b.z;
+        }
+    }
+
+    fn project_boundary(&mut self, v: VertexId) {
+        if self.params.boundary == BoundaryMode::Fixed && self.locked.get(v.idx()).copied().unwrap_or(false) {
+            return;
+        }
+        let Some(bb) = &self.reference.boundary else { return };
+        let cp = bb.closest_point(self.mesh.position(v));
+        if cp.triangle != u32::MAX {
+            self.mesh.set_position(v, cp.point);
+        }
+    }
+
+    // --- caps ------------------------------------------------------------------------------------------
+
+    /// Flips interior edges opposite an angle larger than 170° (pmp's `remove_caps`).
+    fn remove_caps(&mut self) {
+        let limit = 170f32.to_radians().cos();
+        for ei in 0..self.mesh.edges_size() {
+            let e = EdgeId::new(ei);
+            if self.mesh.is_deleted_edge(e) || self.mesh.is_boundary_edge(e) || !self.mesh.is_flip_ok(e) {
+                continue;
+            }
+            let m = &*self.mesh;
+            let h0 = e.halfedge(0);
+            let h1 = e.halfedge(1);
+            let v0 = m.to_vertex(h0);
+            let v2 = m.to_vertex(m.next(h0));
+            let v1 = m.to_vertex(h1);
+            let v3 = m.to_vertex(m.next(h1));
+            if [v0, v1, v2, v3].iter().any(|v| self.locked[v.idx()]) {
+                continue;
+            }
+            let (a, b, c, d) = (m.position(v0), m.position(v2), m.position(v1), m.position(v3));
+            let cos_at = |apex: Vec3| (a - apex).normalize_or_zero().dot((c - apex).normalize_or_zero());
+            let amin = cos_at(b).min(cos_at(d));
+            if amin < limit && self.flip_keeps_orientation(v0, v1, v2, v3) {
+                self.mesh.flip(e);
+                self.report.flips += 1;
+            }
+        }
+    }
+}
