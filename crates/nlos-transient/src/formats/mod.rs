@@ -172,6 +172,10 @@ pub fn read(path: impl AsRef<Path>) -> Result<Transient> {
     }
     let bytes = read_file(path)?;
     let format = detect_bytes(&bytes, path)?;
+    if format == Format::NpyJson {
+        // read_pair's error for a missing sidecar says what the sidecar is and how to write it.
+        return npy::read_pair(path, &path.with_extension("json"));
+    }
     read_bytes_as(&bytes, format, path)
 }
 
