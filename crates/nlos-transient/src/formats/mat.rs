@@ -17,16 +17,17 @@
 //!   bin 0, and times are path lengths `l → x → s` (the device legs were calibrated away).
 //! - **Axis mapping** (checked on the data): MAT index `i` (first dimension) runs along −x and `j`
 //!   (second) along −y, i.e. grid point `ix = N−1−i`, `iy = N−1−j` (point index `ix + N·iy`, x fastest).
-//!   Evidence: an LCT reconstruction (the reference algorithm, reimplemented) of `data_diffuse_s.mat`
-//!   and `data_s_u.mat` (depth 0.3–0.7 m for the S, 0.7–1.2 m for the U) displayed with x to the right
-//!   and y up, as seen from the wall looking into the hidden scene. Mappings that transpose nothing
-//!   (i ↔ y) show a mirrored S, so `i` runs along x; of the two remaining (`x = +i, y = +j` and its 180°
-//!   rotation `x = −i, y = −j`) the S, which is symmetric under a half turn, reads correctly in both, but
-//!   the U of the SU scene stands upright (opening up) only under `x = −i, y = −j`. The letters are
-//!   cut-outs facing the wall, so this is the mapping under which they read correctly from the wall.
-//!   (Tsai et al.'s preprocessing `compute_init_su.m` builds `lighting = ndgrid(x, y)` with `x = +i`,
-//!   `y = +j`, i.e. the same axes rotated 180° about z: their reconstructions are upside down relative
-//!   to ours, which does not matter to their method.)
+//!   Evidence: the time-summed image (after `gate(0.72)`) is too blurred to resolve a letter (each pixel
+//!   integrates the whole scene), so we reconstructed `data_diffuse_s.mat` and `data_s_u.mat` with the
+//!   reference LCT algorithm (reimplemented in NumPy; max over depth 0.3–0.7 m for the S, 0.7–1.2 m for
+//!   the U of the SU scene) and displayed the 8 possible mappings with x to the right and y up, as seen
+//!   from the wall looking into the hidden scene. The four that put `i` along y show the S on its side. Of
+//!   the four with `i` along x, two are mirrored; the other two, `(x, y) = (+i, +j)` and its half turn
+//!   `(−i, −j)`, both show a correct S (the letter is symmetric under a half turn), but only `(−i, −j)`
+//!   shows the U upright (opening upwards; `(+i, +j)` shows ∩). Assuming the letters face the wall and
+//!   stand upright, `(−i, −j)` is the mapping. (Tsai et al.'s `compute_init_su.m` builds `lighting` from
+//!   `ndgrid(x, y)` with `x = +i`, `y = +j`: the same data rotated by a half turn about z relative to
+//!   ours, which does not matter to their method; we read their files as they store them.)
 //!
 //! # Tsai et al. 2019 (Tsai, Sankaranarayanan, Gkioulekas, "Beyond volumetric albedo — a surface
 //! optimization framework for non-line-of-sight imaging", CVPR 2019; code at
