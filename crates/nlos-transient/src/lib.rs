@@ -30,6 +30,7 @@ pub mod formats;
 mod ops;
 mod ops_views;
 pub mod scan;
+pub mod sensor;
 pub mod time_axis;
 pub mod transient;
 

@@ -1,0 +1,222 @@
+//! Corrections for real SPAD captures: Coates' pile-up correction and background estimation.
+//!
+//! ## Coates' correction (Coates 1968)
+//! In the synchronous first-photon model (see the [sensor docs](super)), `D_k = N − Σ_{j<k} n_j` cycles
+//! are still undetected when bin `k` opens, and each is detected in bin `k` with probability
+//! `1 − e^{−λ_k}`. The maximum-likelihood estimate of the per-cycle flux is therefore
+//!
+//! `λ̂_k = −ln(1 − n_k / D_k)`,
+//!
+//! and `N·λ̂_k` is what an ideal (pile-up-free) counter would have recorded on average. Background is
+//! still included; subtract an [`estimate_background`] of the *corrected* histogram.
+//!
+//! ## Background
+//! Bins before the first return hold only dark counts and ambient light, a constant `b` per bin. Its
+//! estimate is the mean of those bins (unbiased for Poisson counts); the median over measurements of
+//! the per-measurement means is also reported, robust to hot or stray-light pixels.
+
+use crate::error::{Result, TransientError};
+use crate::sensor::jitter::median;
+use crate::transient::Transient;
+
+fn bad(name: &'static str, reason: String) -> TransientError {
+    TransientError::InvalidArgument { name, reason }
+}
+
+/// Coates' correction of one histogram of counts over `cycles` laser cycles: returns
+/// `N·λ̂_k = −N·ln(1 − n_k/D_k)`, `D_k = N − Σ_{j<k} n_j`.
+///
+/// Guard: when every remaining cycle was detected in bin `k` (`n_k = D_k`) the estimate is infinite; the
+/// ratio is capped at `1 − 1/(2·D_k)` (half a cycle left undetected), and bins after all cycles are used
+/// up get 0.
+///
+/// # Errors
+/// [`TransientError::InvalidArgument`] when `cycles` is not finite and ≥ 1, a count is negative or not
+/// finite, or the counts add up to more than `cycles` (the cycle count is wrong, or afterpulses dominate).
+pub fn coates_histogram(counts: &[f64], cycles: f64) -> Result<Vec<f64>> {
+    if !(cycles.is_finite() && cycles >= 1.0) {
+        return Err(bad("cycles", format!("{cycles} must be finite and ≥ 1 (laser cycles per measurement)")));
+    }
+    if let Some(i) = counts.iter().position(|c| !(c.is_finite() && *c >= 0.0)) {
+        return Err(bad("counts", format!("bin {i} holds {}; counts are finite and ≥ 0", counts[i])));
+    }
+    let total: f64 = counts.iter().sum();
+    if total > cycles {
+        return Err(bad(
+            "cycles",
+            format!("{total} counts exceed {cycles} cycles: at most one detection per cycle in this model"),
+        ));
+    }
+    let mut remaining = cycles;
+    Ok(counts
+        .iter()
+        .map(|&n| {
+            if remaining <= 0.0 {
+                return 0.0;
+            }
+            let ratio = (n / remaining).min(1.0 - 0.5 / remaining);
+            remaining -= n;
+            // −ln1p(−r) = −ln(1 − r) without cancellation at small r.
+            -cycles * (-ratio).ln_1p()
+        })
+        .collect())
+}
+
+/// [`coates_histogram`] applied to every measurement of a count capture.
+///
+/// # Errors
+/// As [`coates_histogram`].
+pub fn coates_correction(counts: &Transient, cycles: f64) -> Result<Transient> {
+    let mut data = Vec::with_capacity(counts.data().len());
+    for h in counts.histograms() {
+        let hd: Vec<f64> = h.iter().map(|&v| f64::from(v)).collect();
+        data.extend(coates_histogram(&hd, cycles)?.into_iter().map(|v| v as f32));
+    }
+    Transient::new(counts.scan().clone(), *counts.time(), data)
+}
+
+/// Which bins hold background only.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BackgroundWindow {
+    /// The bins before the first return of the summed histogram (the direct light when it is on the
+    /// axis, else the first hidden-scene return). The summed histogram is smoothed with a box of
+    /// `w = max(1, 6 mm/Δ)` bins; the return's onset is the first bin above
+    /// `min + 10 %·(max − min)` of the smoothed signal; the window is `[0, onset − 3w)`, the margin
+    /// keeping the rising edge (jitter, smoothing) out.
+    BeforeFirstReturn,
+    /// Bins `[start, end)`.
+    Bins {
+        /// First bin.
+        start: usize,
+        /// One past the last bin.
+        end: usize,
+    },
+    /// The bins lying entirely within path lengths `[start, end)` metres (e.g. starting at
+    /// [`Transient::direct_light_end`] on a capture whose hidden returns come later).
+    Path {
+        /// Start, metres of path.
+        start: f64,
+        /// End, metres of path.
+        end: f64,
+    },
+}
+
+/// A background estimate: expected counts per bin.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackgroundEstimate {
+    /// Mean of all window bins over all measurements (unbiased for Poisson counts).
+    pub per_bin: f64,
+    /// Standard error of `per_bin` (sample standard deviation of the window bins over √count).
+    pub std_error: f64,
+    /// Median over measurements of the per-measurement means (robust to hot pixels).
+    pub per_bin_median: f64,
+    /// Per-measurement mean of the window bins.
+    pub per_measurement: Vec<f64>,
+    /// The window used, bins `[start, end)`.
+    pub window: (usize, usize),
+}
+
+fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)> {
+    let ax = t.time();
+    let (s, e) = match window {
+        BackgroundWindow::Bins { start, end } => (start, end),
+        BackgroundWindow::Path { start, end } => {
+            if !(start.is_finite() && end.is_finite()) {
+                return Err(bad("window", format!("[{start}, {end}) is not finite")));
+            }
+            let s = ((start - ax.t0) / ax.bin_width).ceil().max(0.0);
+            let e = ((end - ax.t0) / ax.bin_width).floor().clamp(0.0, ax.bins as f64);
+            (s.min(ax.bins as f64) as usize, e as usize)
+        }
+        BackgroundWindow::BeforeFirstReturn => {
+            let h = t.summed_histogram();
+            let w = ((0.006 / ax.bin_width).round() as usize).clamp(1, ax.bins);
+            let mut smooth = vec![0.0; h.len()];
+            let mut acc = 0.0;
+            for k in 0..h.len() {
+                acc += h[k];
+                if k >= w {
+                    acc -= h[k - w];
+                }
+                smooth[k] = acc / (k + 1).min(w) as f64;
+            }
+            let lo = smooth.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = smooth.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let thr = lo + 0.1 * (hi - lo);
+            let onset = smooth.iter().position(|&v| v > thr).unwrap_or(0);
+            // The trailing box puts the smoothed rise up to w bins late relative to its centre; 3w covers it.
+            (0, onset.saturating_sub(3 * w))
+        }
+    };
+    if s >= e || e > ax.bins {
+        return Err(bad(
+            "window",
+            format!(
+                "background window [{s}, {e}) of {} bins is empty or outside the axis; pass an explicit \
+                 window of bins that hold background only",
+                ax.bins
+            ),
+        ));
+    }
+    Ok((s, e))
+}
+
+/// Estimates the background (expected counts per bin) from bins that hold no signal.
+///
+/// # Errors
+/// [`TransientError::InvalidArgument`] when the window is empty, outside the axis, not finite, or (for
+/// [`BackgroundWindow::BeforeFirstReturn`]) when no bins precede the first return.
+pub fn estimate_background(t: &Transient, window: BackgroundWindow) -> Result<BackgroundEstimate> {
+    let (s, e) = window_bins(t, window)?;
+    let n = (e - s) as f64;
+    let per_measurement: Vec<f64> =
+        t.histograms().map(|h| h[s..e].iter().map(|&v| f64::from(v)).sum::<f64>() / n).collect();
+    let count = n * per_measurement.len() as f64;
+    let per_bin = per_measurement.iter().sum::<f64>() * n / count;
+    let ss: f64 = t.histograms().flat_map(|h| h[s..e].iter()).map(|&v| (f64::from(v) - per_bin).powi(2)).sum();
+    // Guard: a single window bin has no spread to estimate.
+    let std_error = if count > 1.0 { (ss / (count - 1.0)).sqrt() / count.sqrt() } else { f64::NAN };
+    Ok(BackgroundEstimate {
+        per_bin,
+        std_error,
+        per_bin_median: median(&per_measurement),
+        per_measurement,
+        window: (s, e),
+    })
+}
+
+/// Photon counts of a capture, split into background and signal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CountSummary {
+    /// Σ of all bins of all measurements.
+    pub total: f64,
+    /// The background estimate used.
+    pub background: BackgroundEstimate,
+    /// Estimated background counts over the capture: `b·bins·M`.
+    pub background_total: f64,
+    /// `total − background_total`.
+    pub signal_total: f64,
+    /// `signal_total / M`.
+    pub signal_per_measurement: f64,
+    /// Whether every value is a non-negative integer (the capture looks like raw photon counts).
+    pub integer_counts: bool,
+}
+
+/// Counts of a capture with the background estimated over `window`.
+///
+/// # Errors
+/// As [`estimate_background`].
+pub fn count_summary(t: &Transient, window: BackgroundWindow) -> Result<CountSummary> {
+    let background = estimate_background(t, window)?;
+    let total: f64 = t.data().iter().map(|&v| f64::from(v)).sum();
+    let background_total = background.per_bin * t.data().len() as f64;
+    let signal_total = total - background_total;
+    Ok(CountSummary {
+        total,
+        background_total,
+        signal_total,
+        signal_per_measurement: signal_total / t.measurements() as f64,
+        integer_counts: t.data().iter().all(|&v| v >= 0.0 && v.fract() == 0.0),
+        background,
+    })
+}

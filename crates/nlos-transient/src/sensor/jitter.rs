@@ -1,0 +1,442 @@
+//! The sensor's timing response (jitter): loading, Gaussian model, FWHM, resampling onto a transient's
+//! bins, and the resulting convolution operator with its adjoint.
+//!
+//! ## Model
+//! A photon arriving at path length `τ_true` is registered at `τ_true + τ` with `τ` drawn from the
+//! timing-response density `h(τ)` (SPAD avalanche build-up, electronics, and — in a measured response —
+//! the laser pulse width). [`JitterResponse`] stores `h` as a fine histogram: sample `i` holds the mass of
+//! `h` over `[origin + i·δ, origin + (i+1)·δ)` (metres of path, `δ` the sample spacing), normalised to
+//! `Σ_i w_i = 1`. **Zero delay is the mode (peak)** of a measured response, the convention of the shared
+//! `spad_jitter.mat` (its `t_1` is exactly 0 at the maximum of `counts_1`) and of captures whose time
+//! zero is calibrated on the peak of the direct return.
+//!
+//! ## Resampling onto transient bins (mass-conserving)
+//! A transient bin `k` holds the integral of a piecewise-constant flux over `[k·Δ, (k+1)·Δ)`, so a photon
+//! counted in bin `k` arrived at `(k + u)·Δ` with `u ~ U[0, 1)`. With `s = τ/Δ` it is registered in bin
+//! `k + d` exactly when `d ≤ u + s < d + 1`, which has probability `tent(s − d) = max(0, 1 − |s − d|)`.
+//! The bin kernel is therefore
+//!
+//! `K[d] = ∫ h(τ) · tent(τ/Δ − d) dτ`,
+//!
+//! integrated **exactly** over each piecewise-constant sample of `h` with the tent's antiderivative `T`.
+//! Since `Σ_d tent(s − d) = 1` for every `s`, `Σ_d K[d] = Σ_i w_i = 1` (flux is conserved), and since
+//! `Σ_d d·tent(s − d) = s`, the kernel's centroid in bins is the response's mean delay over `Δ`.
+//!
+//! ## Operator
+//! [`BinKernel::apply`]: `(A x)[k] = Σ_d K[d] · x[k − d]` per histogram; [`BinKernel::adjoint`]:
+//! `(Aᵀ y)[j] = Σ_d K[d] · y[j + d]`. Photons delayed beyond the last bin (or advanced before the first)
+//! leave the histogram window, as they do in a real TCSPC window; away from the edges `Σ_k (A x)[k] =
+//! Σ_k x[k]`.
+
+use std::path::Path;
+
+use crate::SPEED_OF_LIGHT;
+use crate::error::{MEMORY, Result, TransientError};
+use crate::formats::hdf5::read_dataset_f64;
+
+/// A timing response `h(τ)` as a fine, normalised histogram of delays (metres of path). See the
+/// [module docs](self) for the conventions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JitterResponse {
+    origin: f64,
+    spacing: f64,
+    weights: Vec<f64>,
+}
+
+fn invalid(field: &str, reason: String) -> TransientError {
+    TransientError::InvalidValue { file: MEMORY.into(), field: field.into(), reason }
+}
+
+fn arg(name: &'static str, reason: String) -> TransientError {
+    TransientError::InvalidArgument { name, reason }
+}
+
+/// Median of a non-empty slice of finite values (upper median for even lengths is not used: the mean of
+/// the two middle values).
+pub(crate) fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
+}
+
+impl JitterResponse {
+    /// A response from a measured histogram: sample `i` holds `counts[i]`, covering delays
+    /// `[origin + i·spacing, origin + (i+1)·spacing)` metres of path.
+    ///
+    /// With `subtract_floor`, the constant floor (dark counts and ambient light recorded with the
+    /// response) is removed first: `floor = min(median(first 5 %), median(last 5 %))` of the samples (at
+    /// least one sample each), then `max(0, counts − floor)`. A flat floor left in would act as a spurious
+    /// uniform component spread over the whole window. The result is normalised to unit mass and leading
+    /// and trailing zero samples are dropped (the origin moves accordingly).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidValue`] for an empty histogram, non-finite or negative counts, a
+    /// non-finite origin, a spacing that is not finite and positive, or a histogram with no mass above the
+    /// floor.
+    pub fn from_histogram(origin: f64, spacing: f64, counts: &[f64], subtract_floor: bool) -> Result<Self> {
+        if counts.is_empty() {
+            return Err(invalid("counts", "the timing histogram is empty".into()));
+        }
+        if !origin.is_finite() {
+            return Err(invalid("origin", format!("{origin} is not finite")));
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(invalid("spacing", format!("{spacing} must be finite and > 0 (metres of path)")));
+        }
+        if let Some(i) = counts.iter().position(|c| !c.is_finite()) {
+            return Err(TransientError::NonFinite { file: MEMORY.into(), field: "counts".into(), index: i });
+        }
+        if let Some(i) = counts.iter().position(|&c| c < 0.0) {
+            return Err(invalid("counts", format!("sample {i} is negative ({}); counts are ≥ 0", counts[i])));
+        }
+        let floor = if subtract_floor {
+            let edge = (counts.len() / 20).max(1);
+            median(&counts[..edge]).min(median(&counts[counts.len() - edge..]))
+        } else {
+            0.0
+        };
+        let w: Vec<f64> = counts.iter().map(|&c| (c - floor).max(0.0)).collect();
+        let Some(first) = w.iter().position(|&v| v > 0.0) else {
+            return Err(invalid("counts", format!("no mass above the floor ({floor}); is this a timing histogram?")));
+        };
+        let last = w.iter().rposition(|&v| v > 0.0).unwrap_or(first);
+        let total: f64 = w[first..=last].iter().sum();
+        let weights = w[first..=last].iter().map(|v| v / total).collect();
+        Ok(Self { origin: origin + first as f64 * spacing, spacing, weights })
+    }
+
+    /// A Gaussian response of full width at half maximum `fwhm` (metres of path), centred on zero delay:
+    /// `h(τ) = exp(−τ²/2σ²)/(σ√2π)`, `σ = FWHM / (2√(2 ln 2))`.
+    ///
+    /// Stored on `±4 FWHM` (±9.4 σ; the mass outside is < 1e-20) with spacing `FWHM/64`, each sample
+    /// holding the density at its centre times the spacing, renormalised to unit mass (the midpoint rule's
+    /// relative error at this spacing is ~1e-5 per sample and cancels in the normalisation to first order).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when `fwhm` is not finite and positive.
+    pub fn gaussian(fwhm: f64) -> Result<Self> {
+        if !(fwhm.is_finite() && fwhm > 0.0) {
+            return Err(arg("fwhm", format!("{fwhm} must be finite and > 0 (metres of path)")));
+        }
+        let sigma = fwhm / (2.0 * (2.0 * std::f64::consts::LN_2).sqrt());
+        let spacing = fwhm / 64.0;
+        let half = 256usize; // 4 FWHM / spacing
+        let n = 2 * half + 1;
+        let origin = -(half as f64 + 0.5) * spacing;
+        let w: Vec<f64> = (0..n)
+            .map(|i| {
+                let tau = origin + (i as f64 + 0.5) * spacing;
+                (-0.5 * (tau / sigma).powi(2)).exp()
+            })
+            .collect();
+        let total: f64 = w.iter().sum();
+        Ok(Self { origin, spacing, weights: w.into_iter().map(|v| v / total).collect() })
+    }
+
+    /// Loads a measured timing response from a MATLAB v7.3 or HDF5 file, recognising the two layouts of
+    /// the shared data (`../shared/data/sensor/`):
+    ///
+    /// - **`t_1` + `counts_1`** (`spad_jitter.mat`, 1×901 each): `t_1` are the sample **centres** in
+    ///   **seconds** — the file's own values run from −8.387e-11 to 6.490e-10 with a uniform spacing of
+    ///   8.14e-13 s (0.814 ps), although the data README says picoseconds. Units are decided from the
+    ///   spacing: below 1e-6 the values are seconds, otherwise picoseconds (no SPAD response is sampled
+    ///   coarser than a microsecond, and none finer than 1e-6 ps). Zero delay is where the file puts it
+    ///   (`t_1 = 0` at the peak of `counts_1`).
+    /// - **`counts` + `timebin_width_ps`** (`spad_impulse_response.hdf5`, 1201×1 `uint16`, 0.75 ps):
+    ///   no time origin is stored, so zero delay is put at the centre of the maximum sample.
+    ///
+    /// Either way, times become path lengths `c·t` (c = 299 792 458 m/s), and the constant floor is
+    /// subtracted as in [`JitterResponse::from_histogram`].
+    ///
+    /// # Errors
+    /// The reading errors of [`read_dataset_f64`]; [`TransientError::MissingField`] when neither layout is
+    /// present; [`TransientError::WrongShape`] when times and counts differ in length;
+    /// [`TransientError::InvalidValue`] for non-uniform or non-increasing times and the errors of
+    /// [`JitterResponse::from_histogram`].
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let file = |field: &str, reason: String| TransientError::InvalidValue {
+            file: path.into(),
+            field: field.into(),
+            reason,
+        };
+        match read_dataset_f64(path, "t_1") {
+            Ok((t, _)) => {
+                let (counts, _) = read_dataset_f64(path, "counts_1")?;
+                if counts.len() != t.len() {
+                    return Err(TransientError::WrongShape {
+                        file: path.into(),
+                        field: "counts_1".into(),
+                        expected: format!("{} samples, as `t_1`", t.len()),
+                        found: format!("{} samples", counts.len()),
+                    });
+                }
+                if t.len() < 2 {
+                    return Err(file("t_1", "needs at least two samples to define a spacing".into()));
+                }
+                let n = t.len();
+                let step = (t[n - 1] - t[0]) / (n - 1) as f64;
+                if !(step.is_finite() && step > 0.0) {
+                    return Err(file("t_1", "times must be finite and increasing".into()));
+                }
+                // Uniform sampling: every step within 5 % of the mean step.
+                if let Some(i) = t.windows(2).position(|w| ((w[1] - w[0]) - step).abs() > 0.05 * step) {
+                    return Err(file("t_1", format!("non-uniform spacing at sample {i}; resample first")));
+                }
+                let to_seconds = if step < 1e-6 { 1.0 } else { 1e-12 };
+                let spacing = step * to_seconds * SPEED_OF_LIGHT;
+                let origin = t[0] * to_seconds * SPEED_OF_LIGHT - 0.5 * spacing;
+                Self::from_histogram(origin, spacing, &counts, true).map_err(|e| with_file(e, path))
+            }
+            Err(TransientError::MissingField { .. }) => {
+                let (counts, _) = read_dataset_f64(path, "counts").map_err(|e| match e {
+                    TransientError::MissingField { file, .. } => TransientError::MissingField {
+                        file,
+                        field: "t_1/counts_1 or counts/timebin_width_ps".into(),
+                        hint: "a timing response needs either times `t_1` with `counts_1`, or `counts` with \
+                               `timebin_width_ps`"
+                            .into(),
+                    },
+                    e => e,
+                })?;
+                let (w, _) = read_dataset_f64(path, "timebin_width_ps")?;
+                let width_ps = w.first().copied().unwrap_or(f64::NAN);
+                if !(width_ps.is_finite() && width_ps > 0.0) {
+                    return Err(file("timebin_width_ps", format!("{width_ps} must be finite and > 0")));
+                }
+                let spacing = width_ps * 1e-12 * SPEED_OF_LIGHT;
+                let peak = counts.iter().enumerate().fold(0, |b, (i, &c)| if c > counts[b] { i } else { b });
+                let origin = -(peak as f64 + 0.5) * spacing;
+                Self::from_histogram(origin, spacing, &counts, true).map_err(|e| with_file(e, path))
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Delay (metres of path) at the start of sample 0.
+    pub fn origin(&self) -> f64 {
+        self.origin
+    }
+
+    /// Sample spacing, metres of path.
+    pub fn spacing(&self) -> f64 {
+        self.spacing
+    }
+
+    /// The normalised sample masses (`Σ = 1`).
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// Mean delay `Σ_i w_i · τ_i` (sample centres), metres of path.
+    pub fn mean_delay(&self) -> f64 {
+        self.weights.iter().enumerate().map(|(i, w)| w * (self.origin + (i as f64 + 0.5) * self.spacing)).sum()
+    }
+
+    /// Full width at half maximum, metres of path: the distance between the two half-maximum crossings
+    /// of the sampled response (sample values at their centres, crossings located by linear interpolation
+    /// between neighbouring samples, searched outwards from the maximum).
+    pub fn fwhm(&self) -> f64 {
+        let w = &self.weights;
+        let peak = w.iter().enumerate().fold(0, |b, (i, &v)| if v > w[b] { i } else { b });
+        let half = 0.5 * w[peak];
+        // Left crossing: last i < peak with w[i] < half; interpolate between i and i+1.
+        let left = (0..peak).rev().find(|&i| w[i] < half).map_or(0.0, |i| {
+            i as f64 + (half - w[i]) / (w[i + 1] - w[i]) // w[i+1] ≥ half > w[i], so no division by 0
+        });
+        let right = (peak + 1..w.len())
+            .find(|&i| w[i] < half)
+            .map_or((w.len() - 1) as f64, |i| (i - 1) as f64 + (w[i - 1] - half) / (w[i - 1] - w[i]));
+        (right - left) * self.spacing
+    }
+
+    /// [`JitterResponse::fwhm`] in picoseconds (`FWHM / c`).
+    pub fn fwhm_ps(&self) -> f64 {
+        self.fwhm() / SPEED_OF_LIGHT * 1e12
+    }
+
+    /// The response resampled onto transient bins of width `bin_width` (metres of path), conserving its
+    /// integral exactly: `K[d] = ∫ h(τ)·tent(τ/Δ − d) dτ` (see the [module docs](self)).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when `bin_width` is not finite and positive, or when the
+    /// response spans more than 10⁷ bins (a bin width far too small for this response).
+    pub fn to_bins(&self, bin_width: f64) -> Result<BinKernel> {
+        if !(bin_width.is_finite() && bin_width > 0.0) {
+            return Err(arg("bin_width", format!("{bin_width} must be finite and > 0 (metres of path)")));
+        }
+        let s_lo = self.origin / bin_width;
+        let s_hi = (self.origin + self.weights.len() as f64 * self.spacing) / bin_width;
+        // Guard: checked in f64 before any cast, so a tiny bin width cannot overflow the bin indices.
+        if !(s_hi - s_lo <= 1e7 && s_lo.abs() <= 1e12 && s_hi.abs() <= 1e12) {
+            return Err(arg("bin_width", format!("{bin_width} m makes the response span {} bins", s_hi - s_lo)));
+        }
+        let first = s_lo.floor() as i64 - 1;
+        let last = s_hi.ceil() as i64 + 1;
+        let len = (last - first + 1) as usize;
+        let mut k = vec![0.0f64; len];
+        let ds = self.spacing / bin_width;
+        for (i, &w) in self.weights.iter().enumerate() {
+            if w == 0.0 {
+                continue;
+            }
+            let sa = s_lo + i as f64 * ds;
+            let sb = sa + ds;
+            let d0 = sa.floor() as i64 - 1;
+            let d1 = sb.ceil() as i64 + 1;
+            for d in d0..=d1 {
+                let frac = (tent_cdf(sb - d as f64) - tent_cdf(sa - d as f64)) / ds;
+                let idx = d - first;
+                if frac > 0.0 && (0..len as i64).contains(&idx) {
+                    k[idx as usize] += w * frac;
+                }
+            }
+        }
+        // Renormalise the rounding residue (Σ is 1 analytically) and drop exact-zero ends.
+        let total: f64 = k.iter().sum();
+        let lo = k.iter().position(|&v| v > 0.0).unwrap_or(0);
+        let hi = k.iter().rposition(|&v| v > 0.0).unwrap_or(lo);
+        let weights = k[lo..=hi].iter().map(|v| v / total).collect();
+        Ok(BinKernel { first: first + lo as i64, weights })
+    }
+}
+
+/// Re-labels an in-memory error with the file it came from.
+fn with_file(e: TransientError, path: &Path) -> TransientError {
+    match e {
+        TransientError::InvalidValue { field, reason, .. } => {
+            TransientError::InvalidValue { file: path.into(), field, reason }
+        }
+        TransientError::NonFinite { field, index, .. } => TransientError::NonFinite { file: path.into(), field, index },
+        e => e,
+    }
+}
+
+/// Antiderivative of `tent(x) = max(0, 1 − |x|)`: 0 below −1, `(x+1)²/2` on [−1, 0), `1 − (1−x)²/2` on
+/// [0, 1), 1 above.
+fn tent_cdf(x: f64) -> f64 {
+    if x <= -1.0 {
+        0.0
+    } else if x < 0.0 {
+        0.5 * (x + 1.0) * (x + 1.0)
+    } else if x < 1.0 {
+        1.0 - 0.5 * (1.0 - x) * (1.0 - x)
+    } else {
+        1.0
+    }
+}
+
+/// A timing response on transient bins: `K[d]` for `d = first, first+1, …` (`Σ K = 1`), the linear
+/// operator `A` of the sensor's temporal response. See the [module docs](self).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BinKernel {
+    first: i64,
+    weights: Vec<f64>,
+}
+
+impl BinKernel {
+    /// A kernel from explicit weights: `K[first + i] = weights[i]` (not renormalised).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] for empty, negative or non-finite weights.
+    pub fn new(first: i64, weights: Vec<f64>) -> Result<Self> {
+        if weights.is_empty() || weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(arg("weights", "a kernel needs at least one weight, all finite and ≥ 0".into()));
+        }
+        Ok(Self { first, weights })
+    }
+
+    /// The identity (an ideal sensor without jitter): `K[0] = 1`.
+    pub fn identity() -> Self {
+        Self { first: 0, weights: vec![1.0] }
+    }
+
+    /// The offset (in bins) of the first weight.
+    pub fn first(&self) -> i64 {
+        self.first
+    }
+
+    /// The weights `K[first..]`.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    fn check(&self, len: usize, bins: usize, out: usize) -> Result<()> {
+        if bins == 0 || len % bins != 0 {
+            return Err(arg("bins", format!("{len} values do not split into histograms of {bins} bins")));
+        }
+        if out != len {
+            return Err(arg("out", format!("output holds {out} values, input {len}")));
+        }
+        Ok(())
+    }
+
+    /// `out = A x` per histogram of `bins` bins: `(A x)[k] = Σ_d K[d]·x[k − d]` (f64 accumulation).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] when `x.len()` is not a multiple of `bins` or `out` differs in
+    /// length.
+    pub fn apply_f64(&self, x: &[f64], bins: usize, out: &mut [f64]) -> Result<()> {
+        self.check(x.len(), bins, out.len())?;
+        for (xh, oh) in x.chunks_exact(bins).zip(out.chunks_exact_mut(bins)) {
+            oh.fill(0.0);
+            for (i, &w) in self.weights.iter().enumerate() {
+                let d = self.first + i as i64;
+                // k − d ∈ [0, bins) ⇔ k ∈ [d, bins + d)
+                let k0 = d.max(0) as usize;
+                let k1 = (bins as i64 + d).min(bins as i64);
+                for k in k0..k1.max(k0 as i64) as usize {
+                    oh[k] += w * xh[(k as i64 - d) as usize];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `out = Aᵀ y` per histogram: `(Aᵀ y)[j] = Σ_d K[d]·y[j + d]`.
+    ///
+    /// # Errors
+    /// As [`BinKernel::apply_f64`].
+    pub fn adjoint_f64(&self, y: &[f64], bins: usize, out: &mut [f64]) -> Result<()> {
+        self.check(y.len(), bins, out.len())?;
+        for (yh, oh) in y.chunks_exact(bins).zip(out.chunks_exact_mut(bins)) {
+            oh.fill(0.0);
+            for (i, &w) in self.weights.iter().enumerate() {
+                let d = self.first + i as i64;
+                // j + d ∈ [0, bins) ⇔ j ∈ [−d, bins − d)
+                let j0 = (-d).max(0) as usize;
+                let j1 = (bins as i64 - d).min(bins as i64);
+                for j in j0..j1.max(j0 as i64) as usize {
+                    oh[j] += w * yh[(j as i64 + d) as usize];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `A x` for `f32` data (a transient's layout), accumulated in `f64`.
+    ///
+    /// # Errors
+    /// As [`BinKernel::apply_f64`].
+    pub fn apply(&self, x: &[f32], bins: usize) -> Result<Vec<f32>> {
+        let xd: Vec<f64> = x.iter().map(|&v| f64::from(v)).collect();
+        let mut out = vec![0.0; xd.len()];
+        self.apply_f64(&xd, bins, &mut out)?;
+        Ok(out.into_iter().map(|v| v as f32).collect())
+    }
+
+    /// `Aᵀ y` for `f32` data, accumulated in `f64`.
+    ///
+    /// # Errors
+    /// As [`BinKernel::apply_f64`].
+    pub fn adjoint(&self, y: &[f32], bins: usize) -> Result<Vec<f32>> {
+        let yd: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
+        let mut out = vec![0.0; yd.len()];
+        self.adjoint_f64(&yd, bins, &mut out)?;
+        Ok(out.into_iter().map(|v| v as f32).collect())
+    }
+}
