@@ -1,0 +1,89 @@
+//! The one error type of the crate.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// Everything that can go wrong in a reconstruction. Each variant says the cause and the fix.
+#[derive(Debug, Error)]
+pub enum OptimError {
+    /// The renderer rejected the mesh, the scan or a buffer.
+    #[error("renderer: {0}; the mesh or the measurement's scan/time axis is unusable (see nlos_render)")]
+    Render(#[from] nlos_render::RenderError),
+    /// A mesh operation (construction, remeshing, I/O) failed.
+    #[error("mesh: {0}; repair the initial mesh (manifold, finite, non-empty) or check the output directory")]
+    Mesh(#[from] nlos_mesh::MeshError),
+    /// Reflectance parameters could not be turned into a BRDF.
+    #[error("BRDF: {0}; start from parameters inside the model's domain")]
+    Brdf(#[from] nlos_brdf::BrdfError),
+    /// A parameter is outside its domain.
+    #[error("invalid parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name (as spelled in [`crate::ReconstructParams`]).
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is allowed.
+        reason: &'static str,
+    },
+    /// Two buffers that must match in length do not.
+    #[error("{what} has {got} values but {expected} were expected; pass one value per (measurement, bin)")]
+    LengthMismatch {
+        /// Which buffer.
+        what: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Supplied length.
+        got: usize,
+    },
+    /// The measurement contains NaN or infinite values.
+    #[error("measured value {index} is not finite ({value}); clean the capture (e.g. zero dead pixels) first")]
+    NonFiniteMeasurement {
+        /// Index into the measurement (measurement-major).
+        index: usize,
+        /// The value.
+        value: f32,
+    },
+    /// The mesh has no faces (initially, or after removing unlit faces).
+    #[error("the mesh has no faces ({context}); start from a larger initial surface in front of the wall")]
+    EmptyMesh {
+        /// Where it happened.
+        context: &'static str,
+    },
+    /// Non-finite loss, gradient or positions persisted after every allowed step halving.
+    #[error(
+        "optimisation diverged at iteration {iteration}: non-finite {what} after {rollbacks} rollbacks with \
+         halved steps; lower the learning rates, raise the regulariser ratio or check the measurement"
+    )]
+    Diverged {
+        /// Global iteration number.
+        iteration: u64,
+        /// What was not finite.
+        what: &'static str,
+        /// Rollbacks performed.
+        rollbacks: u32,
+    },
+    /// Reading or writing a file failed.
+    #[error("{}: {source}; check that the output directory exists and is writable", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A checkpoint is missing, malformed or from an incompatible run.
+    #[error("checkpoint {}: {message}; start a fresh run (without resume) or pass the matching measurement", path.display())]
+    Checkpoint {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The evolution hook (collision handling) failed.
+    #[error("evolution hook: {0}; fall back to DirectEvolve or fix the hook")]
+    Evolve(String),
+}
+
+/// Result alias of the crate.
+pub type Result<T> = std::result::Result<T, OptimError>;
