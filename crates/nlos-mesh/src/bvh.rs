@@ -123,15 +123,40 @@ impl TriangleBvh {
         })
     }
 
-    /// The closest point if one lies within `max_distance` of `p`.
+    /// The closest point if one lies within `max_distance` of `p`. A small `max_distance` (e.g. for points
+    /// known to be near the surface) prunes most of the tree.
     pub fn closest_point_within(&self, p: Vec3, max_distance: f32) -> Option<ClosestPoint> {
+        self.closest_point_filtered(p, max_distance, |_| true)
+    }
+
+    /// The closest point within `max_distance` among the triangles `accept` returns true for (e.g. only
+    /// triangles facing a given direction, to avoid snapping onto a nearby sheet of a thin part).
+    pub fn closest_point_filtered(
+        &self,
+        p: Vec3,
+        max_distance: f32,
+        mut accept: impl FnMut(u32) -> bool,
+    ) -> Option<ClosestPoint> {
         let q = Vec3A::from(p);
         let mut best_d2 = if max_distance.is_finite() { max_distance * max_distance } else { f32::INFINITY };
         let mut best: Option<ClosestPoint> = None;
         let nodes = &self.bvh.nodes;
-        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
-        stack.push((0, box_distance_squared(nodes[0].aabb(), q)));
-        while let Some((ni, d2)) = stack.pop() {
+        // Fixed-size stack: each pop pushes at most two children, so depth + 1 entries suffice; obvhs trees
+        // are far shallower than 128 levels for any mesh that fits in memory, and a deeper one falls back to
+        // the heap below.
+        let mut stack = [(0u32, 0f32); 128];
+        let mut overflow: Vec<(u32, f32)> = Vec::new();
+        let mut len = 1usize;
+        stack[0] = (0, box_distance_squared(nodes[0].aabb(), q));
+        loop {
+            let (ni, d2) = if let Some(x) = overflow.pop() {
+                x
+            } else if len > 0 {
+                len -= 1;
+                stack[len]
+            } else {
+                break;
+            };
             if d2 > best_d2 {
                 continue;
             }
@@ -143,7 +168,7 @@ impl TriangleBvh {
                     let t = &self.tris[ti as usize];
                     let (c, bary) = closest_point_on_triangle(q, t[0], t[1], t[2]);
                     let d = c.distance_squared(q);
-                    if d <= best_d2 {
+                    if d <= best_d2 && accept(ti) {
                         best_d2 = d;
                         best = Some(ClosestPoint {
                             point: Vec3::from(c),
@@ -158,17 +183,31 @@ impl TriangleBvh {
                 let r = l + 1;
                 let dl = box_distance_squared(nodes[l as usize].aabb(), q);
                 let dr = box_distance_squared(nodes[r as usize].aabb(), q);
-                // push the farther child first so the nearer one is visited first
-                if dl <= dr {
-                    stack.push((r, dr));
-                    stack.push((l, dl));
-                } else {
-                    stack.push((l, dl));
-                    stack.push((r, dr));
+                // push the farther child first so the nearer one is visited first; skip pruned children
+                let (near, far) = if dl <= dr { ((l, dl), (r, dr)) } else { ((r, dr), (l, dl)) };
+                for item in [far, near] {
+                    if item.1 > best_d2 {
+                        continue;
+                    }
+                    if len < stack.len() && overflow.is_empty() {
+                        stack[len] = item;
+                        len += 1;
+                    } else {
+                        overflow.push(item);
+                    }
                 }
             }
         }
         best
+    }
+
+    /// The closest point to `p`, searching first within `hint` (cheap when `p` is known to be close to the
+    /// surface) and then everywhere.
+    pub fn closest_point_near(&self, p: Vec3, hint: f32) -> ClosestPoint {
+        match self.closest_point_within(p, hint) {
+            Some(c) => c,
+            None => self.closest_point(p),
+        }
     }
 
     /// Calls `f(triangle)` for every triangle whose bounding box overlaps the box `[lo, hi]`.

@@ -1,0 +1,85 @@
+//! Remeshing the shared bunny at L = 3 mm (5 iterations) and closest-point query throughput.
+//! Target on the 2-core development machine: the remesh in under 1 s.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use nlos_mesh::remeshing::{RemeshParams, uniform_remeshing};
+use nlos_mesh::{SurfaceMesh, TriangleBvh, io, shapes};
+
+fn bunny() -> Option<SurfaceMesh> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
+    if !std::path::Path::new(path).exists() {
+        eprintln!("skipping the bunny benchmarks: {path} not found");
+        return None;
+    }
+    io::load(path).ok()
+}
+
+fn remesh(c: &mut Criterion) {
+    let Some(input) = bunny() else { return };
+    let mut g = c.benchmark_group("remesh");
+    g.sample_size(10);
+    for (name, params) in [
+        ("bunny_3mm_5_iterations", RemeshParams { iterations: 5, ..RemeshParams::pmp() }),
+        ("bunny_3mm_5_iterations_features22", RemeshParams { iterations: 5, ..RemeshParams::preserve_features(22.0) }),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter_batched(
+                || input.clone(),
+                |mut m| {
+                    uniform_remeshing(&mut m, 0.003, &params).expect("remeshes");
+                    m
+                },
+                criterion::BatchSize::LargeInput,
+            )
+        });
+    }
+    g.finish();
+}
+
+fn closest_point(c: &mut Criterion) {
+    let mesh = bunny().unwrap_or_else(|| shapes::icosphere(Vec3::new(0.0, 0.0, 0.45), 0.1, 6));
+    let bvh = TriangleBvh::from_mesh(&mesh).expect("non-empty");
+    let (lo, hi) = mesh.bounds().expect("non-empty");
+    // 10k deterministic query points in the bounding box grown by 10%
+    let pad = (hi - lo) * 0.1;
+    let mut s = 0x1234_5678u64;
+    let mut next = || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let queries: Vec<Vec3> =
+        (0..10_000).map(|_| lo - pad + (hi - lo + 2.0 * pad) * Vec3::new(next(), next(), next())).collect();
+    // and 10k points within 1 mm of the surface (the remesher's projection queries)
+    let near: Vec<Vec3> = mesh
+        .vertices()
+        .take(10_000)
+        .map(|v| mesh.position(v) + mesh.vertex_normal(v) * (0.001 * (2.0 * next() - 1.0)))
+        .collect();
+    let mut g = c.benchmark_group("closest_point");
+    g.throughput(Throughput::Elements(queries.len() as u64));
+    g.bench_function(format!("{}_faces_10k_near_surface", mesh.n_faces()), |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for &q in &near {
+                acc += bvh.closest_point(black_box(q)).distance_squared;
+            }
+            acc
+        })
+    });
+    g.bench_function(format!("{}_faces_10k_queries", mesh.n_faces()), |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for &q in &queries {
+                acc += bvh.closest_point(black_box(q)).distance_squared;
+            }
+            acc
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, remesh, closest_point);
+criterion_main!(benches);
