@@ -366,7 +366,7 @@ impl BinKernel {
     }
 
     fn check(&self, len: usize, bins: usize, out: usize) -> Result<()> {
-        if bins == 0 || len % bins != 0 {
+        if bins == 0 || !len.is_multiple_of(bins) {
             return Err(arg("bins", format!("{len} values do not split into histograms of {bins} bins")));
         }
         if out != len {

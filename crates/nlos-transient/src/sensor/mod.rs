@@ -230,10 +230,10 @@ impl SpadModel {
                 ),
             ));
         }
-        if let Some(w) = self.bin_width {
-            if !(w.is_finite() && w > 0.0) {
-                return Err(bad("bin_width", format!("{w} must be finite and > 0 (metres of path)")));
-            }
+        if let Some(w) = self.bin_width
+            && !(w.is_finite() && w > 0.0)
+        {
+            return Err(bad("bin_width", format!("{w} must be finite and > 0 (metres of path)")));
         }
         Ok(())
     }

@@ -90,7 +90,7 @@ fn binomial_sampler_mean_variance_and_chi_square() {
         let (mean, var) = moments(&x);
         let (nf, q) = (n as f64, 1.0 - p);
         let (mu, s2) = (nf * p, nf * p * q);
-        // Var of the sample variance ≈ (μ₄ − σ⁴)/n, μ₄ = σ²(1 + 3(n−2)pq)... use the exact central moment.
+        // Var of the sample variance ≈ (μ₄ − σ⁴)/n with the exact μ₄ = σ²(1 + 3(n−2)pq).
         let mu4 = s2 * (1.0 + 3.0 * (nf - 2.0) * p * q);
         let z_mean = (mean - mu) / (s2 / n_s as f64).sqrt();
         let z_var = (var - s2) / ((mu4 - s2 * s2) / n_s as f64).sqrt();
