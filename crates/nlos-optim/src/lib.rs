@@ -9,16 +9,40 @@
 //! - [`loss`]: the data term — L2 of eq. (7) or Poisson NLL (`nlos_render::Loss`), per-bin weights, and an
 //!   unknown global intensity scale solved in closed form at every step;
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
-//!   the automatic weight.
+//!   the automatic weight;
+//! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
+//! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
+//!   non-finite values, checkpoints and [`resume`], the JSON run log, an evolution hook for collision
+//!   handling (El Topo, not yet available: [`DirectEvolve`] applies displacements directly).
+//!
+//! ```no_run
+//! use nlos_optim::{ReconstructParams, reconstruct};
+//! # fn demo(measured: &nlos_transient::Transient, init: &nlos_mesh::SurfaceMesh) -> nlos_optim::Result<()> {
+//! let params = ReconstructParams { out_dir: Some("out".into()), seed: 7, ..ReconstructParams::default() };
+//! let outcome = reconstruct(measured, init, &params)?;
+//! println!("{} faces, final loss {:?}", outcome.mesh.n_faces(), outcome.log.iterations.last().map(|r| r.loss));
+//! # Ok(()) }
+//! ```
 #![warn(missing_docs)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which is how non-finite values reach the guards.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod adam;
 pub mod error;
 pub mod loss;
+pub mod params;
+pub mod reconstruct;
+pub mod reflectance;
 pub mod regularizer;
 
+pub use adam::{AdamParams, VectorAdam, VertexAdam};
 pub use error::{OptimError, Result};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
+pub use params::{ReconstructParams, SamplingSchedule, Schedule};
+pub use reconstruct::{
+    CHECKPOINT_FILE, DirectEvolve, Evolve, Hooks, IterationRecord, Outcome, Progress, ProgressEvent, ProgressFn,
+    RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,
+};
+pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};

@@ -1,0 +1,213 @@
+//! Parameters of a reconstruction, with documented defaults.
+
+use std::path::PathBuf;
+
+use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
+use nlos_render::{DeterministicRule, RenderParams};
+
+use crate::adam::AdamParams;
+use crate::error::{OptimError, Result};
+use crate::loss::DataTerm;
+use crate::reflectance::Reflectance;
+
+/// The coarse-to-fine schedule (Tsai et al. 2019, Sec. 5: target edge length `L = 0.5/res`, `res × 1.5`
+/// per stage from 64). Stage k has resolution `res_k = initial_resolution · growthᵏ` and target edge
+/// length `L_k = extent / res_k`. Each stage runs blocks (a shape block of `shape_iterations` Adam steps,
+/// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
+/// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages or
+/// when the next stage would exceed `max_faces` faces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Schedule {
+    /// Resolution of the first stage (default 64, the seed's).
+    pub initial_resolution: f64,
+    /// Resolution factor between stages (default 1.5, the seed's).
+    pub growth: f64,
+    /// Numerator of `L = extent/res` in metres (default 0.5, the seed's; about the width of the scene).
+    pub extent: f64,
+    /// Number of stages (default 4: res 64, 96, 144, 216).
+    pub max_stages: u32,
+    /// Face limit: a stage whose estimated face count (`area / (√3/4 · L²)`) exceeds it is not started
+    /// (default 60,000).
+    pub max_faces: usize,
+    /// Blocks per stage at most (default 4).
+    pub max_blocks_per_stage: u32,
+    /// Adam steps on the vertices per shape block (default 20).
+    pub shape_iterations: u32,
+    /// Adam steps on θ per reflectance block (default 5; 0 disables reflectance steps).
+    pub reflectance_iterations: u32,
+    /// Relative-decrease stopping rule: a stage ends when a block lowers the loss by less than this
+    /// fraction (default 1e-3).
+    pub rel_tol: f64,
+}
+
+impl Default for Schedule {
+    fn default() -> Self {
+        Self {
+            initial_resolution: 64.0,
+            growth: 1.5,
+            extent: 0.5,
+            max_stages: 4,
+            max_faces: 60_000,
+            max_blocks_per_stage: 4,
+            shape_iterations: 20,
+            reflectance_iterations: 5,
+            rel_tol: 1e-3,
+        }
+    }
+}
+
+impl Schedule {
+    /// Target edge length of stage `stage` (metres).
+    pub fn target_edge_length(&self, stage: u32) -> f64 {
+        self.extent / (self.initial_resolution * self.growth.powi(stage.min(i32::MAX as u32) as i32))
+    }
+}
+
+/// How the renderer samples the surface, stage by stage ("the sample budget grows").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SamplingSchedule {
+    /// Noise-free quadrature with an adaptive level per (triangle, measurement); the budget grows with the
+    /// face count. The default (`DeterministicRule::default()`).
+    Deterministic(DeterministicRule),
+    /// The seed's stratified area sampling, `initial_samples · growthᵏ` samples per measurement in stage k;
+    /// the sampling seed is drawn once per block from the run's RNG (so a run is reproducible).
+    Stratified {
+        /// Samples per measurement in stage 0.
+        initial_samples: u32,
+        /// Growth factor per stage (≥ 1).
+        growth: f64,
+    },
+}
+
+impl Default for SamplingSchedule {
+    fn default() -> Self {
+        SamplingSchedule::Deterministic(DeterministicRule::default())
+    }
+}
+
+/// Everything a reconstruction needs besides the measurement and the initial mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReconstructParams {
+    /// Data term: loss (default L2, eq. 7), weights (none), scale solving (on).
+    pub data: DataTerm,
+    /// Initial reflectance (default Lambertian, albedo 1).
+    pub reflectance: Reflectance,
+    /// Run reflectance blocks (default true; they only move θ when the model has free parameters beyond
+    /// the scale, see [`Reflectance`]).
+    pub optimise_reflectance: bool,
+    /// Coarse-to-fine schedule.
+    pub schedule: Schedule,
+    /// Adam hyper-parameters for the vertices (default Kingma & Ba's).
+    pub shape_adam: AdamParams,
+    /// Learning rate of interior vertices, as a fraction of the stage's target edge length (default 0.05:
+    /// an Adam step moves a vertex by about 5% of an edge).
+    pub lr_interior: f64,
+    /// Learning rate of boundary vertices, same unit (default 0.02: boundaries are poorly constrained).
+    pub lr_boundary: f64,
+    /// Adam hyper-parameters for θ.
+    pub reflectance_adam: AdamParams,
+    /// Learning rate for θ (default 0.05).
+    pub lr_reflectance: f64,
+    /// β of the automatic regulariser weight `λ = β E_data/R` (default 0.1), see
+    /// [`crate::regularizer::auto_weight`].
+    pub regulariser_ratio: f64,
+    /// A fixed regulariser weight λ instead of the automatic one (default None).
+    pub regulariser_weight: Option<f64>,
+    /// Renderer settings (kernel: tent, needed for the time-shift gradient; visibility: live; one-sided).
+    /// Its `sampling` is replaced by [`ReconstructParams::sampling`].
+    pub render: RenderParams,
+    /// Sampling schedule.
+    pub sampling: SamplingSchedule,
+    /// Remeshing after every shape block (default: `RemeshParams::fast()` with the boundary remeshed along
+    /// itself, so boundary edges follow the target length too).
+    pub remesh: RemeshParams,
+    /// Delete boundary faces that no measurement can see (facing away from every laser/sensor spot or
+    /// outside the time window) before each remeshing (default true).
+    pub remove_unlit_boundary_faces: bool,
+    /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
+    pub seed: u64,
+    /// Rollbacks (non-finite loss, gradient or positions → restore the last good state, halve the step)
+    /// allowed per run before giving up (default 10).
+    pub max_rollbacks: u32,
+    /// Output directory for the checkpoint, the run log and the meshes (default None: nothing written,
+    /// and [`crate::resume`] is impossible).
+    pub out_dir: Option<PathBuf>,
+}
+
+impl Default for ReconstructParams {
+    fn default() -> Self {
+        Self {
+            data: DataTerm::default(),
+            reflectance: Reflectance::default(),
+            optimise_reflectance: true,
+            schedule: Schedule::default(),
+            shape_adam: AdamParams::default(),
+            lr_interior: 0.05,
+            lr_boundary: 0.02,
+            reflectance_adam: AdamParams::default(),
+            lr_reflectance: 0.05,
+            regulariser_ratio: 0.1,
+            regulariser_weight: None,
+            render: RenderParams::default(),
+            sampling: SamplingSchedule::default(),
+            remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
+            remove_unlit_boundary_faces: true,
+            seed: 0,
+            max_rollbacks: 10,
+            out_dir: None,
+        }
+    }
+}
+
+impl ReconstructParams {
+    /// Checks every numeric parameter.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] naming the first bad one.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value: f64, reason| Err(OptimError::InvalidParameter { name, value, reason });
+        let pos = |x: f64| x.is_finite() && x > 0.0;
+        let s = &self.schedule;
+        if !pos(s.initial_resolution) {
+            return bad("schedule.initial_resolution", s.initial_resolution, "must be finite and > 0");
+        }
+        if !(s.growth.is_finite() && s.growth >= 1.0) {
+            return bad("schedule.growth", s.growth, "must be finite and >= 1");
+        }
+        if !pos(s.extent) {
+            return bad("schedule.extent", s.extent, "must be finite and > 0 (metres)");
+        }
+        if s.max_stages == 0 || s.max_blocks_per_stage == 0 || s.shape_iterations == 0 {
+            return bad("schedule", 0.0, "max_stages, max_blocks_per_stage and shape_iterations must be >= 1");
+        }
+        if !(s.rel_tol.is_finite() && s.rel_tol >= 0.0) {
+            return bad("schedule.rel_tol", s.rel_tol, "must be finite and >= 0");
+        }
+        for (name, x) in [
+            ("lr_interior", self.lr_interior),
+            ("lr_boundary", self.lr_boundary),
+            ("lr_reflectance", self.lr_reflectance),
+        ] {
+            if !(x.is_finite() && x >= 0.0) {
+                return bad(name, x, "learning rates must be finite and >= 0");
+            }
+        }
+        if !self.shape_adam.valid() || !self.reflectance_adam.valid() {
+            return bad("adam", self.shape_adam.beta1, "need 0 <= beta1, beta2 < 1 and eps > 0");
+        }
+        if !(self.regulariser_ratio.is_finite() && self.regulariser_ratio >= 0.0) {
+            return bad("regulariser_ratio", self.regulariser_ratio, "must be finite and >= 0");
+        }
+        if let Some(w) = self.regulariser_weight
+            && !(w.is_finite() && w >= 0.0)
+        {
+            return bad("regulariser_weight", w, "must be finite and >= 0");
+        }
+        if let SamplingSchedule::Stratified { initial_samples, growth } = self.sampling
+            && (initial_samples == 0 || !(growth.is_finite() && growth >= 1.0))
+        {
+            return bad("sampling.growth", growth, "need initial_samples >= 1 and a finite growth >= 1");
+        }
+        Ok(())
+    }
+}

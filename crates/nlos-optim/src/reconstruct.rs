@@ -1,0 +1,770 @@
+//! The analysis-by-synthesis loop (Tsai et al. 2019, Sec. 4.2 and 5), its checkpoints and its run log.
+//!
+//! Per block (see [`crate::Schedule`]):
+//! 1. **Topology.** Boundary faces no measurement can see are deleted (optional), the mesh is remeshed
+//!    isotropically at the stage's target length (`nlos_mesh::remeshing::uniform_remeshing`), the Adam
+//!    moments are carried to the new vertices (barycentric interpolation on the closest old face) and a new
+//!    [`Renderer`] is built. (This is "remesh after every shape block", plus once on the initial mesh.)
+//! 2. **Shape block.** Each step: forward render, data term with the closed-form scale ([`crate::loss`]),
+//!    adjoint (Proposition 1, `nlos_render`), plus `λ ·` the normal-smoothing regulariser
+//!    ([`crate::regularizer`]; λ set automatically at the first step of the block), per-vertex isotropic
+//!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
+//! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
+//! 4. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
+//!    progress callback.
+//!
+//! **Collision-aware evolution** (El Topo, issue 7) does not exist yet: the [`Evolve`] hook receives every
+//! displacement and the default [`DirectEvolve`] applies it as is. A collision-aware implementation plugs
+//! in through [`Hooks::evolve`] without other changes.
+//!
+//! **Robustness.** A non-finite loss, gradient, θ or position restores the state before the last step,
+//! halves every learning rate for the rest of the run, and retries ([`crate::ReconstructParams::max_rollbacks`]).
+//!
+//! **Determinism.** Given the same inputs, parameters and seed, a run is a deterministic function of them
+//! *when rayon's reductions are*: the renderer's adjoint sums per-thread partial gradients in f64 in an
+//! order rayon may vary between runs with several threads (differences near 1e-16 relative, rarely
+//! visible after rounding to f32). Run inside a one-thread pool for bit-exact reproducibility. A resumed
+//! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use nlos_mesh::{SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
+use nlos_render::{RenderParams, Renderer, Sampling};
+use nlos_transient::{Scan, TimeAxis, Transient};
+use serde::{Deserialize, Serialize};
+
+use crate::adam::{VectorAdam, VertexAdam};
+use crate::error::{OptimError, Result};
+use crate::params::{ReconstructParams, SamplingSchedule};
+use crate::reflectance::Reflectance;
+use crate::regularizer::{NormalSmoothing, auto_weight};
+
+/// File name of the checkpoint inside the output directory.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+/// File name of the run log inside the output directory.
+pub const RUN_LOG_FILE: &str = "run_log.json";
+const CHECKPOINT_VERSION: u32 = 1;
+
+/// The collision-handling hook: turns the current positions and an Adam displacement into new positions.
+/// The default [`DirectEvolve`] adds the displacement; El Topo (issue 7) will implement this trait.
+pub trait Evolve {
+    /// New positions (same length as `positions`).
+    ///
+    /// # Errors
+    /// Any failure, reported as [`OptimError::Evolve`] or another variant.
+    fn evolve(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], displacement: &[Vec3]) -> Result<Vec<Vec3>>;
+}
+
+/// Applies displacements directly, without collision handling (the default [`Evolve`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DirectEvolve;
+
+impl Evolve for DirectEvolve {
+    fn evolve(&mut self, positions: &[Vec3], _triangles: &[[u32; 3]], displacement: &[Vec3]) -> Result<Vec<Vec3>> {
+        if displacement.len() != positions.len() {
+            return Err(OptimError::LengthMismatch {
+                what: "displacement",
+                expected: positions.len(),
+                got: displacement.len(),
+            });
+        }
+        Ok(positions.iter().zip(displacement).map(|(p, d)| *p + *d).collect())
+    }
+}
+
+/// What a progress callback is told about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ProgressEvent {
+    /// An iteration (shape or reflectance step) was evaluated.
+    Iteration,
+    /// A block ended and its checkpoint was written. Returning `Break` here stops the run.
+    BlockEnd,
+}
+
+/// The state reported to the progress callback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// What happened.
+    pub event: ProgressEvent,
+    /// Current stage (0-based) and the number of stages planned.
+    pub stage: u32,
+    /// Stages planned at most.
+    pub max_stages: u32,
+    /// Blocks finished in the whole run.
+    pub blocks_done: u64,
+    /// Global iteration count.
+    pub iteration: u64,
+    /// An upper bound of the total iterations (for an ETA).
+    pub iterations_planned: u64,
+    /// Latest total loss (normalised data term + λ R).
+    pub loss: f64,
+    /// Faces of the current mesh.
+    pub faces: usize,
+    /// Target edge length of the stage (m).
+    pub target_edge_length: f64,
+    /// Wall-clock seconds of the run (summed over resumes).
+    pub elapsed_s: f64,
+}
+
+/// The progress callback: called after every iteration and block; `ControlFlow::Break` is honoured at
+/// [`ProgressEvent::BlockEnd`] (the run stops after that block's checkpoint, [`StopReason::Interrupted`]).
+pub type ProgressFn<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + 'a;
+
+/// Optional hooks of a run.
+#[derive(Default)]
+pub struct Hooks<'a> {
+    /// Progress callback.
+    pub progress: Option<&'a mut ProgressFn<'a>>,
+    /// Evolution hook (default [`DirectEvolve`]).
+    pub evolve: Option<&'a mut dyn Evolve>,
+}
+
+impl std::fmt::Debug for Hooks<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Hooks")
+            .field("progress", &self.progress.is_some())
+            .field("evolve", &self.evolve.is_some())
+            .finish()
+    }
+}
+
+/// Which block an iteration belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StepKind {
+    /// A vertex step.
+    Shape,
+    /// A reflectance (θ) step.
+    Reflectance,
+}
+
+/// One line of the run log.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IterationRecord {
+    /// Global iteration number.
+    pub iteration: u64,
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Shape or reflectance step.
+    pub kind: StepKind,
+    /// Total loss `E_data/E_0 + λ R` (E_0: [`crate::DataTerm::normaliser`]).
+    pub loss: f64,
+    /// Normalised data term `E_data/E_0`.
+    pub data: f64,
+    /// Regulariser R (unweighted).
+    pub regulariser: f64,
+    /// Regulariser weight λ.
+    pub reg_weight: f64,
+    /// Intensity scale s.
+    pub scale: f64,
+    /// Learning rate of the step (metres for shape steps, θ units for reflectance steps), rollbacks
+    /// included.
+    pub step_size: f64,
+    /// Faces.
+    pub faces: usize,
+    /// Vertices.
+    pub vertices: usize,
+    /// Wall-clock seconds since the start of the run (summed over resumes; the only non-deterministic
+    /// field).
+    pub time_s: f64,
+}
+
+/// The JSON run log (`run_log.json`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RunLog {
+    /// One record per iteration.
+    pub iterations: Vec<IterationRecord>,
+    /// Rollbacks performed.
+    pub rollbacks: u32,
+}
+
+/// Why a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// All stages ran.
+    MaxStages,
+    /// The next stage would exceed the face limit.
+    FaceLimit,
+    /// The progress callback asked to stop (resume continues).
+    Interrupted,
+}
+
+/// The result of [`reconstruct`] / [`resume`].
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The final mesh.
+    pub mesh: SurfaceMesh,
+    /// The final reflectance.
+    pub reflectance: Reflectance,
+    /// The final intensity scale s (measured ≈ s · rendered).
+    pub scale: f64,
+    /// The run log.
+    pub log: RunLog,
+    /// Why the run ended.
+    pub stop: StopReason,
+    /// Stage reached (0-based).
+    pub stage: u32,
+    /// Blocks run.
+    pub blocks_done: u64,
+}
+
+/// Everything needed to continue a run (written as the checkpoint).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct State {
+    version: u32,
+    fingerprint: u64,
+    #[serde(with = "exact_vec3")]
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    reflectance: Reflectance,
+    shape_adam: VertexAdam,
+    reflectance_adam: VectorAdam,
+    stage: u32,
+    block_in_stage: u32,
+    blocks_done: u64,
+    iteration: u64,
+    rng: u64,
+    lr_scale: f64,
+    scale: f64,
+    reg_weight: f64,
+    elapsed_s: f64,
+    finished: Option<StopReason>,
+    log: RunLog,
+    /// Stages planned (for progress reports only).
+    #[serde(default)]
+    max_stages_hint: u32,
+}
+
+/// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
+/// `float_roundtrip`), whereas f32 parsing goes through f64 and could round twice.
+mod exact_vec3 {
+    use glam::Vec3;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub(super) fn serialize<S: Serializer>(v: &[Vec3], s: S) -> Result<S::Ok, S::Error> {
+        v.iter().map(|p| p.as_dvec3().to_array()).collect::<Vec<[f64; 3]>>().serialize(s)
+    }
+
+    pub(super) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec3>, D::Error> {
+        Ok(Vec::<[f64; 3]>::deserialize(d)?
+            .into_iter()
+            .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
+            .collect())
+    }
+}
+
+/// SplitMix64 (Steele, Lea & Flood 2014): the run's RNG, one u64 of state.
+fn next_u64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// FNV-1a over the measurement's shape and bits: ties a checkpoint to its measurement.
+fn fingerprint(measured: &Transient) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |x: u64| {
+        for b in x.to_le_bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(measured.measurements() as u64);
+    eat(measured.bins() as u64);
+    for v in measured.data() {
+        eat(u64::from(v.to_bits()));
+    }
+    h
+}
+
+/// Writes `bytes` to `path` atomically (temporary file in the same directory + rename).
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    let io = |source| OptimError::Io { path: path.to_owned(), source };
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+fn json_bytes<T: Serialize>(v: &T, path: &Path) -> Result<Vec<u8>> {
+    serde_json::to_vec(v).map_err(|e| OptimError::Checkpoint { path: path.to_owned(), message: e.to_string() })
+}
+
+/// Reconstructs a surface from `measured`, starting from `init` (faces must face the wall, see
+/// `nlos_render`'s one-sided convention), with default hooks.
+///
+/// # Errors
+/// Invalid parameters or measurement, renderer/mesh failures, divergence, I/O in the output directory.
+pub fn reconstruct(measured: &Transient, init: &SurfaceMesh, params: &ReconstructParams) -> Result<Outcome> {
+    reconstruct_with(measured, init, params, Hooks::default())
+}
+
+/// [`reconstruct`] with a progress callback and/or an evolution hook.
+///
+/// # Errors
+/// As [`reconstruct`].
+pub fn reconstruct_with(
+    measured: &Transient,
+    init: &SurfaceMesh,
+    params: &ReconstructParams,
+    hooks: Hooks<'_>,
+) -> Result<Outcome> {
+    params.validate()?;
+    let (positions, triangles) = init.to_triangles();
+    if triangles.is_empty() {
+        return Err(OptimError::EmptyMesh { context: "initial mesh" });
+    }
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(OptimError::InvalidParameter {
+            name: "init",
+            value: i as f64,
+            reason: "the initial mesh has a non-finite vertex (value = its index)",
+        });
+    }
+    let n = positions.len();
+    let state = State {
+        version: CHECKPOINT_VERSION,
+        fingerprint: fingerprint(measured),
+        positions,
+        triangles,
+        reflectance: params.reflectance.clone(),
+        shape_adam: VertexAdam::new(n),
+        reflectance_adam: VectorAdam::new(params.reflectance.theta().len()),
+        stage: 0,
+        block_in_stage: 0,
+        blocks_done: 0,
+        iteration: 0,
+        rng: params.seed,
+        lr_scale: 1.0,
+        scale: 1.0,
+        reg_weight: 0.0,
+        elapsed_s: 0.0,
+        finished: None,
+        log: RunLog::default(),
+        max_stages_hint: params.schedule.max_stages,
+    };
+    if let Some(dir) = &params.out_dir {
+        std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
+    }
+    run(measured, state, params, hooks)
+}
+
+/// Continues the run whose checkpoint is in `params.out_dir` (same measurement and parameters as the
+/// interrupted run). A finished run returns its outcome at once.
+///
+/// # Errors
+/// [`OptimError::Checkpoint`] for a missing, malformed or foreign checkpoint, plus those of [`reconstruct`].
+pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>) -> Result<Outcome> {
+    params.validate()?;
+    let Some(dir) = &params.out_dir else {
+        return Err(OptimError::InvalidParameter {
+            name: "out_dir",
+            value: 0.0,
+            reason: "resume needs the output directory that holds checkpoint.json",
+        });
+    };
+    let path = dir.join(CHECKPOINT_FILE);
+    let bytes = std::fs::read(&path).map_err(|source| OptimError::Io { path: path.clone(), source })?;
+    let ck = |message: String| OptimError::Checkpoint { path: path.clone(), message };
+    let state: State = serde_json::from_slice(&bytes).map_err(|e| ck(e.to_string()))?;
+    if state.version != CHECKPOINT_VERSION {
+        return Err(ck(format!("version {} (this build reads {CHECKPOINT_VERSION})", state.version)));
+    }
+    if state.fingerprint != fingerprint(measured) {
+        return Err(ck("it was written for a different measurement".into()));
+    }
+    if state.shape_adam.len() != state.positions.len() || state.triangles.is_empty() {
+        return Err(ck("inconsistent mesh and optimiser state".into()));
+    }
+    run(measured, state, params, hooks)
+}
+
+/// Render parameters of a block.
+fn render_params(params: &ReconstructParams, stage: u32, rng: &mut u64) -> RenderParams {
+    let sampling = match params.sampling {
+        SamplingSchedule::Deterministic(rule) => Sampling::Deterministic(rule),
+        SamplingSchedule::Stratified { initial_samples, growth } => {
+            let n = (f64::from(initial_samples) * growth.powi(stage as i32)).min(f64::from(u32::MAX / 2));
+            Sampling::Stratified { samples_per_measurement: n as u32, seed: next_u64(rng) }
+        }
+    };
+    RenderParams { sampling, ..params.render }
+}
+
+/// Whether a face with corners `p` can receive light in some measurement (one-sided faces, positive wall
+/// cosines, path length inside the time window) — tested at the centroid.
+fn face_lit(p: [Vec3; 3], scan: &Scan, time: &TimeAxis, two_sided: bool) -> bool {
+    let c = (p[0] + p[1] + p[2]) / 3.0;
+    let n = (p[1] - p[0]).cross(p[2] - p[0]);
+    let (t0, t1) = (time.t0 as f32, time.end() as f32);
+    (0..scan.measurements()).any(|m| {
+        let g = scan.measurement(m);
+        let (a, b) = (g.laser - c, g.sensor - c);
+        let (dl, ds) = (n.dot(a), n.dot(b));
+        let facing = (dl > 0.0 && ds > 0.0) || (two_sided && dl < 0.0 && ds < 0.0);
+        let tau = a.length() + b.length();
+        facing && -g.laser_normal.dot(a) > 0.0 && -g.sensor_normal.dot(b) > 0.0 && tau >= t0 && tau <= t1
+    })
+}
+
+/// Step 1 of a block: unlit boundary faces, remeshing, Adam transfer. Returns the boundary flags.
+fn prepare_topology(
+    st: &mut State,
+    target: f32,
+    params: &ReconstructParams,
+    measured: &Transient,
+) -> Result<Vec<bool>> {
+    let (old_pos, old_tris) = (st.positions.clone(), st.triangles.clone());
+    let mut mesh = SurfaceMesh::from_triangles(&st.positions, &st.triangles)?;
+    if params.remove_unlit_boundary_faces {
+        let dark: Vec<_> = mesh
+            .faces()
+            .filter(|&f| {
+                mesh.is_boundary_face(f)
+                    && !face_lit(mesh.face_points(f), measured.scan(), measured.time(), params.render.two_sided)
+            })
+            .collect();
+        // Guard: never delete everything (a mesh entirely out of view keeps its faces and its zero signal).
+        if dark.len() < mesh.n_faces() {
+            for f in dark {
+                mesh.delete_face(f);
+            }
+            mesh.garbage_collect();
+        }
+    }
+    if mesh.n_faces() == 0 {
+        return Err(OptimError::EmptyMesh { context: "after removing unlit faces" });
+    }
+    uniform_remeshing(&mut mesh, target, &params.remesh)?;
+    let (pos, tris) = mesh.to_triangles();
+    if tris.is_empty() {
+        return Err(OptimError::EmptyMesh { context: "after remeshing" });
+    }
+    let boundary: Vec<bool> = mesh.vertices().map(|v| mesh.is_boundary_vertex(v)).collect();
+    let bvh = TriangleBvh::from_triangles(&old_pos, &old_tris)?;
+    let weights: Vec<[(u32, f32); 3]> = pos
+        .iter()
+        .map(|p| {
+            let cp = bvh.closest_point(*p);
+            let t = old_tris[cp.triangle as usize];
+            let b = cp.barycentric;
+            [(t[0], b.x.max(0.0)), (t[1], b.y.max(0.0)), (t[2], b.z.max(0.0))]
+        })
+        .collect();
+    st.shape_adam = st.shape_adam.transfer(&weights);
+    st.positions = pos;
+    st.triangles = tris;
+    Ok(boundary)
+}
+
+fn surface_area(p: &[Vec3], t: &[[u32; 3]]) -> f64 {
+    t.iter()
+        .map(|f| {
+            let (a, b, c) = (p[f[0] as usize], p[f[1] as usize], p[f[2] as usize]);
+            0.5 * f64::from((b - a).cross(c - a).length())
+        })
+        .sum()
+}
+
+/// Loss pieces at the current state.
+struct Eval {
+    data: f64,
+    scale: f64,
+    grad_vertices: Vec<Vec3>,
+    grad_theta: Vec<f64>,
+}
+
+fn evaluate(st: &State, r: &Renderer, params: &ReconstructParams, measured: &[f32], norm: f64) -> Result<Eval> {
+    let brdf = st.reflectance.brdf()?;
+    let rendered = brdf.forward(r);
+    let ev = params.data.evaluate(&rendered, measured, st.scale)?;
+    let inv = (1.0 / norm) as f32;
+    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
+    let g = brdf.adjoint(r, &d)?;
+    Ok(Eval {
+        data: ev.value / norm,
+        scale: ev.scale,
+        grad_theta: st.reflectance.chain(&g.brdf),
+        grad_vertices: g.vertices,
+    })
+}
+
+fn write_outputs(dir: &Path, st: &State) -> Result<()> {
+    let ck = dir.join(CHECKPOINT_FILE);
+    write_atomic(&ck, &json_bytes(st, &ck)?)?;
+    let lg = dir.join(RUN_LOG_FILE);
+    write_atomic(&lg, &json_bytes(&st.log, &lg)?)
+}
+
+fn mesh_of(st: &State) -> Result<SurfaceMesh> {
+    Ok(SurfaceMesh::from_triangles(&st.positions, &st.triangles)?)
+}
+
+#[allow(clippy::too_many_lines)]
+fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
+    let data = measured.data();
+    if let Some(i) = data.iter().position(|x| !x.is_finite()) {
+        return Err(OptimError::NonFiniteMeasurement { index: i, value: data[i] });
+    }
+    params.data.validate(data.len())?;
+    let norm = params.data.normaliser(data).ok_or(OptimError::InvalidParameter {
+        name: "measured",
+        value: 0.0,
+        reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
+    })?;
+    let sch = params.schedule;
+    st.max_stages_hint = sch.max_stages;
+    let mut direct = DirectEvolve;
+    let evolve: &mut dyn Evolve = match hooks.evolve.take() {
+        Some(e) => e,
+        None => &mut direct,
+    };
+    let start = Instant::now();
+    let t_base = st.elapsed_s;
+    let elapsed = || t_base + start.elapsed().as_secs_f64();
+    let refl_iters = if params.optimise_reflectance { sch.reflectance_iterations } else { 0 };
+    let planned =
+        u64::from(sch.max_stages) * u64::from(sch.max_blocks_per_stage) * u64::from(sch.shape_iterations + refl_iters);
+    let out_dir: Option<PathBuf> = params.out_dir.clone();
+
+    while st.finished.is_none() {
+        let target = sch.target_edge_length(st.stage);
+        let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
+        let mut renderer = Renderer::new(
+            &st.positions,
+            &st.triangles,
+            measured.scan(),
+            measured.time(),
+            render_params(params, st.stage, &mut st.rng),
+        )?;
+        let reg = NormalSmoothing::new(st.positions.len(), &st.triangles)?;
+        let (mut block_first, mut block_last) = (f64::NAN, f64::NAN);
+
+        // ---- shape block ----
+        let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
+        let mut it = 0;
+        while it < sch.shape_iterations {
+            let attempt = (|| -> Result<Option<(Eval, f64, Vec<Vec3>)>> {
+                let ev = evaluate(&st, &renderer, params, data, norm)?;
+                let (r, rg) = reg.evaluate(&st.positions, &st.triangles)?;
+                let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
+                Ok(ok.then_some((ev, r, rg)))
+            })()?;
+            let Some((ev, r, rg)) = attempt else {
+                rollback(&mut st, &mut good, &mut renderer, params, "loss or gradient")?;
+                continue;
+            };
+            if it == 0 {
+                let area = surface_area(&st.positions, &st.triangles);
+                st.reg_weight = params
+                    .regulariser_weight
+                    .unwrap_or_else(|| auto_weight(params.regulariser_ratio, ev.data, r, area));
+            }
+            let lam = st.reg_weight;
+            let loss = ev.data + lam * r;
+            if it == 0 {
+                block_first = loss;
+            }
+            block_last = loss;
+            st.scale = ev.scale;
+            let step = params.lr_interior * target * st.lr_scale;
+            st.log.iterations.push(IterationRecord {
+                iteration: st.iteration,
+                stage: st.stage,
+                block: st.block_in_stage,
+                kind: StepKind::Shape,
+                loss,
+                data: ev.data,
+                regulariser: r,
+                reg_weight: lam,
+                scale: ev.scale,
+                step_size: step,
+                faces: st.triangles.len(),
+                vertices: st.positions.len(),
+                time_s: elapsed(),
+            });
+            let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
+            let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
+            good = Some((st.positions.clone(), st.shape_adam.clone()));
+            let (li, lb) = (params.lr_interior * target * st.lr_scale, params.lr_boundary * target * st.lr_scale);
+            let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
+            let new = evolve.evolve(&st.positions, &st.triangles, &disp)?;
+            if new.len() != st.positions.len() || new.iter().any(|p| !p.is_finite()) {
+                rollback(&mut st, &mut good, &mut renderer, params, "positions")?;
+                continue;
+            }
+            st.positions = new;
+            renderer.set_positions(&st.positions)?;
+            st.iteration += 1;
+            it += 1;
+        }
+
+        // ---- reflectance block ----
+        if refl_iters > 0 && !st.reflectance.theta().is_empty() {
+            let (r, _) = reg.evaluate(&st.positions, &st.triangles)?;
+            let mut good_refl: Option<(Reflectance, VectorAdam)> = None;
+            let mut it = 0;
+            while it < refl_iters {
+                let ev = evaluate(&st, &renderer, params, data, norm);
+                let ev = match ev {
+                    Ok(ev) if ev.data.is_finite() && ev.grad_theta.iter().all(|g| g.is_finite()) => ev,
+                    Ok(_) | Err(OptimError::Brdf(_)) => {
+                        rollback_refl(&mut st, &mut good_refl, params, "reflectance loss or gradient")?;
+                        continue;
+                    }
+                    Err(e) => return Err(e),
+                };
+                let loss = ev.data + st.reg_weight * r;
+                block_last = loss;
+                st.scale = ev.scale;
+                let lr = params.lr_reflectance * st.lr_scale;
+                st.log.iterations.push(IterationRecord {
+                    iteration: st.iteration,
+                    stage: st.stage,
+                    block: st.block_in_stage,
+                    kind: StepKind::Reflectance,
+                    loss,
+                    data: ev.data,
+                    regulariser: r,
+                    reg_weight: st.reg_weight,
+                    scale: ev.scale,
+                    step_size: lr,
+                    faces: st.triangles.len(),
+                    vertices: st.positions.len(),
+                    time_s: elapsed(),
+                });
+                let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
+                good_refl = Some((st.reflectance.clone(), st.reflectance_adam.clone()));
+                let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
+                st.reflectance.add_theta(&delta);
+                st.iteration += 1;
+                it += 1;
+            }
+        }
+
+        // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
+        st.blocks_done += 1;
+        let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
+        // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
+        let converged = !(rel >= sch.rel_tol);
+        if converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage {
+            if let Some(dir) = &out_dir {
+                let m = mesh_of(&st)?;
+                nlos_mesh::io::save(&m, dir.join(format!("stage_{:02}.obj", st.stage)))?;
+            }
+            st.stage += 1;
+            st.block_in_stage = 0;
+            if st.stage >= sch.max_stages {
+                st.finished = Some(StopReason::MaxStages);
+            } else {
+                let l = sch.target_edge_length(st.stage);
+                let est = surface_area(&st.positions, &st.triangles) / (3f64.sqrt() / 4.0 * l * l);
+                if est > sch.max_faces as f64 {
+                    st.finished = Some(StopReason::FaceLimit);
+                }
+            }
+        } else {
+            st.block_in_stage += 1;
+        }
+        st.elapsed_s = elapsed();
+        if let Some(dir) = &out_dir {
+            write_outputs(dir, &st)?;
+        }
+        let flow = report(&mut hooks, &st, ProgressEvent::BlockEnd, planned, block_last, target, st.elapsed_s);
+        if flow.is_break() && st.finished.is_none() {
+            return Ok(Outcome {
+                mesh: mesh_of(&st)?,
+                reflectance: st.reflectance.clone(),
+                scale: st.scale,
+                log: st.log.clone(),
+                stop: StopReason::Interrupted,
+                stage: st.stage,
+                blocks_done: st.blocks_done,
+            });
+        }
+    }
+    let mesh = mesh_of(&st)?;
+    if let Some(dir) = &out_dir {
+        nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
+        nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
+    }
+    Ok(Outcome {
+        mesh,
+        reflectance: st.reflectance.clone(),
+        scale: st.scale,
+        log: st.log.clone(),
+        stop: st.finished.unwrap_or(StopReason::MaxStages),
+        stage: st.stage,
+        blocks_done: st.blocks_done,
+    })
+}
+
+fn report(
+    hooks: &mut Hooks<'_>,
+    st: &State,
+    event: ProgressEvent,
+    planned: u64,
+    loss: f64,
+    target: f64,
+    elapsed_s: f64,
+) -> ControlFlow<()> {
+    let Some(cb) = hooks.progress.as_mut() else { return ControlFlow::Continue(()) };
+    cb(&Progress {
+        event,
+        stage: st.stage,
+        max_stages: st.max_stages_hint,
+        blocks_done: st.blocks_done,
+        iteration: st.iteration,
+        iterations_planned: planned,
+        loss,
+        faces: st.triangles.len(),
+        target_edge_length: target,
+        elapsed_s,
+    })
+}
+
+/// Restores the vertex state before the last step and halves the learning rates.
+fn rollback(
+    st: &mut State,
+    good: &mut Option<(Vec<Vec3>, VertexAdam)>,
+    renderer: &mut Renderer,
+    params: &ReconstructParams,
+    what: &'static str,
+) -> Result<()> {
+    st.log.rollbacks += 1;
+    if st.log.rollbacks > params.max_rollbacks {
+        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
+    }
+    st.lr_scale *= 0.5;
+    if let Some((p, a)) = good.take() {
+        st.positions = p;
+        st.shape_adam = a;
+        renderer.set_positions(&st.positions)?;
+    }
+    Ok(())
+}
+
+/// Restores θ before the last reflectance step and halves the learning rates.
+fn rollback_refl(
+    st: &mut State,
+    good: &mut Option<(Reflectance, VectorAdam)>,
+    params: &ReconstructParams,
+    what: &'static str,
+) -> Result<()> {
+    st.log.rollbacks += 1;
+    if st.log.rollbacks > params.max_rollbacks {
+        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
+    }
+    st.lr_scale *= 0.5;
+    if let Some((r, a)) = good.take() {
+        st.reflectance = r;
+        st.reflectance_adam = a;
+    }
+    Ok(())
+}
