@@ -84,6 +84,10 @@ pub enum BackgroundWindow {
     /// `min + 10 %·(max − min)` of the smoothed signal; the window is `[0, onset − 3w)`, the margin
     /// keeping the rising edge (jitter, smoothing) out.
     BeforeFirstReturn,
+    /// [`BackgroundWindow::BeforeFirstReturn`] when it holds at least 16 bins; otherwise (captures cropped
+    /// to start inside the direct light, e.g. the Stanford LCT `.mat` files) the last 10 % of the axis,
+    /// assuming the axis runs past the last return. [`BackgroundEstimate::window`] tells which was used.
+    Auto,
     /// Bins `[start, end)`.
     Bins {
         /// First bin.
@@ -127,6 +131,12 @@ fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)
             let s = ((start - ax.t0) / ax.bin_width).ceil().max(0.0);
             let e = ((end - ax.t0) / ax.bin_width).floor().clamp(0.0, ax.bins as f64);
             (s.min(ax.bins as f64) as usize, e as usize)
+        }
+        BackgroundWindow::Auto => {
+            return match window_bins(t, BackgroundWindow::BeforeFirstReturn) {
+                Ok((s, e)) if e - s >= 16 => Ok((s, e)),
+                _ => window_bins(t, BackgroundWindow::Bins { start: ax.bins - (ax.bins / 10).max(1), end: ax.bins }),
+            };
         }
         BackgroundWindow::BeforeFirstReturn => {
             let h = t.summed_histogram();

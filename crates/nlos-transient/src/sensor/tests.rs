@@ -422,6 +422,13 @@ fn background_is_estimated_before_the_first_return() {
     assert_eq!(path.window, (0, 100));
     let s = count_summary(&c, BackgroundWindow::Bins { start: 0, end: 100 }).unwrap();
     assert!(s.integer_counts && (s.signal_per_measurement - 5e4).abs() < 0.01 * 5e4, "{s:?}");
+    assert_eq!(estimate_background(&c, BackgroundWindow::Auto).unwrap().window, est.window);
+    // A capture cropped inside its first return: Auto falls back to the last 10 % of the axis.
+    let early = model.simulate(&pulses(2, 300, 2.0, 5.0), 3).unwrap();
+    assert!(estimate_background(&early, BackgroundWindow::BeforeFirstReturn).is_err());
+    let late = estimate_background(&early, BackgroundWindow::Auto).unwrap();
+    assert_eq!(late.window, (270, 300));
+    assert!((late.per_bin - b_true).abs() < 4.5 * late.std_error);
     assert!(estimate_background(&c, BackgroundWindow::Bins { start: 10, end: 10 }).is_err());
     assert!(estimate_background(&c, BackgroundWindow::Bins { start: 0, end: 301 }).is_err());
 }
