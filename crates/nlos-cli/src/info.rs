@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use nlos_transient::sensor::{BackgroundWindow, count_summary};
 use nlos_transient::{Format, Layout, PointSet, SPEED_OF_LIGHT, Transient};
 use serde_json::{Value, json};
 
@@ -83,6 +84,7 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
     let total: f64 = t.summed_histogram().iter().sum();
     let peak = peak(&t);
     let ps = ax.bin_width / SPEED_OF_LIGHT * 1e12;
+    let counts = count_summary(&t, BackgroundWindow::Auto);
 
     if as_json {
         let device = |d: Option<[f32; 3]>| d.map_or(Value::Null, |d| json!(d.map(short)));
@@ -108,6 +110,18 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
                 "includes_device_legs": ax.includes_device_legs,
             },
             "total_counts": total,
+            "photon_counts": match &counts {
+                Ok(c) => json!({
+                    "background_per_bin": c.background.per_bin,
+                    "background_std_error": c.background.std_error,
+                    "background_window_bins": [c.background.window.0, c.background.window.1],
+                    "background_total": c.background_total,
+                    "signal_total": c.signal_total,
+                    "signal_per_measurement": c.signal_per_measurement,
+                    "integer_counts": c.integer_counts,
+                }),
+                Err(e) => json!({ "note": format!("not computed: {e}") }),
+            },
             "peak": {
                 "depth_m": peak.depth,
                 "path_m": peak.path,
@@ -155,6 +169,20 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         if ax.includes_device_legs { "times include" } else { "times exclude" }
     );
     println!("total counts:  {}", num(total, 3));
+    match &counts {
+        Ok(c) => println!(
+            "photon counts: background {} ± {} per bin (from bins {}..{}); signal {} ({} per \
+             measurement){}",
+            num(c.background.per_bin, 4),
+            num(c.background.std_error, 4),
+            c.background.window.0,
+            c.background.window.1,
+            num(c.signal_total, 1),
+            num(c.signal_per_measurement, 2),
+            if c.integer_counts { "" } else { "; values are not integers: not raw photon counts" }
+        ),
+        Err(e) => println!("photon counts: n/a (background not estimated: {e})"),
+    }
     match (peak.depth, peak.path) {
         (Some(d), _) => println!("peak depth:    {} m ({})", num(d, 4), peak.note),
         (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
