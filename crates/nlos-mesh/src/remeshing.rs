@@ -135,6 +135,7 @@ pub fn uniform_remeshing(
             reason: "must be a positive finite length in metres",
         });
     }
+    check_face_budget(mesh, target_edge_length)?;
     let sizing = vec![target_edge_length; mesh.vertices_size()];
     Remesher::new(mesh, sizing, true, params)?.run()
 }
@@ -162,6 +163,7 @@ pub fn adaptive_remeshing(
             reason: "must be a positive finite length in metres",
         });
     }
+    check_face_budget(mesh, sizing.min_edge_length)?;
     if mesh.has_garbage() {
         mesh.garbage_collect();
     }
@@ -176,6 +178,26 @@ pub fn adaptive_remeshing(
         })
         .collect();
     Remesher::new(mesh, lengths, false, params)?.run()
+}
+
+/// Most faces a remeshing run may produce: a target length tiny compared with the surface would otherwise
+/// exhaust memory (and 32-bit handles).
+pub const MAX_REMESHED_FACES: f64 = 50_000_000.0;
+
+/// Validates the input and checks that `edge_length` does not ask for too many faces.
+fn check_face_budget(mesh: &SurfaceMesh, edge_length: f32) -> Result<(), MeshError> {
+    mesh.validate()?;
+    // an equilateral triangle of side L has area √3/4·L²
+    let estimate = mesh.surface_area() / (0.433 * (edge_length as f64).powi(2));
+    if estimate.is_finite() && estimate <= MAX_REMESHED_FACES {
+        Ok(())
+    } else {
+        Err(MeshError::InvalidParameter {
+            name: "target_edge_length",
+            value: edge_length as f64,
+            reason: "would create more than 50 million faces for this surface area; use a longer edge length",
+        })
+    }
 }
 
 /// The projection target: a copy of the input surface with its vertex normals and sizes.
@@ -215,7 +237,6 @@ impl<'a> Remesher<'a> {
         if mesh.n_faces() == 0 {
             return Err(MeshError::EmptyMesh { what: "remeshing" });
         }
-        mesh.validate()?;
         let mut sizing = sizing;
         if mesh.has_garbage() {
             let remap = mesh.garbage_collect();

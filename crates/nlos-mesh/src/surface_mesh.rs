@@ -23,7 +23,13 @@ pub(crate) struct HalfedgeConn {
     pub(crate) prev: HalfedgeId,
 }
 
-/// A manifold triangle mesh with boundary. See the [module docs](self).
+/// A manifold triangle mesh with boundary (pmp's `SurfaceMesh`).
+///
+/// Every vertex stores one outgoing halfedge (a boundary one if the vertex is on the boundary), every
+/// halfedge its target vertex, face (invalid on the boundary), next and previous halfedge, every face one
+/// of its halfedges; halfedges `2e` and `2e + 1` form edge `e`. Boundary halfedges are linked into loops
+/// like face halfedges. Only triangles are stored. Deletion marks elements;
+/// [`SurfaceMesh::garbage_collect`] compacts and returns the remap; iterators skip deleted elements.
 #[derive(Debug, Clone, Default)]
 pub struct SurfaceMesh {
     pub(crate) positions: Vec<Vec3>,
@@ -484,7 +490,8 @@ impl SurfaceMesh {
 
 impl SurfaceMesh {
     /// Whether collapsing `h` (moving `from(h)` onto `to(h)`) keeps the mesh a manifold (Hoppe et al. 1993
-    /// link condition, as in pmp). The halfedge must be live.
+    /// link condition, as in pmp), and leaves no interior vertex of valence below 3 (so a closed mesh
+    /// stops at a tetrahedron). The halfedge must be live.
     pub fn is_collapse_ok(&self, v0v1: HalfedgeId) -> bool {
         let v1v0 = v0v1.opposite();
         let v0 = self.to_vertex(v1v0);
@@ -513,6 +520,13 @@ impl SurfaceMesh {
         // if vl and vr are equal or both invalid -> fail
         if vl == vr {
             return false;
+        }
+        // an interior vl or vr of valence 3 would be left with two faces on the same three vertices (the last
+        // step of collapsing a tetrahedron into a doubly covered triangle)
+        for v in [vl, vr] {
+            if v.is_valid() && !self.is_boundary_vertex(v) && self.valence(v) <= 3 {
+                return false;
+            }
         }
         // an edge between two boundary vertices must itself be a boundary edge
         if self.is_boundary_vertex(v0)
@@ -982,7 +996,7 @@ impl SurfaceMesh {
     /// - every live face is a triangle of three distinct vertices whose halfedges point back to it;
     /// - every live vertex's outgoing halfedge starts at it, is a boundary halfedge whenever the vertex has
     ///   one, and circulating from it visits every outgoing halfedge exactly once (a single fan: the
-    ///   vertex is manifold), with at most one boundary halfedge;
+    ///   vertex is manifold), with at most one boundary halfedge; interior vertices have valence ≥ 3;
     /// - no two live edges join the same pair of vertices, and all positions are finite.
     pub fn validate(&self) -> Result<(), MeshError> {
         let err = |s: String| Err(MeshError::Invariant(s));
@@ -1085,6 +1099,9 @@ impl SurfaceMesh {
                 if h == h0 {
                     break;
                 }
+            }
+            if n_boundary == 0 && n < 3 {
+                return err(format!("interior vertex {v:?} has valence {n} (doubly covered faces)"));
             }
             if n != out_count[v.idx()] {
                 return err(format!("vertex {v:?} is non-manifold: its ring has {n} of {} edges", out_count[v.idx()]));

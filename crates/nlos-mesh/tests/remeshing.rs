@@ -139,6 +139,22 @@ fn features_keep_a_sharp_ridge() {
 }
 
 #[test]
+fn degenerate_input_does_not_panic() {
+    // every vertex on one line: all faces have zero area
+    let mut m = shapes::plane_grid(1.0, 1.0, 6, 6);
+    for p in m.positions_mut() {
+        p.y = 0.0;
+    }
+    uniform_remeshing(&mut m, 0.2, &RemeshParams::pmp()).expect("runs");
+    m.validate().expect("still a valid mesh");
+    // a huge target on a small sphere collapses as far as the link condition allows
+    let mut s = shapes::icosphere(Vec3::ZERO, 1.0, 2);
+    uniform_remeshing(&mut s, 100.0, &RemeshParams::pmp()).expect("runs");
+    s.validate().expect("valid");
+    assert!(s.n_faces() >= 4 && s.boundary_loops().is_empty());
+}
+
+#[test]
 fn bad_parameters_are_typed_errors() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 1);
     for l in [0.0, -1.0, f32::NAN, f32::INFINITY] {
@@ -146,6 +162,7 @@ fn bad_parameters_are_typed_errors() {
     }
     let bad = AdaptiveSizing { min_edge_length: 0.2, max_edge_length: 0.1, approximation_error: 0.01 };
     assert!(matches!(adaptive_remeshing(&mut m, &bad, &RemeshParams::pmp()), Err(MeshError::InvalidParameter { .. })));
+    assert!(matches!(uniform_remeshing(&mut m, 1e-6, &RemeshParams::pmp()), Err(MeshError::InvalidParameter { .. })));
     let mut empty = SurfaceMesh::new();
     assert!(matches!(uniform_remeshing(&mut empty, 0.1, &RemeshParams::pmp()), Err(MeshError::EmptyMesh { .. })));
     // NaN positions are rejected by validation before anything moves
