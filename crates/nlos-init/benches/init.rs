@@ -1,0 +1,2 @@
+//! Benchmarks (placeholder until the methods exist).
+fn main() {}

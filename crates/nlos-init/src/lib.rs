@@ -1,0 +1,45 @@
+//! # nlos-init
+//!
+//! Volumetric non-line-of-sight reconstructions and the step that turns them into the initial surface
+//! of the optimiser (Tsai, Sankaranarayanan & Gkioulekas, CVPR 2019, Sec. 6–7):
+//!
+//! - [`lct`]: the light-cone transform with Wiener deconvolution (O'Toole, Lindell & Wetzstein,
+//!   Nature 2018), confocal grid scans;
+//! - [`fk`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
+//! - [`volume_to_surface`]: per-column maximum, threshold (Otsu or explicit), largest connected region,
+//!   grid triangulation facing the wall, optional smoothing and isotropic remeshing.
+//!
+//! Conventions are the workspace's: metres, wall z = 0 with normal +z, times are path lengths
+//! `l → x → s` (so a confocal voxel at depth z answers at path `2z`), data measurement-major with grid
+//! points `ix + nx·iy`. A [`Volume`] keeps the scan's x and y grid and adds depth.
+//!
+//! ```
+//! use nlos_init::{Gate, LctParams, SurfaceParams, lct, volume_to_surface};
+//! use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
+//! // A flat patch 0.3 m away, 8 × 8 scan, 1 cm bins: every point sees the patch straight ahead.
+//! let scan = Scan::confocal(PointSet::wall_grid(8, 8, 0.1, 0.1)?);
+//! let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.01, 128)?)?;
+//! for m in 0..64 {
+//!     t.histogram_mut(m)[60] = 1.0;
+//! }
+//! let vol = lct(&t, &LctParams { gate: Gate::None, ..LctParams::default() })?;
+//! let surface = volume_to_surface(&vol, &SurfaceParams::default())?;
+//! assert!((surface.median_depth().unwrap() - 0.3025).abs() < 0.011);
+//! # Ok::<(), nlos_init::InitError>(())
+//! ```
+#![warn(missing_docs)]
+
+pub mod error;
+mod fft;
+pub mod fk;
+pub mod lct;
+mod prep;
+pub mod surface;
+pub mod volume;
+
+pub use error::{InitError, Result};
+pub use fk::{FkParams, fk};
+pub use lct::{LctParams, Material, lct};
+pub use prep::Gate;
+pub use surface::{Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface};
+pub use volume::{Axis, Volume};
