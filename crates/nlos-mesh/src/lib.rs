@@ -53,6 +53,7 @@ pub mod bvh;
 pub mod curvature;
 pub mod distance;
 mod error;
+pub mod evolve;
 mod handles;
 pub mod intersect;
 pub mod io;
