@@ -167,11 +167,12 @@ impl NormalSmoothing {
 }
 
 /// The automatic regulariser weight `λ = β · E_data / max(R, ε_R)` (module docs), with the guard
-/// `ε_R = 1e-4 · total_area`: a nearly flat mesh (R → 0, e.g. a planar initialisation) would otherwise get an
-/// unbounded λ that freezes it; `1e-4 · area` is the R of an RMS normal deviation of 0.01 rad (0.6°).
+/// `ε_R = 1e-2 · total_area`: a nearly flat mesh (R → 0, e.g. a planar initialisation) would otherwise get an
+/// unbounded λ that freezes it; `1e-2 · area` is the R of an RMS normal deviation of 0.1 rad (6°) from the
+/// neighbours' mean, so below that roughness the weight stops growing.
 /// Returns 0 when the data term is not positive and finite.
 pub fn auto_weight(beta: f64, data: f64, reg: f64, total_area: f64) -> f64 {
-    let floor = (1e-4 * total_area).max(f64::MIN_POSITIVE);
+    let floor = (1e-2 * total_area).max(f64::MIN_POSITIVE);
     let l = beta * data / reg.max(floor);
     if l.is_finite() && l > 0.0 { l } else { 0.0 }
 }
@@ -280,7 +281,7 @@ mod tests {
     fn auto_weight_balances_and_guards() {
         assert!((auto_weight(0.1, 2.0, 4.0, 1.0) - 0.05).abs() < 1e-15);
         // Flat mesh: R = 0 → floored, finite.
-        assert!((auto_weight(0.1, 2.0, 0.0, 1.0) - 0.1 * 2.0 / 1e-4).abs() < 1e-9);
+        assert!((auto_weight(0.1, 2.0, 0.0, 1.0) - 0.1 * 2.0 / 1e-2).abs() < 1e-9);
         assert_eq!(auto_weight(0.1, f64::NAN, 1.0, 1.0), 0.0);
     }
 

@@ -1,0 +1,276 @@
+//! End-to-end: a synthetic scene rendered by nlos-render is the measurement; the optimiser starts from a
+//! flat plane and must bring the surface to the truth. Also: resume after an interruption is
+//! bit-identical, and a non-finite step is rolled back.
+#![allow(clippy::unwrap_used)]
+
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use glam::Vec3;
+use nlos_brdf::Lambertian;
+use nlos_mesh::{SurfaceMesh, shapes};
+use nlos_optim::{
+    Evolve, Hooks, OptimError, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, Schedule, StopReason,
+    reconstruct_with, resume,
+};
+use nlos_render::{DeterministicRule, RenderParams, Renderer, Visibility};
+use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
+
+/// Truth: a 0.2 m square at ≈ 0.4 m with a 3 cm Gaussian bump toward the wall and a tilt.
+fn truth_z(x: f32, y: f32) -> f32 {
+    0.40 - 0.03 * (-(x * x + y * y) / (2.0 * 0.04 * 0.04)).exp() + 0.05 * x
+}
+
+/// A height field over [−0.1, 0.1]² facing the wall (triangles reversed so the normals point to −z).
+fn facing_wall(n: usize, z: impl Fn(f32, f32) -> f32) -> SurfaceMesh {
+    let m = shapes::height_field(0.2, 0.2, n, n, |x, y| z(x - 0.1, y - 0.1)).unwrap();
+    let (mut p, t) = m.to_triangles();
+    for q in &mut p {
+        q.x -= 0.1;
+        q.y -= 0.1;
+    }
+    let t: Vec<[u32; 3]> = t.iter().map(|f| [f[0], f[2], f[1]]).collect();
+    SurfaceMesh::from_triangles(&p, &t).unwrap()
+}
+
+fn measurement(scan_n: usize) -> Transient {
+    let scan = Scan::confocal(PointSet::wall_grid(scan_n, scan_n, 0.25, 0.25).unwrap());
+    let time = TimeAxis::new(0.6, 0.0024, 300).unwrap();
+    let truth = facing_wall(40, truth_z);
+    let (p, t) = truth.to_triangles();
+    let r = Renderer::new(&p, &t, &scan, &time, fast_render()).unwrap();
+    let mut data = r.forward(&Lambertian::new(1.0f32).unwrap());
+    // An arbitrary radiometric scale: the optimiser must solve it.
+    for x in &mut data {
+        *x *= 1234.5;
+    }
+    Transient::new(scan, time, data).unwrap()
+}
+
+/// Möller–Trumbore along +z from (x, y, 0): the z of the first hit.
+fn ray_z(p: &[Vec3], t: &[[u32; 3]], x: f32, y: f32) -> Option<f32> {
+    let (o, d) = (Vec3::new(x, y, 0.0), Vec3::Z);
+    let mut best: Option<f32> = None;
+    for f in t {
+        let (a, b, c) = (p[f[0] as usize], p[f[1] as usize], p[f[2] as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let q = d.cross(e2);
+        let det = e1.dot(q);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let s = o - a;
+        let u = s.dot(q) / det;
+        let r = s.cross(e1);
+        let v = d.dot(r) / det;
+        let tt = e2.dot(r) / det;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && tt > 0.0 && best.is_none_or(|z| tt < z) {
+            best = Some(tt);
+        }
+    }
+    best
+}
+
+/// (mean |z_rec − z_gt| over a 24×24 grid on [−0.08, 0.08]², coverage).
+fn depth_error(mesh: &SurfaceMesh) -> (f64, f64) {
+    let (p, t) = mesh.to_triangles();
+    let (mut sum, mut hits, mut n) = (0.0f64, 0usize, 0usize);
+    for j in 0..24 {
+        for i in 0..24 {
+            let (x, y) = (-0.08 + 0.16 * (i as f32 + 0.5) / 24.0, -0.08 + 0.16 * (j as f32 + 0.5) / 24.0);
+            n += 1;
+            if let Some(z) = ray_z(&p, &t, x, y) {
+                sum += f64::from((z - truth_z(x, y)).abs());
+                hits += 1;
+            }
+        }
+    }
+    (sum / hits.max(1) as f64, hits as f64 / n as f64)
+}
+
+/// The scene is a height field seen from below: no occlusion, so visibility rays can be skipped.
+fn fast_render() -> RenderParams {
+    RenderParams { visibility: Visibility::Off, ..RenderParams::default() }
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("nlos-optim-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn flat_start_converges_to_the_bumpy_truth() {
+    let t0 = std::time::Instant::now();
+    let measured = measurement(16);
+    let init = facing_wall(10, |_, _| 0.40);
+    let (e0, c0) = depth_error(&init);
+    let dir = out_dir("e2e");
+    let params = ReconstructParams {
+        schedule: Schedule {
+            initial_resolution: 24.0,
+            max_stages: 2,
+            max_blocks_per_stage: 2,
+            shape_iterations: 15,
+            reflectance_iterations: 0,
+            ..Schedule::default()
+        },
+        lr_interior: 0.1,
+        lr_boundary: 0.05,
+        render: fast_render(),
+        sampling: SamplingSchedule::Deterministic(DeterministicRule {
+            max_bin_fraction: 1.5,
+            min_level: 1,
+            max_level: 8,
+        }),
+        out_dir: Some(dir.clone()),
+        ..ReconstructParams::default()
+    };
+    let out = reconstruct_with(&measured, &init, &params, Hooks::default()).unwrap();
+    let (e1, c1) = depth_error(&out.mesh);
+    let log = &out.log.iterations;
+    let (l0, l1) = (log[0].data, log.last().unwrap().data);
+    println!(
+        "depth error {:.2} mm -> {:.2} mm (coverage {:.0}% -> {:.0}%), data term {l0:.4} -> {l1:.5}, scale {:.1} \
+         (true 1234.5), {} iterations, {} faces, {:.1} s",
+        e0 * 1e3,
+        e1 * 1e3,
+        c0 * 100.0,
+        c1 * 100.0,
+        out.scale,
+        log.len(),
+        out.mesh.n_faces(),
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(e1 < 0.2 * e0, "depth error {e0} -> {e1}");
+    assert!(c1 > 0.95);
+    assert!(l1 < 0.2 * l0);
+    assert!(dir.join("mesh.obj").exists() && dir.join("run_log.json").exists());
+    assert!(dir.join("checkpoint.json").exists() && dir.join("stage_00.obj").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn small_params(dir: PathBuf) -> ReconstructParams {
+    ReconstructParams {
+        schedule: Schedule {
+            initial_resolution: 16.0,
+            max_stages: 2,
+            max_blocks_per_stage: 2,
+            shape_iterations: 4,
+            reflectance_iterations: 2,
+            rel_tol: 0.0,
+            ..Schedule::default()
+        },
+        reflectance: nlos_optim::Reflectance::from_ggx(
+            &nlos_brdf::Ggx::new(0.5f32, 0.5, 0.3, nlos_brdf::Fresnel::One).unwrap(),
+        ),
+        lr_interior: 0.1,
+        seed: 42,
+        render: fast_render(),
+        sampling: SamplingSchedule::Deterministic(DeterministicRule {
+            max_bin_fraction: 2.0,
+            min_level: 1,
+            max_level: 4,
+        }),
+        out_dir: Some(dir),
+        ..ReconstructParams::default()
+    }
+}
+
+#[test]
+fn resume_after_interruption_is_bit_identical() {
+    // One rayon thread: the renderer's adjoint reduction order is then fixed (see the crate docs).
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| {
+        let measured = measurement(8);
+        let init = facing_wall(6, |_, _| 0.42);
+        let full = reconstruct_with(&measured, &init, &small_params(out_dir("full")), Hooks::default()).unwrap();
+        assert_eq!(full.stop, StopReason::MaxStages);
+        assert!(full.blocks_done >= 2, "{} blocks", full.blocks_done);
+
+        let dir = out_dir("resume");
+        let params = small_params(dir.clone());
+        let mut stop_after_2 = |p: &Progress| {
+            if p.event == ProgressEvent::BlockEnd && p.blocks_done == 1 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        };
+        let hooks = Hooks { progress: Some(&mut stop_after_2), evolve: None };
+        let part = reconstruct_with(&measured, &init, &params, hooks).unwrap();
+        assert_eq!(part.stop, StopReason::Interrupted);
+        assert_eq!(part.blocks_done, 1);
+        let resumed = resume(&measured, &params, Hooks::default()).unwrap();
+        assert_eq!(resumed.blocks_done, full.blocks_done);
+
+        let (pa, ta) = full.mesh.to_triangles();
+        let (pb, tb) = resumed.mesh.to_triangles();
+        assert_eq!(ta, tb);
+        assert!(pa.iter().zip(&pb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
+        assert_eq!(full.reflectance, resumed.reflectance);
+        assert_eq!(full.scale.to_bits(), resumed.scale.to_bits());
+        let strip = |l: &nlos_optim::RunLog| {
+            l.iterations.iter().map(|r| nlos_optim::IterationRecord { time_s: 0.0, ..r.clone() }).collect::<Vec<_>>()
+        };
+        assert_eq!(strip(&full.log), strip(&resumed.log));
+        // A foreign measurement is refused.
+        let other = measurement(6);
+        assert!(matches!(resume(&other, &params, Hooks::default()), Err(OptimError::Checkpoint { .. })));
+        let _ = std::fs::remove_dir_all(&dir);
+    });
+}
+
+/// Returns NaN positions on its third call, otherwise applies the displacement.
+#[derive(Debug, Default)]
+struct FaultyEvolve {
+    calls: usize,
+}
+
+impl Evolve for FaultyEvolve {
+    fn evolve(&mut self, p: &[Vec3], _t: &[[u32; 3]], d: &[Vec3]) -> nlos_optim::Result<Vec<Vec3>> {
+        self.calls += 1;
+        Ok(p.iter().zip(d).map(|(a, b)| if self.calls == 3 { Vec3::NAN } else { *a + *b }).collect())
+    }
+}
+
+#[test]
+fn non_finite_step_is_rolled_back_with_a_halved_step() {
+    let measured = measurement(8);
+    let init = facing_wall(6, |_, _| 0.42);
+    let mut params = small_params(out_dir("rollback"));
+    params.out_dir = None;
+    let mut evolve = FaultyEvolve::default();
+    let out = reconstruct_with(&measured, &init, &params, Hooks { progress: None, evolve: Some(&mut evolve) }).unwrap();
+    assert_eq!(out.log.rollbacks, 1);
+    let steps: Vec<f64> = out.log.iterations.iter().map(|r| r.step_size).collect();
+    // Records 0–2 at full size (record 2 is the attempt whose positions came back NaN), then the same
+    // iteration again from the restored state with half the step.
+    assert_eq!(out.log.iterations[2].iteration, out.log.iterations[3].iteration);
+    assert!((steps[2] - steps[0]).abs() < 1e-12 * steps[0], "{steps:?}");
+    assert!((steps[3] - 0.5 * steps[0]).abs() < 1e-12 * steps[0], "{steps:?}");
+    assert!(out.mesh.positions().iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let mut measured = measurement(4);
+    let init = facing_wall(4, |_, _| 0.42);
+    let params = ReconstructParams::default();
+    measured.data_mut()[3] = f32::NAN;
+    assert!(matches!(
+        reconstruct_with(&measured, &init, &params, Hooks::default()),
+        Err(OptimError::NonFiniteMeasurement { index: 3, .. })
+    ));
+    measured.data_mut().fill(0.0);
+    assert!(matches!(
+        reconstruct_with(&measured, &init, &params, Hooks::default()),
+        Err(OptimError::InvalidParameter { .. })
+    ));
+    let bad = ReconstructParams { lr_interior: f64::NAN, ..ReconstructParams::default() };
+    assert!(matches!(
+        reconstruct_with(&measured, &init, &bad, Hooks::default()),
+        Err(OptimError::InvalidParameter { name: "lr_interior", .. })
+    ));
+    assert!(resume(&measured, &params, Hooks::default()).is_err());
+}
