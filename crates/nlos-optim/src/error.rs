@@ -73,7 +73,10 @@ pub enum OptimError {
         source: std::io::Error,
     },
     /// A checkpoint is missing, malformed or from an incompatible run.
-    #[error("checkpoint {}: {message}; start a fresh run (without resume) or pass the matching measurement", path.display())]
+    #[error(
+        "checkpoint {}: {message}; start a fresh run (without resume) or pass the matching measurement",
+        path.display()
+    )]
     Checkpoint {
         /// The checkpoint file.
         path: PathBuf,
