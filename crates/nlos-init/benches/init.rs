@@ -1,2 +1,31 @@
-//! Benchmarks (placeholder until the methods exist).
-fn main() {}
+//! LCT and f-k on a 64 × 64 × 1024 confocal capture (target: ≤ 1 s each on a 2-core machine).
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nlos_init::{FkParams, Gate, LctParams, fk, lct};
+use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
+
+fn capture() -> Transient {
+    let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.4, 0.4).expect("grid"));
+    let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.0024, 1024).expect("axis")).expect("zeros");
+    // Deterministic pseudo-random counts (the cost does not depend on the values).
+    let mut s = 0x2545_f491_4f6c_dd1du64;
+    for v in t.data_mut() {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        *v = (s >> 40) as f32 / (1u64 << 24) as f32;
+    }
+    t
+}
+
+fn bench(c: &mut Criterion) {
+    let t = capture();
+    let mut g = c.benchmark_group("init_64x64x1024");
+    g.sample_size(10);
+    g.bench_function("lct", |b| b.iter(|| lct(&t, &LctParams { gate: Gate::None, ..LctParams::default() })));
+    g.bench_function("fk", |b| b.iter(|| fk(&t, &FkParams { gate: Gate::None, ..FkParams::default() })));
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

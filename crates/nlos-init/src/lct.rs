@@ -245,13 +245,21 @@ fn psf_spectrum(d: &Dims, dx: f64, dy: f64, m: usize, delta: f64) -> Vec<Complex
         (0..py).flat_map(|iy| (0..px).map(move |ix| (ix, iy))).filter(|&(ix, iy)| shift(ix, iy).is_some()).count();
     // The zero-offset column always contributes, so count ≥ 1.
     let a = 1.0 / (count.max(1) as f64).sqrt();
+    // Twiddle table e^{−2πi k/pz}: the phase of bin f is entry (q·f mod pz), reduced in integers so it
+    // stays exact (no sin/cos per voxel).
+    let twiddle: Vec<Complex32> = (0..d.pz)
+        .map(|k| {
+            let phase = -2.0 * std::f64::consts::PI * k as f64 / d.pz as f64;
+            Complex32::new((a * phase.cos()) as f32, (a * phase.sin()) as f32)
+        })
+        .collect();
     let mut lanes = vec![Complex32::new(0.0, 0.0); px * py * d.nf];
     lanes.par_chunks_mut(d.nf).enumerate().for_each(|(c, lane)| {
         if let Some(q) = shift(c % px, c / px) {
-            for (f, v) in lane.iter_mut().enumerate() {
-                // Reduce q·f modulo pz in integers so the phase stays accurate in f64.
-                let phase = -2.0 * std::f64::consts::PI * ((q * f) % d.pz) as f64 / d.pz as f64;
-                *v = Complex32::new((a * phase.cos()) as f32, (a * phase.sin()) as f32);
+            let mut k = 0;
+            for v in lane.iter_mut() {
+                *v = twiddle[k];
+                k = (k + q) % d.pz;
             }
         }
     });

@@ -71,8 +71,7 @@ fn ascii(mask: &[bool], nx: usize, ny: usize) -> String {
 }
 
 fn lct_params() -> LctParams {
-    let snr = std::env::var("SNR").ok().and_then(|v| v.parse().ok()).unwrap_or(0.1);
-    LctParams { bin_merge: 4, max_depth: Some(1.2), snr, ..LctParams::default() }
+    LctParams { bin_merge: 4, max_depth: Some(1.2), ..LctParams::default() }
 }
 
 /// The issue asks for the chart at 0.425 ± 0.005 m, which is where the summed histogram peaks
