@@ -1,9 +1,11 @@
 //! Project automation.
 //!
-//! - `cargo xtask reconstruct [--out DIR] [--data FILE]`: the main job on the built-in scene (no arguments
-//!   needed). Today it runs the stages that exist: the built-in scene's transient is synthesised, written in
-//!   every writable format, read back, inspected with `nlos info` and previewed with `nlos preview`. It grows
-//!   into the full reconstruction as the renderer, initialisers and optimiser land.
+//! - `cargo xtask reconstruct`: the built-in demo, no arguments or data needed — simulate the built-in scene
+//!   (a bumpy Lambertian patch 0.4 m behind the wall, rendered by `nlos-render` on a 24 × 24 confocal scan
+//!   with Poisson photon noise), then run the product on it exactly as a user would: `nlos info`,
+//!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the LCT
+//!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
+//! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask help`.
 
 mod builtin;
@@ -14,9 +16,11 @@ use std::process::{Command, ExitCode};
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
-        Some("reconstruct") => reconstruct(&args[1..]),
+        Some("reconstruct") if args.len() > 1 => nlos(&args.iter().map(String::as_str).collect::<Vec<_>>()),
+        Some("reconstruct") => demo(),
         None | Some("help" | "--help" | "-h") => {
-            println!("usage: cargo xtask reconstruct [--out DIR] [--data FILE]");
+            println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
+            println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
             Ok(())
         }
         Some(other) => Err(format!("unknown task `{other}`; try `cargo xtask help`")),
@@ -34,55 +38,60 @@ fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
-fn reconstruct(args: &[String]) -> Result<(), String> {
-    let mut out = workspace_root().join("out/reconstruct");
-    let mut data: Option<PathBuf> = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--out" => out = it.next().ok_or("--out needs a directory")?.into(),
-            "--data" => data = Some(it.next().ok_or("--data needs a file")?.into()),
-            other => return Err(format!("unknown argument `{other}`")),
-        }
-    }
+fn demo() -> Result<(), String> {
+    let out = workspace_root().join("out/reconstruct");
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-
-    let input = match data {
-        Some(file) => file,
-        None => {
-            let scene = builtin::BuiltinScene::default();
-            println!(
-                "[1/4] built-in scene: Lambertian square, side {:.2} m, at depth {:.2} m; {}×{} confocal scan",
-                2.0 * scene.half_size,
-                scene.depth,
-                scene.grid,
-                scene.grid
-            );
-            let t = scene.render().map_err(|e| e.to_string())?;
-            let file = out.join("builtin.hdf5");
-            for (name, format) in [
-                ("builtin.hdf5", nlos_transient::Format::Tal),
-                ("builtin.npy", nlos_transient::Format::NpyJson),
-                ("builtin.exr", nlos_transient::Format::Exr),
-            ] {
-                let path = out.join(name);
-                nlos_transient::write(&t, &path, format).map_err(|e| e.to_string())?;
-                let back = nlos_transient::read(&path).map_err(|e| e.to_string())?;
-                if back != t {
-                    return Err(format!("{}: read back differs from what was written", path.display()));
-                }
-            }
-            println!("[2/4] wrote and re-read {} (TAL), builtin.npy + .json, builtin.exr: bit-exact", file.display());
-            let depth = t.summed_peak_depth(None).map_err(|e| e.to_string())?;
-            println!("      summed-histogram peak depth {depth:.4} m (square at {:.4} m)", scene.depth);
-            file
-        }
-    };
-    println!("[3/4] nlos info {}", input.display());
-    nlos(&["info", &input.to_string_lossy()])?;
+    let scene = builtin::BuiltinScene::default();
+    println!(
+        "[1/5] built-in scene: {:.2} m Lambertian patch at {:.2} m with a {:.0} mm bump toward the wall; \
+         {}×{} confocal scan, {} bins of {:.1} mm, {} photons per measurement",
+        scene.size,
+        scene.depth,
+        scene.bump * 1e3,
+        scene.grid,
+        scene.grid,
+        scene.bins,
+        scene.bin_width * 1e3,
+        scene.photons
+    );
+    let truth = scene.mesh()?;
+    let truth_file = out.join("truth.obj");
+    nlos_mesh::io::save(&truth, &truth_file).map_err(|e| e.to_string())?;
+    let (_, noisy) = scene.capture(&truth)?;
+    let capture = out.join("capture.hdf5");
+    nlos_transient::write(&noisy, &capture, nlos_transient::Format::Tal).map_err(|e| e.to_string())?;
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    println!("[2/5] nlos info {}", capture.display());
+    nlos(&["info", &s(&capture)])?;
     let png = out.join("preview.png");
-    println!("[4/4] nlos preview {} --out {}", input.display(), png.display());
-    nlos(&["preview", &input.to_string_lossy(), "--out", &png.to_string_lossy()])?;
+    println!("[3/5] nlos preview → {}", png.display());
+    nlos(&["preview", &s(&capture), "--out", &s(&png)])?;
+    let run = out.join("run");
+    println!("[4/5] nlos reconstruct (LCT initialisation, 2 coarse-to-fine stages) → {}", run.display());
+    let started = std::time::Instant::now();
+    nlos(&[
+        "reconstruct",
+        &s(&capture),
+        "--out",
+        &s(&run),
+        "--stages",
+        "2",
+        "--resolution",
+        "20",
+        "--blocks",
+        "2",
+        "--iterations",
+        "15",
+        "--seed",
+        "1",
+    ])?;
+    println!("      reconstruction took {:.0} s", started.elapsed().as_secs_f64());
+    println!("[5/5] nlos eval against the ground truth (coverage, depth error in metres, Chamfer, normal error)");
+    for (what, mesh) in [("LCT initial mesh", run.join("init.obj")), ("reconstruction  ", run.join("mesh.obj"))] {
+        print!("      {what}: ");
+        std::io::Write::flush(&mut std::io::stdout()).map_err(|e| e.to_string())?;
+        nlos(&["eval", &s(&mesh), "--gt", &s(&truth_file)])?;
+    }
     println!("done: outputs in {}", out.display());
     Ok(())
 }
