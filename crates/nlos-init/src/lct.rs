@@ -150,7 +150,7 @@ pub fn lct(t: &Transient, params: &LctParams) -> Result<Volume> {
         return Err(InitError::InvalidParameter { name: "snr", value: params.snr, reason: "must be finite and > 0" });
     }
     let g = prep::prepare(t, "LCT", params.gate, params.max_depth, params.bin_merge)?;
-    let data = lct_grid(&g, params);
+    let data = lct_grid(&g, params, false);
     Ok(volume_from_grid(&g, data))
 }
 
@@ -166,7 +166,9 @@ pub(crate) fn volume_from_grid(g: &ConfocalGrid, data: Vec<f32>) -> Volume {
     }
 }
 
-fn lct_grid(g: &ConfocalGrid, params: &LctParams) -> Vec<f32> {
+/// The LCT pipeline; with `laplacian`, the negative second difference along u is taken before resampling
+/// back to t (filtered backprojection, see [`crate::fbp`]).
+pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) -> Vec<f32> {
     let (nx, ny) = (g.nx, g.ny);
     // Pad the time axis to a fast FFT size; the extra bins are zero and extend the range T.
     let m = prep::next_fast_len(g.bins);
@@ -221,6 +223,15 @@ fn lct_grid(g: &ConfocalGrid, params: &LctParams) -> Vec<f32> {
             let _ = c2r.process_with_scratch(lane, real, scratch);
             for (a, b) in ul.iter_mut().zip(real.iter()) {
                 *a = b * scale;
+            }
+            if laplacian {
+                // −∂²/∂u²; undefined (set to 0) at both ends, where a zero extension would make a spike.
+                tl[0] = 0.0;
+                tl[m - 1] = 0.0;
+                for i in 1..m - 1 {
+                    tl[i] = 2.0 * ul[i] - ul[i - 1] - ul[i + 1];
+                }
+                ul.copy_from_slice(tl);
             }
             resampler.adjoint(ul, tl);
             for (a, b) in o.iter_mut().zip(tl.iter()) {

@@ -6,6 +6,7 @@
 //! - [`lct`]: the light-cone transform with Wiener deconvolution (O'Toole, Lindell & Wetzstein,
 //!   Nature 2018), confocal grid scans;
 //! - [`fk`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
+//! - [`fbp`]: Laplacian-filtered backprojection (the LCT's adjoint), confocal grid scans;
 //! - [`volume_to_surface`]: per-column maximum, threshold (Otsu or explicit), largest connected region,
 //!   grid triangulation facing the wall, optional smoothing and isotropic remeshing.
 //!
@@ -30,6 +31,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod fbp;
 mod fft;
 pub mod fk;
 pub mod lct;
@@ -38,6 +40,7 @@ pub mod surface;
 pub mod volume;
 
 pub use error::{InitError, Result};
+pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};
 pub use lct::{LctParams, Material, lct};
 pub use prep::Gate;

@@ -18,6 +18,7 @@ fn exhaustive_input_is_refused_by_lct_and_fk() {
     let t = Transient::zeros(Scan::exhaustive(p.clone(), p), TimeAxis::new(0.0, 0.01, 32).expect("axis")).expect("t");
     assert!(matches!(lct(&t, &LctParams::default()), Err(InitError::NotConfocal { .. })));
     assert!(matches!(fk(&t, &FkParams::default()), Err(InitError::NotConfocal { .. })));
+    assert!(matches!(nlos_init::fbp(&t, &nlos_init::FbpParams::default()), Err(InitError::NotConfocal { .. })));
 }
 
 #[test]

@@ -4,7 +4,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use nlos_init::{FkParams, Gate, LctParams, SurfaceParams, Volume, connected_components, fk, lct, volume_to_surface};
+use nlos_init::{
+    FbpParams, FkParams, Gate, LctParams, SurfaceParams, Volume, connected_components, fbp, fk, lct, volume_to_surface,
+};
 use nlos_transient::Transient;
 
 const MEASURED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/");
@@ -102,6 +104,12 @@ fn resolution_chart_plane_near_40_cm() {
     let median = s.median_depth().expect("kept columns");
     eprintln!("f-k chart: median depth {median:.4} m");
     figure(&vol, &s.depth, &s.mask, "chart_fk");
+    let vol = fbp(&t, &FbpParams { bin_merge: 4, max_depth: Some(1.2), ..FbpParams::default() }).expect("fbp");
+    let s = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
+    let fbp_median = s.median_depth().expect("kept columns");
+    eprintln!("FBP chart: median depth {fbp_median:.4} m");
+    figure(&vol, &s.depth, &s.mask, "chart_fbp");
+    assert!((0.395..=0.415).contains(&fbp_median), "FBP median depth {fbp_median}");
     assert!((0.395..=0.415).contains(&lct_median), "LCT median depth {lct_median}");
     assert!((0.395..=0.415).contains(&median), "f-k median depth {median}");
     assert!((lct_median - median).abs() <= 0.007, "LCT {lct_median} vs f-k {median}");

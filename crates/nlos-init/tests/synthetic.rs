@@ -1,6 +1,6 @@
 //! Synthetic captures rendered in the test by quadrature: a Lambertian square at a known depth.
 
-use nlos_init::{FkParams, Gate, LctParams, SurfaceParams, fk, lct, volume_to_surface};
+use nlos_init::{FbpParams, FkParams, Gate, LctParams, SurfaceParams, fbp, fk, lct, volume_to_surface};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
 /// Confocal transient of a Lambertian square of side `side` parallel to the wall at depth `d`, facing
@@ -43,6 +43,10 @@ fn lct_and_fk_find_a_plane_within_one_bin() {
     let s2 = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
     let median2 = s2.median_depth().expect("kept");
     eprintln!("f-k plane: median depth {median2:.4} m (true {d})");
+    let vol = fbp(&t, &FbpParams { gate: Gate::None, ..FbpParams::default() }).expect("fbp");
+    let median3 = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface").median_depth().expect("kept");
+    eprintln!("FBP plane: median depth {median3:.4} m (true {d})");
+    assert!((median3 - d).abs() <= 2.0 * bin_depth, "FBP depth {median3} vs {d}");
     assert!((median - d).abs() <= bin_depth, "LCT depth {median} vs {d}");
     assert!((median2 - d).abs() <= bin_depth, "f-k depth {median2} vs {d}");
 }
