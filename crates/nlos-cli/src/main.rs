@@ -9,6 +9,7 @@
 
 mod convert;
 mod info;
+mod init;
 mod preview;
 
 use std::path::PathBuf;
@@ -44,6 +45,8 @@ enum Command {
     /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
     /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
     Preview(preview::Args),
+    /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
+    Init(init::Args),
 }
 
 /// A failure, with the exit code it maps to.
@@ -79,6 +82,7 @@ fn main() -> ExitCode {
         Command::Info { file, json } => info::run(&file, json),
         Command::Convert(args) => convert::run(&args),
         Command::Preview(args) => preview::run(&args),
+        Command::Init(args) => init::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

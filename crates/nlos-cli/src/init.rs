@@ -1,0 +1,216 @@
+//! `nlos init`: a volumetric reconstruction (LCT, f-k migration or filtered backprojection) turned into
+//! the initial surface mesh, with a PNG of the front view and the depth map beside it.
+
+use std::path::{Path, PathBuf};
+
+use nlos_init::{
+    FbpParams, FkParams, Gate, InitError, LctParams, Material, SurfaceParams, Threshold, Volume, fbp, fk, lct,
+    volume_to_surface,
+};
+use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
+
+use crate::CliError;
+
+/// The volumetric method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum Method {
+    /// Light-cone transform with Wiener deconvolution (O'Toole et al. 2018).
+    Lct,
+    /// f-k migration (Lindell et al. 2019).
+    Fk,
+    /// Laplacian-filtered backprojection.
+    Fbp,
+}
+
+/// Arguments of `nlos init`.
+#[derive(Debug, clap::Args)]
+pub(crate) struct Args {
+    /// The capture file (any readable format; a confocal grid scan).
+    file: PathBuf,
+    /// Reconstruction method.
+    #[arg(long, value_enum, default_value = "lct")]
+    method: Method,
+    /// Where to write the surface mesh (format from the extension: .obj, .ply, .glb). A PNG with the
+    /// front view and the depth map is written beside it (same name, .png).
+    #[arg(long, value_name = "MESH")]
+    out: PathBuf,
+    /// Also write the volume as a NumPy .npy file (f32, shape (ny, nx, nz)).
+    #[arg(long, value_name = "NPY")]
+    volume: Option<PathBuf>,
+    /// Zero the bins before this path length (metres); `auto` estimates where the direct light ends,
+    /// `off` keeps everything.
+    #[arg(long, value_name = "METRES|auto|off", default_value = "auto", value_parser = parse_gate)]
+    gate: Gate,
+    /// Sum this many consecutive time bins first (4 suits the 4 ps Stanford captures).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    merge: usize,
+    /// Ignore everything deeper than this (metres).
+    #[arg(long, value_name = "METRES")]
+    max_depth: Option<f64>,
+    /// Extract the surface only from voxels at least this deep (metres).
+    #[arg(long, value_name = "METRES")]
+    min_depth: Option<f64>,
+    /// Wiener signal-to-noise ratio of the LCT.
+    #[arg(long, default_value_t = 0.1)]
+    snr: f64,
+    /// Radiometric weighting for retroreflective instead of diffuse surfaces (LCT, FBP).
+    #[arg(long)]
+    retroreflective: bool,
+    /// Mask threshold: `otsu`, a fraction of the maximum (`0.3`) or an absolute value (`abs:1e-6`).
+    #[arg(long, default_value = "otsu", value_parser = parse_threshold)]
+    threshold: Threshold,
+    /// Keep every region above the threshold, not only the largest.
+    #[arg(long)]
+    all_regions: bool,
+    /// Smoothing passes over the depth map.
+    #[arg(long, default_value_t = 0)]
+    smooth: usize,
+    /// Remesh isotropically to this edge length (metres).
+    #[arg(long, value_name = "METRES")]
+    edge: Option<f64>,
+}
+
+fn parse_gate(s: &str) -> Result<Gate, String> {
+    match s {
+        "auto" => Ok(Gate::Auto),
+        "off" | "none" => Ok(Gate::None),
+        _ => s
+            .parse::<f64>()
+            .ok()
+            .filter(|g| g.is_finite())
+            .map(Gate::Path)
+            .ok_or_else(|| format!("`{s}` is not a path length in metres, `auto` or `off`")),
+    }
+}
+
+fn parse_threshold(s: &str) -> Result<Threshold, String> {
+    if s == "otsu" {
+        return Ok(Threshold::Otsu);
+    }
+    let bad = || format!("`{s}` is not `otsu`, a fraction in [0, 1] or `abs:VALUE`");
+    if let Some(v) = s.strip_prefix("abs:") {
+        return v.parse::<f32>().ok().filter(|v| v.is_finite()).map(Threshold::Absolute).ok_or_else(bad);
+    }
+    s.parse::<f32>().ok().filter(|v| (0.0..=1.0).contains(v)).map(Threshold::Relative).ok_or_else(bad)
+}
+
+fn init_error(e: InitError) -> CliError {
+    match e {
+        InitError::Transient(e) => CliError::input(e),
+        InitError::Mesh(e) => CliError::Failure(e.to_string()),
+        other => CliError::Input(other.to_string()),
+    }
+}
+
+pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    let t = nlos_transient::read(&args.file).map_err(CliError::input)?;
+    let material = if args.retroreflective { Material::Retroreflective } else { Material::Diffuse };
+    let vol = match args.method {
+        Method::Lct => lct(
+            &t,
+            &LctParams {
+                snr: args.snr,
+                material,
+                bin_merge: args.merge,
+                gate: args.gate,
+                max_depth: args.max_depth,
+                backprojection: false,
+            },
+        ),
+        Method::Fk => fk(&t, &FkParams { bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth }),
+        Method::Fbp => {
+            fbp(&t, &FbpParams { material, bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth })
+        }
+    }
+    .map_err(init_error)?;
+    let params = SurfaceParams {
+        threshold: args.threshold,
+        min_depth: args.min_depth,
+        max_depth: args.max_depth,
+        largest_component: !args.all_regions,
+        smoothing_iterations: args.smooth,
+        target_edge_length: args.edge,
+        ..SurfaceParams::default()
+    };
+    let surface = volume_to_surface(&vol, &params).map_err(init_error)?;
+    nlos_mesh::io::save(&surface.mesh, &args.out).map_err(|e| CliError::Failure(e.to_string()))?;
+    if let Some(path) = &args.volume {
+        std::fs::write(path, vol.to_npy())
+            .map_err(|e| CliError::Failure(format!("cannot write {}: {e}", path.display())))?;
+    }
+    let png = args.out.with_extension("png");
+    figure(&vol, &surface.depth, &surface.mask, &png)?;
+    let kept = surface.mask.iter().filter(|&&k| k).count();
+    println!(
+        "{:?}: {} × {} × {} volume; {kept} of {} columns kept (threshold {:.3e}), median depth {} m; \
+         {} vertices, {} triangles → {}; figure {}",
+        args.method,
+        vol.nx,
+        vol.ny,
+        vol.nz,
+        vol.nx * vol.ny,
+        surface.threshold,
+        surface.median_depth().map_or("-".into(), |d| format!("{d:.4}")),
+        surface.positions.len(),
+        surface.triangles.len(),
+        args.out.display(),
+        png.display()
+    );
+    Ok(())
+}
+
+fn viz(e: nlos_viz::VizError) -> CliError {
+    CliError::Failure(e.to_string())
+}
+
+/// Front view (maximum over depth) beside the depth of the kept columns; x right, y up: the view from
+/// the wall into the hidden scene.
+fn figure(vol: &Volume, depth: &[f32], mask: &[bool], out: &Path) -> Result<(), CliError> {
+    let maxp = vol.max_projection();
+    let ex = Extent::from_centres(vol.x.at(0), vol.x.at(vol.nx - 1), vol.nx).map_err(viz)?;
+    let ey = Extent::from_centres(vol.y.at(0), vol.y.at(vol.ny - 1), vol.ny).map_err(viz)?;
+    let kept: Vec<f32> = depth.iter().zip(mask).filter(|&(_, &k)| k).map(|(&d, _)| d).collect();
+    let lo = kept.iter().copied().fold(f32::INFINITY, f32::min) as f64;
+    let hi = kept.iter().copied().fold(f32::NEG_INFINITY, f32::max) as f64;
+    let shown: Vec<f32> = depth.iter().zip(mask).map(|(&d, &k)| if k { d } else { lo as f32 }).collect();
+    let mut fig = Figure::new("nlos init");
+    fig.panels.push(
+        Panel::image(
+            ScalarGrid::new(&maxp, vol.nx, vol.ny, ex, ey).map_err(viz)?,
+            Norm::auto(&maxp, Scale::Linear).map_err(viz)?,
+        )
+        .with_colormap(Colormap::Grey)
+        .with_labels("x (m)", "y (m)")
+        .with_title("front view (max over depth)"),
+    );
+    fig.panels.push(
+        Panel::image(
+            ScalarGrid::new(&shown, vol.nx, vol.ny, ex, ey).map_err(viz)?,
+            Norm::linear(lo - 1e-3, hi + 1e-3).map_err(viz)?,
+        )
+        .with_colormap(Colormap::Viridis)
+        .with_labels("x (m)", "y (m)")
+        .with_title("depth of kept columns")
+        .with_colorbar("m"),
+    );
+    fig.render().map_err(viz)?.save_png(out).map_err(viz)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thresholds_and_gates_parse() {
+        assert_eq!(parse_threshold("otsu"), Ok(Threshold::Otsu));
+        assert_eq!(parse_threshold("0.3"), Ok(Threshold::Relative(0.3)));
+        assert_eq!(parse_threshold("abs:1e-6"), Ok(Threshold::Absolute(1e-6)));
+        for bad in ["1.5", "-0.1", "abs:nan", "abs:", "x"] {
+            assert!(parse_threshold(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_gate("auto"), Ok(Gate::Auto));
+        assert_eq!(parse_gate("off"), Ok(Gate::None));
+        assert_eq!(parse_gate("0.72"), Ok(Gate::Path(0.72)));
+        assert!(parse_gate("inf").is_err());
+    }
+}
