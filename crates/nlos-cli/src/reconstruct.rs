@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use nlos_brdf::{Fresnel, Ggx};
 use nlos_init::{FkParams, LctParams, SurfaceParams, fk, lct, volume_to_surface};
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, Reflectance, StopReason};
+use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, Reflectance, SamplingSchedule, StopReason};
+use nlos_render::{DeterministicRule, Visibility};
 
 use crate::CliError;
 
@@ -55,6 +56,15 @@ pub(crate) struct Args {
     /// Keep every K-th scan row and column before anything else (faster, coarser).
     #[arg(long, value_name = "K")]
     subsample: Option<usize>,
+    /// Visibility of the surface from the wall spots: `cached` (one shadow ray per triangle and measurement,
+    /// recomputed after every remeshing; the default), `live` (per sample, slow, exact) or `off` (no
+    /// occlusion: right for height fields only).
+    #[arg(long, default_value = "cached", value_name = "cached|live|off")]
+    visibility: String,
+    /// Largest subdivision level of the noise-free quadrature (n² samples per triangle and measurement at
+    /// most; default 8). Higher is more accurate and slower.
+    #[arg(long, default_value_t = 8, value_name = "N")]
+    max_level: u32,
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
@@ -136,6 +146,19 @@ fn params(args: &Args) -> Result<ReconstructParams, CliError> {
         "ggx" => Reflectance::from_ggx(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
         other => return Err(bad(format!("--brdf `{other}`: expected `lambert` or `ggx`"))),
     };
+    p.render.visibility = match args.visibility.as_str() {
+        "cached" => Visibility::Cached { level: 1 },
+        "live" => Visibility::Live,
+        "off" => Visibility::Off,
+        other => return Err(bad(format!("--visibility `{other}`: expected `cached`, `live` or `off`"))),
+    };
+    if args.max_level == 0 {
+        return Err(bad("--max-level must be at least 1"));
+    }
+    p.sampling = SamplingSchedule::Deterministic(DeterministicRule {
+        max_level: args.max_level,
+        ..DeterministicRule::default()
+    });
     if let Some(s) = args.stages {
         p.schedule.max_stages = s;
     }

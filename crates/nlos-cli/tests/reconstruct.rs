@@ -78,6 +78,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--resolution", "-3"],
         vec!["--rebin", "0"],
         vec!["--alpha", "7"],
+        vec!["--visibility", "sometimes"],
+        vec!["--max-level", "0"],
     ] {
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet"];
         args.extend(extra.iter().copied());
