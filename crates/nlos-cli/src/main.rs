@@ -8,6 +8,7 @@
 //! be encoded). Errors are printed to stderr as `error: <message>`.
 
 mod convert;
+mod eval;
 mod info;
 mod init;
 mod preview;
@@ -45,6 +46,9 @@ enum Command {
     /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
     /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
     Preview(preview::Args),
+    /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage and depth error
+    /// (mean, median, RMS) from a +z ray grid over the wall, Chamfer distance, normal angular error.
+    Eval(eval::Args),
     /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
     Init(init::Args),
 }
@@ -82,6 +86,7 @@ fn main() -> ExitCode {
         Command::Info { file, json } => info::run(&file, json),
         Command::Convert(args) => convert::run(&args),
         Command::Preview(args) => preview::run(&args),
+        Command::Eval(args) => eval::run(&args),
         Command::Init(args) => init::run(&args),
     };
     match result {

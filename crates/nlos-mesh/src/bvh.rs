@@ -210,6 +210,55 @@ impl TriangleBvh {
         }
     }
 
+    /// The first intersection of the ray `origin + t·direction`, `0 ≤ t ≤ t_max`, with the triangles (both
+    /// faces count), found by front-to-back traversal pruned by the nearest hit so far; each triangle is
+    /// tested with [`ray_triangle`]. `t` is in units of `|direction|` (metres for a unit direction). `None`
+    /// when nothing is hit, or for a non-finite or zero `origin`/`direction` or a NaN `t_max`.
+    pub fn ray_first_hit(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<RayHit> {
+        if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO || t_max.is_nan() {
+            return None;
+        }
+        let nodes = &self.bvh.nodes;
+        let mut best_t = t_max;
+        let mut best: Option<RayHit> = None;
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
+        if let Some(t) = ray_box_entry(nodes[0].aabb(), origin, direction, best_t) {
+            stack.push((0, t));
+        }
+        while let Some((ni, entry)) = stack.pop() {
+            if entry > best_t {
+                continue;
+            }
+            let node = &nodes[ni as usize];
+            if node.is_leaf() {
+                let start = node.first_index as usize;
+                for k in start..start + node.prim_count as usize {
+                    let ti = self.bvh.primitive_indices[k];
+                    let tri = self.tris[ti as usize].map(Vec3::from);
+                    if let Some((t, barycentric)) = ray_triangle(origin, direction, tri, best_t)
+                        && (best.is_none() || t < best_t)
+                    {
+                        best_t = t;
+                        best = Some(RayHit { t, point: origin + direction * t, triangle: ti, barycentric });
+                    }
+                }
+            } else {
+                let (l, r) = (node.first_index, node.first_index + 1);
+                let tl = ray_box_entry(nodes[l as usize].aabb(), origin, direction, best_t);
+                let tr = ray_box_entry(nodes[r as usize].aabb(), origin, direction, best_t);
+                // push the farther child first so the nearer one is visited first
+                match (tl, tr) {
+                    (Some(a), Some(b)) if a <= b => stack.extend([(r, b), (l, a)]),
+                    (Some(a), Some(b)) => stack.extend([(l, a), (r, b)]),
+                    (Some(a), None) => stack.push((l, a)),
+                    (None, Some(b)) => stack.push((r, b)),
+                    (None, None) => {}
+                }
+            }
+        }
+        best
+    }
+
     /// Calls `f(triangle)` for every triangle whose bounding box overlaps the box `[lo, hi]`.
     pub fn for_each_overlapping(&self, lo: Vec3, hi: Vec3, mut f: impl FnMut(u32)) {
         let query = Aabb::new(Vec3A::from(lo), Vec3A::from(hi));
@@ -228,6 +277,87 @@ impl TriangleBvh {
             true
         });
     }
+}
+
+/// Result of a ray query ([`TriangleBvh::ray_first_hit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayHit {
+    /// Ray parameter of the hit: `point = origin + t·direction`.
+    pub t: f32,
+    /// The hit point.
+    pub point: Vec3,
+    /// Index of the triangle hit (as in [`ClosestPoint::triangle`]).
+    pub triangle: u32,
+    /// Barycentric coordinates of `point` in that triangle (weights of its corners 0, 1, 2).
+    pub barycentric: Vec3,
+}
+
+/// Tolerance of [`ray_triangle`] on the barycentric coordinates: a hit is accepted for `u, v ≥ −ε` and
+/// `u + v ≤ 1 + ε`. The test runs in `f64` on `f32` corners, so its rounding (≈ 1e−15 relative) is far below ε:
+/// a ray through an edge or vertex shared by two triangles hits at least one of them (no cracks), and an
+/// open boundary grows by at most ε of an edge length (1 nm on a 1 m edge).
+pub const RAY_BARYCENTRIC_EPSILON: f64 = 1e-9;
+
+/// Rays closer to parallel to a triangle's plane than this (sine of the angle between ray and plane) miss
+/// it; zero-area triangles are always missed.
+pub const RAY_PARALLEL_EPSILON: f64 = 1e-12;
+
+/// Möller–Trumbore ray–triangle intersection (Möller & Trumbore 1997), both faces, in `f64`: the hit of
+/// `origin + t·direction` with triangle `tri`, `0 ≤ t ≤ t_max`, as `(t, barycentric)` with the weights of
+/// corners 0, 1, 2. Edge tolerance [`RAY_BARYCENTRIC_EPSILON`]; near-parallel rays and zero-area triangles
+/// per [`RAY_PARALLEL_EPSILON`] miss.
+pub fn ray_triangle(origin: Vec3, direction: Vec3, tri: [Vec3; 3], t_max: f32) -> Option<(f32, Vec3)> {
+    let [a, b, c] = tri.map(|p| p.as_dvec3());
+    let (o, d) = (origin.as_dvec3(), direction.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    // |det| = |e1 × e2|·|d|·sin(angle between ray and plane)
+    let scale = e1.cross(e2).length() * d.length();
+    // also rejects NaN (non-finite corners)
+    if det.abs() <= RAY_PARALLEL_EPSILON * scale || det.is_nan() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(-RAY_BARYCENTRIC_EPSILON..=1.0 + RAY_BARYCENTRIC_EPSILON).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < -RAY_BARYCENTRIC_EPSILON || u + v > 1.0 + RAY_BARYCENTRIC_EPSILON {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    if !(0.0..=t_max as f64).contains(&t) {
+        return None;
+    }
+    Some((t as f32, Vec3::new((1.0 - u - v) as f32, u as f32, v as f32)))
+}
+
+/// Entry parameter of the ray into box `b` if it meets the box within `[0, t_max]` (slab test). Axes with a
+/// zero direction component test the origin against the slab directly (no infinities), and the exit is
+/// widened by a few ulps so that boxes of flat or axis-aligned triangles touched exactly are not missed.
+#[inline]
+fn ray_box_entry(b: &Aabb, o: Vec3, d: Vec3, t_max: f32) -> Option<f32> {
+    let (lo, hi) = (Vec3::from(b.min), Vec3::from(b.max));
+    let (mut t0, mut t1) = (0.0f32, t_max);
+    for k in 0..3 {
+        if d[k] == 0.0 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return None;
+            }
+        } else {
+            let inv = 1.0 / d[k];
+            let (a, c) = ((lo[k] - o[k]) * inv, (hi[k] - o[k]) * inv);
+            let (near, far) = if a <= c { (a, c) } else { (c, a) };
+            t0 = t0.max(near);
+            // 1 + 2γ₃ (Pharr, Jakob & Humphreys, PBRT 3rd ed., §3.9.2) keeps the test conservative
+            t1 = t1.min(far * (1.0 + 4.0 * f32::EPSILON) + f32::MIN_POSITIVE);
+        }
+    }
+    (t0 <= t1).then_some(t0)
 }
 
 #[inline]

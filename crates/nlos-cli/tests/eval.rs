@@ -1,0 +1,119 @@
+//! `nlos eval` end to end: meshes written with `nlos_mesh::io`, the shared soap bar against itself
+//! (skipped with a message when `shared/data` is absent), and bad input (exit 2, `error:` naming the file).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::Vec3;
+use nlos_mesh::{SurfaceMesh, shapes};
+use serde_json::Value;
+
+const SOAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/soap_centered.obj");
+
+fn nlos(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A fresh scratch folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("eval-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// A 0.6 m square grid plane centred on the z axis at depth `z`.
+fn plane(quads: usize, z: f32) -> SurfaceMesh {
+    let mut m = shapes::plane_grid(0.6, 0.6, quads, quads);
+    for p in m.positions_mut() {
+        *p += Vec3::new(-0.3, -0.3, z);
+    }
+    m
+}
+
+/// Runs `nlos eval` and parses its single stdout line.
+fn eval_json(args: &[&str]) -> Value {
+    let o = nlos(args);
+    assert!(o.status.success(), "nlos eval failed: {}", stderr(&o));
+    let out = String::from_utf8(o.stdout).expect("utf-8");
+    assert_eq!(out.lines().count(), 1, "one JSON line expected: {out}");
+    serde_json::from_str(out.trim_end()).expect("valid JSON")
+}
+
+fn num(v: &Value, key: &str) -> f64 {
+    v[key].as_f64().unwrap_or_else(|| panic!("{key} missing or not a number in {v}"))
+}
+
+#[test]
+fn planes_one_centimetre_apart() {
+    let dir = scratch("planes");
+    let (rec, gt) = (dir.join("rec.ply"), dir.join("gt.obj"));
+    nlos_mesh::io::save(&plane(7, 0.41), &rec).expect("write rec");
+    nlos_mesh::io::save(&plane(5, 0.40), &gt).expect("write gt");
+    let v = eval_json(&["eval", rec.to_str().expect("utf-8"), "--gt", gt.to_str().expect("utf-8")]);
+    assert_eq!(num(&v, "coverage"), 1.0);
+    assert_eq!(v["grid"], 128);
+    assert_eq!(v["gt_pixels"], 128 * 128);
+    for key in ["depth_error_mean", "depth_error_median", "depth_error_rms", "depth_error_max"] {
+        assert!((num(&v, key) - 0.01).abs() < 1e-6, "{key} = {}", v[key]);
+    }
+    assert!((num(&v, "chamfer") - 0.02).abs() < 1e-6);
+    assert!(num(&v, "normal_error_mean_deg") < 0.05);
+    // the depth maps stay out of the JSON line
+    assert!(v.get("depth_reconstruction").is_none());
+
+    let v = eval_json(&["eval", rec.to_str().expect("utf-8"), "--gt", gt.to_str().expect("utf-8"), "--grid", "16"]);
+    assert_eq!(v["grid"], 16);
+    assert_eq!(v["both_pixels"], 256);
+}
+
+#[test]
+fn soap_against_itself() {
+    if !Path::new(SOAP).exists() {
+        eprintln!("skipping: {SOAP} is absent (shared data not checked out)");
+        return;
+    }
+    let v = eval_json(&["eval", SOAP, "--gt", SOAP]);
+    assert_eq!(num(&v, "coverage"), 1.0);
+    assert!(v["gt_pixels"].as_u64().expect("count") > 1000, "{v}");
+    assert_eq!(num(&v, "depth_error_max"), 0.0);
+    assert_eq!(num(&v, "chamfer"), 0.0);
+    eprintln!("soap vs itself: {v}");
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_file() {
+    let dir = scratch("bad");
+    let gt = dir.join("gt.obj");
+    nlos_mesh::io::save(&plane(2, 0.4), &gt).expect("write gt");
+    let gt_s = gt.to_str().expect("utf-8");
+
+    let missing = dir.join("missing.obj");
+    let o = nlos(&["eval", missing.to_str().expect("utf-8"), "--gt", gt_s]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).starts_with("error: ") && stderr(&o).contains("missing.obj"), "{}", stderr(&o));
+
+    // malformed: a face with an index out of range
+    let broken = dir.join("broken.obj");
+    std::fs::write(&broken, "v 0 0 1\nv 1 0 1\nf 1 2 9\n").expect("write");
+    let o = nlos(&["eval", broken.to_str().expect("utf-8"), "--gt", gt_s]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).starts_with("error: ") && stderr(&o).contains("broken.obj"), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+
+    // a ground truth that no ray reaches (behind the wall): exit 2, both files named
+    let behind = dir.join("behind.obj");
+    nlos_mesh::io::save(&plane(2, -0.4), &behind).expect("write");
+    let o = nlos(&["eval", gt_s, "--gt", behind.to_str().expect("utf-8")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("behind.obj") && stderr(&o).contains("gt.obj"), "{}", stderr(&o));
+
+    // grid out of range
+    let o = nlos(&["eval", gt_s, "--gt", gt_s, "--grid", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).starts_with("error: "), "{}", stderr(&o));
+}
