@@ -12,6 +12,7 @@ mod eval;
 mod info;
 mod init;
 mod preview;
+mod reconstruct;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -51,6 +52,8 @@ enum Command {
     Eval(eval::Args),
     /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
     Init(init::Args),
+    /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
+    Reconstruct(reconstruct::Args),
 }
 
 /// A failure, with the exit code it maps to.
@@ -88,6 +91,7 @@ fn main() -> ExitCode {
         Command::Preview(args) => preview::run(&args),
         Command::Eval(args) => eval::run(&args),
         Command::Init(args) => init::run(&args),
+        Command::Reconstruct(args) => reconstruct::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
