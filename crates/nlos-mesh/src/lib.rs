@@ -68,7 +68,7 @@ pub use analysis::triangle_normal_raw;
 pub use build::{BuildOptions, orient_triangles};
 pub use bvh::{ClosestPoint, TriangleBvh};
 pub use error::MeshError;
-pub use metrics::{EvalParams, Metrics, evaluate};
 pub use handles::{EdgeId, FaceId, HalfedgeId, VertexId};
+pub use metrics::{EvalParams, Metrics, evaluate};
 pub use property::{EdgeProperty, FaceProperty, VertexProperty};
 pub use surface_mesh::{IndexRemap, SurfaceMesh, VertexHalfedges};
