@@ -1,11 +1,11 @@
-//! `nlos init`: a volumetric reconstruction (LCT, f-k migration or filtered backprojection) turned into
-//! the initial surface mesh, with a PNG of the front view and the depth map beside it.
+//! `nlos init`: a volumetric reconstruction (LCT, f-k migration, filtered backprojection or space
+//! carving) turned into the initial surface mesh, with a PNG of the front view and the depth map beside it.
 
 use std::path::{Path, PathBuf};
 
 use nlos_init::{
-    FbpParams, FkParams, Gate, InitError, LctParams, Material, SurfaceParams, Threshold, Volume, fbp, fk, lct,
-    volume_to_surface,
+    CarveParams, FbpParams, FkParams, Gate, InitError, LctParams, Material, SurfaceParams, Threshold, Volume, carve,
+    fbp, fk, lct, volume_to_surface,
 };
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
@@ -20,6 +20,8 @@ pub(crate) enum Method {
     Fk,
     /// Laplacian-filtered backprojection.
     Fbp,
+    /// Space carving from first-returning photons (Tsai et al. 2017); confocal or exhaustive.
+    Carve,
 }
 
 /// Arguments of `nlos init`.
@@ -118,6 +120,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             },
         ),
         Method::Fk => fk(&t, &FkParams { bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth }),
+        Method::Carve => carve(&t, &CarveParams { gate: args.gate, bin_merge: args.merge, ..CarveParams::default() }),
         Method::Fbp => {
             fbp(&t, &FbpParams { material, bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth })
         }

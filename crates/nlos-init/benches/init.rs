@@ -1,12 +1,13 @@
-//! LCT and f-k on a 64 × 64 × 1024 confocal capture (target: ≤ 1 s each on a 2-core machine).
+//! LCT and f-k on a 64 × 64 × 1024 confocal capture (target: ≤ 1 s each on a 2-core machine), space
+//! carving on 64 × 64 × 1200.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use nlos_init::{FkParams, Gate, LctParams, fk, lct};
+use nlos_init::{CarveParams, FkParams, Gate, LctParams, carve, fk, lct};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
-fn capture() -> Transient {
+fn capture(bins: usize) -> Transient {
     let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.4, 0.4).expect("grid"));
-    let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.0024, 1024).expect("axis")).expect("zeros");
+    let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.0024, bins).expect("axis")).expect("zeros");
     // Deterministic pseudo-random counts (the cost does not depend on the values).
     let mut s = 0x2545_f491_4f6c_dd1du64;
     for v in t.data_mut() {
@@ -19,11 +20,16 @@ fn capture() -> Transient {
 }
 
 fn bench(c: &mut Criterion) {
-    let t = capture();
+    let t = capture(1024);
     let mut g = c.benchmark_group("init_64x64x1024");
     g.sample_size(10);
     g.bench_function("lct", |b| b.iter(|| lct(&t, &LctParams { gate: Gate::None, ..LctParams::default() })));
     g.bench_function("fk", |b| b.iter(|| fk(&t, &FkParams { gate: Gate::None, ..FkParams::default() })));
+    g.finish();
+    let t = capture(1200);
+    let mut g = c.benchmark_group("init_64x64x1200");
+    g.sample_size(10);
+    g.bench_function("carve", |b| b.iter(|| carve(&t, &CarveParams { gate: Gate::None, ..CarveParams::default() })));
     g.finish();
 }
 

@@ -7,9 +7,10 @@
 //! depth only and taken in the LCT's `u = t²` domain before resampling back: `2v(u) − v(u − 1) −
 //! v(u + 1)` (0 at both ends of the axis), then clamped at 0. The lateral terms of the full 3-D
 //! Laplacian erase the interior of a flat surface wider than the blur (a plane's backprojection is
-//! laterally constant) and leave only its outline; the depth term alone turns the backprojection's ramp at the surface into a peak. Taking it
-//! in `u`, where the backprojection is smooth, avoids the staircase that resampling to `t` creates near
-//! the wall (every early time bin comes from the first u-bin).
+//! laterally constant) and leave only its outline; the depth term alone turns the backprojection's
+//! ramp at the surface into a peak. Taking it in `u`, where the backprojection is smooth, avoids the
+//! staircase that resampling to `t` creates near the wall (every early time bin comes from the first
+//! u-bin).
 //!
 //! Exhaustive scans are not handled by this fast path (they need an ellipsoidal backprojection, which
 //! this crate does not implement yet): they are refused with [`crate::InitError::NotConfocal`].

@@ -7,6 +7,8 @@
 //!   Nature 2018), confocal grid scans;
 //! - [`fk`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
 //! - [`fbp`]: Laplacian-filtered backprojection (the LCT's adjoint), confocal grid scans;
+//! - [`carve`]: space carving from first-returning photons (Tsai et al., CVPR 2017), confocal or
+//!   exhaustive scans with a sensor grid;
 //! - [`volume_to_surface`]: per-column maximum, threshold (Otsu or explicit), largest connected region,
 //!   grid triangulation facing the wall, optional smoothing and isotropic remeshing.
 //!
@@ -30,6 +32,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod carve;
 pub mod error;
 pub mod fbp;
 mod fft;
@@ -39,6 +42,7 @@ mod prep;
 pub mod surface;
 pub mod volume;
 
+pub use carve::{CarveParams, carve, first_returns};
 pub use error::{InitError, Result};
 pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};

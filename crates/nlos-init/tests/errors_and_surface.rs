@@ -160,3 +160,33 @@ fn npy_export_has_a_valid_header() {
     assert!(header.contains("'shape': (2, 3, 4)"), "{header}");
     assert_eq!(b.len(), 10 + hl + 4 * 24);
 }
+
+#[test]
+fn carving_handles_exhaustive_scans_and_refuses_lists() {
+    // Exhaustive 4 × 4 lasers × 4 × 4 sensors, a point at depth 0.3 above the origin: the first return of
+    // each pair is at |p − l| + |p − s|.
+    let g = PointSet::wall_grid(4, 4, 0.1, 0.1).expect("grid");
+    let scan = Scan::exhaustive(g.clone(), g);
+    let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.002, 400).expect("axis")).expect("t");
+    let p = Vec3::new(0.0, 0.0, 0.3);
+    for m in 0..t.measurements() {
+        let me = t.scan().measurement(m);
+        let path = (p - me.laser).length() + (p - me.sensor).length();
+        t.histogram_mut(m)[(path / 0.002) as usize] = 1.0;
+    }
+    let vol = nlos_init::carve(&t, &nlos_init::CarveParams { gate: Gate::None, ..Default::default() }).expect("carve");
+    let (depth, value) = vol.depth_map(None, None).expect("depth");
+    let best = (0..16).max_by(|&a, &b| value[a].total_cmp(&value[b])).expect("columns");
+    assert!(value[best] > 0.0);
+    // Above a central column (±0.033 m off the point) the union of the carved ellipsoids reaches at least
+    // the point's depth (less one bin of first-return quantisation) and not far beyond it.
+    assert!((0.298..0.33).contains(&depth[5]), "{}", depth[5]);
+    let list = PointSet::list(vec![Vec3::ZERO, Vec3::X]);
+    let t = Transient::zeros(Scan::confocal(list), TimeAxis::new(0.0, 0.01, 32).expect("axis")).expect("t");
+    assert!(matches!(nlos_init::carve(&t, &Default::default()), Err(InitError::NotGrid { .. })));
+    let t = grid_transient();
+    assert!(matches!(
+        nlos_init::carve(&t, &nlos_init::CarveParams { gate: Gate::None, ..Default::default() }),
+        Err(InitError::Empty { .. })
+    ));
+}

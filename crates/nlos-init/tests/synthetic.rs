@@ -1,6 +1,8 @@
 //! Synthetic captures rendered in the test by quadrature: a Lambertian square at a known depth.
 
-use nlos_init::{FbpParams, FkParams, Gate, LctParams, SurfaceParams, fbp, fk, lct, volume_to_surface};
+use nlos_init::{
+    CarveParams, FbpParams, FkParams, Gate, LctParams, SurfaceParams, carve, fbp, fk, lct, volume_to_surface,
+};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
 /// Confocal transient of a Lambertian square of side `side` parallel to the wall at depth `d`, facing
@@ -47,6 +49,14 @@ fn lct_and_fk_find_a_plane_within_one_bin() {
     let median3 = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface").median_depth().expect("kept");
     eprintln!("FBP plane: median depth {median3:.4} m (true {d})");
     assert!((median3 - d).abs() <= 2.0 * bin_depth, "FBP depth {median3} vs {d}");
+    let vol = carve(&t, &CarveParams { gate: Gate::None, ..CarveParams::default() }).expect("carve");
+    let s4 = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
+    let median4 = s4.median_depth().expect("kept");
+    eprintln!(
+        "carving plane: median depth {median4:.4} m (true {d}), {} columns",
+        s4.mask.iter().filter(|&&k| k).count()
+    );
+    assert!((median4 - d).abs() <= 2.0 * bin_depth, "carving depth {median4} vs {d}");
     assert!((median - d).abs() <= bin_depth, "LCT depth {median} vs {d}");
     assert!((median2 - d).abs() <= bin_depth, "f-k depth {median2} vs {d}");
 }
