@@ -156,7 +156,7 @@ pub fn triangles_intersect(t: [Vec3; 3], u: [Vec3; 3]) -> bool {
 ///   lie on the same side of line `pq`.
 /// - One shared vertex `p`, with opposite edges `ab` and `cd`: they meet elsewhere iff `ab` meets the other
 ///   triangle, `cd` meets the first one, or an edge from `p` of one runs along an edge from `p` of the other.
-fn faces_intersect(fv: [u32; 3], t: [Vec3; 3], gv: [u32; 3], u: [Vec3; 3]) -> bool {
+pub fn faces_intersect(fv: [u32; 3], t: [Vec3; 3], gv: [u32; 3], u: [Vec3; 3]) -> bool {
     let shared: Vec<(usize, usize)> =
         (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).filter(|&(i, j)| fv[i] == gv[j]).collect();
     match shared.len() {

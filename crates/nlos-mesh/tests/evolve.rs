@@ -206,3 +206,215 @@ fn ccd_matches_brute_force_sampling() {
     }
     assert!(hits > 100 && misses > 100, "hits {hits} misses {misses} skipped {skipped}");
 }
+
+// ------------------------------------------------------------------------------------------------------
+// evolve
+// ------------------------------------------------------------------------------------------------------
+
+fn motion_only() -> EvolveParams {
+    EvolveParams { improve: false, ..EvolveParams::default() }
+}
+
+fn assert_clean(m: &SurfaceMesh, what: &str) {
+    m.validate().unwrap_or_else(|e| panic!("{what}: invalid mesh: {e}"));
+    let bad = self_intersections(m).expect("non-empty");
+    assert!(bad.is_empty(), "{what}: {} intersecting face pairs, first {:?}", bad.len(), bad[0]);
+}
+
+/// Two parallel grids `gap` apart (the upper one's faces flipped so the pair bounds a slab).
+fn two_sheets(n: usize, gap: f32) -> SurfaceMesh {
+    let g = shapes::plane_grid(1.0, 1.0, n, n);
+    let (p, t) = g.to_triangles();
+    let mut pos = p.clone();
+    let mut tris = t.clone();
+    let off = p.len() as u32;
+    pos.extend(p.iter().map(|q| *q + Vec3::Z * gap));
+    tris.extend(t.iter().map(|f| [f[0] + off, f[2] + off, f[1] + off]));
+    SurfaceMesh::from_triangles(&pos, &tris).expect("two sheets")
+}
+
+#[test]
+fn collision_free_motion_is_applied_exactly() {
+    let mut rng = Rng(3);
+    let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 3);
+    let before: Vec<Vec3> = m.positions().to_vec();
+    // small random displacements (far below the edge length) and a rigid translation: nothing collides
+    let d: Vec<Vec3> = (0..m.vertices_size()).map(|_| rng.vec(1e-3) + Vec3::new(0.3, -0.2, 0.1)).collect();
+    let r = evolve(&mut m, &d, &motion_only()).expect("evolves");
+    for (i, p) in m.positions().iter().enumerate() {
+        let want = before[i] + d[i];
+        assert_eq!(p.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "vertex {i}");
+    }
+    assert_eq!(r.vertices_adjusted, 0);
+    assert_eq!((r.proximity_pairs, r.collision_impulses, r.impact_zones, r.failsafe_vertices), (0, 0, 0, 0));
+    assert!((r.motion_fraction - 1.0).abs() < 1e-5, "{}", r.motion_fraction);
+}
+
+#[test]
+fn bad_inputs_give_typed_errors() {
+    let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 1);
+    let n = m.vertices_size();
+    let before = m.positions().to_vec();
+    let e = evolve(&mut m, &vec![Vec3::ZERO; n - 1], &motion_only()).unwrap_err();
+    assert!(matches!(e, EvolveError::DisplacementCount { expected, got } if expected == n && got == n - 1), "{e}");
+    let mut d = vec![Vec3::ZERO; n];
+    d[5] = Vec3::new(f32::NAN, 0.0, 0.0);
+    let e = evolve(&mut m, &d, &motion_only()).unwrap_err();
+    assert!(matches!(e, EvolveError::NonFiniteDisplacement { vertex: 5, .. }), "{e}");
+    d[5] = Vec3::new(0.0, f32::INFINITY, 0.0);
+    assert!(matches!(evolve(&mut m, &d, &motion_only()), Err(EvolveError::NonFiniteDisplacement { .. })));
+    let zero = vec![Vec3::ZERO; n];
+    let bad = EvolveParams { proximity_epsilon: -1.0, ..motion_only() };
+    assert!(matches!(
+        evolve(&mut m, &zero, &bad),
+        Err(EvolveError::InvalidParameter { name: "proximity_epsilon", .. })
+    ));
+    let bad = EvolveParams { collision_epsilon: 1.0, ..motion_only() };
+    assert!(matches!(evolve(&mut m, &zero, &bad), Err(EvolveError::InvalidParameter { .. })));
+    let bad = EvolveParams { allow_merges: true, ..motion_only() };
+    assert!(matches!(evolve(&mut m, &zero, &bad), Err(EvolveError::InvalidParameter { name: "allow_merges", .. })));
+    assert_eq!(m.positions(), &before[..], "errors leave the mesh unchanged");
+    let mut empty = SurfaceMesh::new();
+    assert!(matches!(evolve(&mut empty, &[], &motion_only()), Err(EvolveError::Mesh(MeshError::EmptyMesh { .. }))));
+    // a self-intersecting input is refused
+    let mut crossing = two_sheets(4, 0.1);
+    let nv = crossing.vertices_size();
+    for i in nv / 2..nv {
+        let p = crossing.positions()[i];
+        crossing.positions_mut()[i] = Vec3::new(p.x, p.y, -0.3 + p.x); // tilted through the lower sheet
+    }
+    let e = evolve(&mut crossing, &vec![Vec3::ZERO; nv], &motion_only()).unwrap_err();
+    assert!(matches!(e, EvolveError::InputSelfIntersects { .. }), "{e}");
+}
+
+#[test]
+fn two_sheets_driven_into_each_other_stop_about_epsilon_apart() {
+    let gap = 0.05;
+    let mut m = two_sheets(10, gap);
+    let nv = m.vertices_size();
+    // the upper sheet moves down by 3× the gap: straight through the lower one
+    let d: Vec<Vec3> = (0..nv).map(|i| if i >= nv / 2 { Vec3::Z * (-3.0 * gap) } else { Vec3::ZERO }).collect();
+    let params = motion_only();
+    let r = evolve(&mut m, &d, &params).expect("evolves");
+    assert_clean(&m, "sheets");
+    let eps = params.proximity_epsilon;
+    let lower_max = m.positions()[..nv / 2].iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    let upper_min = m.positions()[nv / 2..].iter().map(|p| p.z).fold(f32::MAX, f32::min);
+    let sep = upper_min - lower_max;
+    eprintln!("{r:?}\nseparation {sep} (eps {eps})");
+    // they moved most of the way and stopped about ε apart: within [ε/2, 2ε]
+    assert!(sep >= 0.5 * eps && sep <= 2.0 * eps, "separation {sep}, eps {eps}");
+}
+
+/// Runs `calls` evolve steps with displacement fields from `field`, checking after every call.
+fn stress(
+    m: &mut SurfaceMesh,
+    calls: usize,
+    params: &EvolveParams,
+    mut field: impl FnMut(&SurfaceMesh, usize) -> Vec<Vec3>,
+    what: &str,
+) {
+    let mut adjusted = 0;
+    for k in 0..calls {
+        let d = field(m, k);
+        let r = evolve(m, &d, params).unwrap_or_else(|e| panic!("{what} call {k}: {e}"));
+        if std::env::var("EVOLVE_DEBUG").is_ok() {
+            eprintln!("{what} {k}: {r:?}");
+        }
+        adjusted += r.vertices_adjusted;
+        assert!(r.motion_fraction.is_finite());
+        assert_clean(m, &format!("{what} call {k}"));
+    }
+    assert!(adjusted > 0, "{what}: the fields should have needed resolution");
+}
+
+#[test]
+fn stress_icosphere_random_large_displacements() {
+    let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 2);
+    let mut rng = Rng(11);
+    // per-vertex displacements up to ~3 edge lengths (edges ≈ 0.3): folds everywhere without resolution
+    stress(&mut m, 150, &motion_only(), |m, _| (0..m.vertices_size()).map(|_| rng.vec(0.15)).collect(), "icosphere");
+}
+
+#[test]
+fn stress_open_grid_folded_onto_itself() {
+    let mut m = shapes::plane_grid(1.0, 1.0, 8, 8);
+    let mut rng = Rng(5);
+    // fold the right half over the left (x → −x, lifted a little and jittered), in random fractions
+    stress(
+        &mut m,
+        300,
+        &motion_only(),
+        |m, _| {
+            let s = rng.range(0.2, 1.0);
+            m.positions()
+                .iter()
+                .map(|p| {
+                    let fold = if p.x > 0.0 { Vec3::new(-2.0 * p.x, 0.0, 0.02) * s } else { Vec3::ZERO };
+                    fold + rng.vec(0.05)
+                })
+                .collect()
+        },
+        "folded grid",
+    );
+}
+
+#[test]
+fn stress_remeshed_bunny() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
+    if !std::path::Path::new(path).exists() {
+        eprintln!("skipping: {path} not found");
+        return;
+    }
+    let mut m = nlos_mesh::io::load(path).expect("bunny loads");
+    let (lo, hi) = m.bounds().expect("non-empty");
+    let l = (hi - lo).max_element() / 25.0;
+    nlos_mesh::remeshing::uniform_remeshing(&mut m, l, &nlos_mesh::remeshing::RemeshParams::fast()).expect("remeshes");
+    if !self_intersections(&m).expect("faces").is_empty() {
+        eprintln!("skipping: the remeshed bunny self-intersects before any motion");
+        return;
+    }
+    let mut rng = Rng(17);
+    stress(&mut m, 30, &motion_only(), |m, _| (0..m.vertices_size()).map(|_| rng.vec(0.5 * l)).collect(), "bunny");
+}
+
+#[test]
+fn thin_fin_survives_an_inward_motion() {
+    // a closed fin 4 mm thick: an icosphere flattened in z; every vertex is driven 3× through the mid-plane
+    let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 3);
+    for p in m.positions_mut() {
+        p.z *= 0.002;
+    }
+    assert!(self_intersections(&m).expect("faces").is_empty());
+    let d: Vec<Vec3> = m.positions().iter().map(|p| Vec3::new(0.0, 0.0, -3.0 * p.z)).collect();
+    let r = evolve(&mut m, &d, &motion_only()).expect("evolves");
+    assert_clean(&m, "fin");
+    // the two sides did not cross: every vertex is still on its side of the mid-plane (or on it)
+    let (up, down) =
+        (m.positions().iter().filter(|p| p.z > 0.0).count(), m.positions().iter().filter(|p| p.z < 0.0).count());
+    assert!(up > 0 && down > 0, "{up} above, {down} below; {r:?}");
+    for (p, q) in m.positions().iter().zip(shapes::icosphere(Vec3::ZERO, 1.0, 3).positions()) {
+        assert!(p.z * q.z >= 0.0, "vertex crossed the mid-plane: {p} from {q}");
+    }
+}
+
+#[test]
+fn evolve_then_improve_stays_clean_and_valid() {
+    let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 3);
+    let l = m.mean_edge_length();
+    let mut rng = Rng(23);
+    let params = EvolveParams::with_edge_length(l);
+    let mut total = nlos_mesh::evolve::ImproveReport::default();
+    for k in 0..20 {
+        let d: Vec<Vec3> = (0..m.vertices_size()).map(|_| rng.vec(0.3 * l)).collect();
+        let r = evolve(&mut m, &d, &params).unwrap_or_else(|e| panic!("call {k}: {e}"));
+        assert!(!m.has_garbage());
+        assert_clean(&m, &format!("improve call {k}"));
+        total.splits += r.improvement.splits;
+        total.collapses += r.improvement.collapses;
+        total.flips += r.improvement.flips;
+        total.smoothed += r.improvement.smoothed;
+    }
+    eprintln!("{total:?}");
+    assert!(total.splits + total.collapses + total.flips + total.smoothed > 0, "{total:?}");
+}
