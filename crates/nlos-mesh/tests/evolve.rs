@@ -418,3 +418,27 @@ fn evolve_then_improve_stays_clean_and_valid() {
     eprintln!("{total:?}");
     assert!(total.splits + total.collapses + total.flips + total.smoothed > 0, "{total:?}");
 }
+
+/// Timing at the benchmark size (run with `--ignored --nocapture`): one evolve + improve call on a
+/// 51 200-face height field with random small displacements; prints the time per part.
+#[test]
+#[ignore]
+fn timing_50k_faces() {
+    let mut m = shapes::height_field(1.0, 1.0, 160, 160, |x, y| 0.05 * (6.0 * x).sin() * (5.0 * y).cos()).expect("ok");
+    let l = m.mean_edge_length();
+    let mut rng = Rng(29);
+    let d: Vec<Vec3> = (0..m.vertices_size()).map(|_| rng.vec(0.1 * l)).collect();
+    let r = evolve(&mut m, &d, &EvolveParams::with_edge_length(l)).expect("evolves");
+    let t = r.timings;
+    let s = |x: std::time::Duration| 100.0 * x.as_secs_f64() / t.total.as_secs_f64();
+    eprintln!(
+        "{} faces: total {:?}; broad {:.1}%, narrow {:.1}%, static checks {:.1}%, improvement {:.1}%\n{r:?}",
+        m.n_faces(),
+        t.total,
+        s(t.broad_phase),
+        s(t.narrow_phase),
+        s(t.static_check),
+        s(t.improvement)
+    );
+    assert_clean(&m, "50k");
+}
