@@ -78,7 +78,11 @@ impl KernelEval {
             }
             Kernel::Tent => {
                 let c = u - 0.5;
-                let kf = c.floor();
+                // floor(c) without a libm call (baseline x86-64 has no rounding instruction): truncate, then
+                // step down for negative non-integers. Exact: c is finite here (range check above), and every
+                // f32 of magnitude ≥ 2^23 is an integer, so the i64 round trip truncates exactly.
+                let tr = c as i64 as f32;
+                let kf = if tr > c { tr - 1.0 } else { tr };
                 let frac = c - kf;
                 let k0 = kf as i64;
                 if k0 >= 0 && (k0 as usize) < self.bins {
@@ -109,6 +113,27 @@ impl KernelEval {
     #[inline(always)]
     pub(crate) fn splat(&self, tau: f32, g: f32, hist: &mut [f32]) {
         self.weights(tau, |k, w, _| hist[k] += g * w);
+    }
+
+    /// `hist[k] += g[i] · K_k(τ[i])` for every `i` with `g[i] ≠ 0` (the kernel dispatched once per call).
+    #[inline(always)]
+    pub(crate) fn splat_all(&self, tau: &[f32], g: &[f32], hist: &mut [f32]) {
+        match self.kind {
+            Kernel::Box => self.splat_each(Kernel::Box, tau, g, hist),
+            Kernel::Tent => self.splat_each(Kernel::Tent, tau, g, hist),
+            k @ Kernel::Gaussian { .. } => self.splat_each(k, tau, g, hist),
+        }
+    }
+
+    #[inline(always)]
+    fn splat_each(&self, kind: Kernel, tau: &[f32], g: &[f32], hist: &mut [f32]) {
+        // `kind` equals `self.kind`; passing it as a constant lets each arm specialise `weights`.
+        let this = Self { kind, ..*self };
+        for (t, v) in tau.iter().zip(g) {
+            if *v != 0.0 {
+                this.weights(*t, |k, w, _| hist[k] += v * w);
+            }
+        }
     }
 
     /// `(Σ_k a_k K_k(τ), Σ_k a_k dK_k/dτ)`.

@@ -85,6 +85,7 @@ pub mod kernel;
 pub mod loss;
 pub mod render;
 mod rng;
+mod soa;
 mod visibility;
 
 pub use brdf::RenderBrdf;

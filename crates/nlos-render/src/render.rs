@@ -10,7 +10,15 @@ use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::rng::SplitMix64;
+use crate::soa::{self, Acc, BLOCK, Block, Frame, Scratch, Soa};
 use crate::visibility::Bvh;
+
+/// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
+/// is swept over them).
+const M_CHUNK: usize = 8;
+/// Measurements between flushes of the adjoint's f32 per-triangle accumulators into f64, which bounds the
+/// length of every f32 sum.
+const FLUSH: usize = 16;
 
 /// The deterministic barycentric rule: triangle `t` is cut, for measurement `m`, into `n²` congruent
 /// sub-triangles (n per edge) and each contributes its centroid value times its area (the centroid rule).
@@ -140,6 +148,8 @@ struct Tris {
     /// Longest edge.
     e_max: Vec<f32>,
     valid: Vec<bool>,
+    /// The same geometry, one array per coordinate, for the block kernels.
+    soa: Soa,
 }
 
 /// A transient renderer for one mesh topology, scan and time axis.
@@ -160,14 +170,6 @@ pub struct Renderer {
     bvh: Option<Bvh>,
     /// Visible fraction × 255 per (measurement, triangle), measurement-major.
     cache: Option<Vec<u8>>,
-}
-
-/// Sample sink for the forward pass and the adjoint pass.
-struct Frame {
-    l: Vec3,
-    n_l: Vec3,
-    s: Vec3,
-    n_s: Vec3,
 }
 
 impl Renderer {
@@ -253,6 +255,7 @@ impl Renderer {
             n: Vec::with_capacity(nt),
             e_max: Vec::with_capacity(nt),
             valid: Vec::with_capacity(nt),
+            soa: Soa::default(),
         };
         let mut area = 0.0f64;
         for &[a, b, c] in &self.triangles {
@@ -272,6 +275,7 @@ impl Renderer {
             tris.e_max.push(e1.length().max(e2.length()).max((p2 - p1).length()));
             tris.valid.push(valid);
         }
+        tris.soa = Soa::new(&tris.v0, &tris.e1, &tris.e2, &tris.n, &tris.valid);
         self.tris = tris;
         self.total_area = area as f32;
         if self.params.visibility == Visibility::Live {
@@ -342,11 +346,17 @@ impl Renderer {
     /// product of eq. (2) (see the crate docs for the scale convention).
     pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
         let bins = self.time.bins;
+        let nt = self.tris.v0.len();
         let mut data = vec![0.0f32; self.len()];
-        data.par_chunks_mut(bins).enumerate().for_each(|(m, hist)| {
-            let fr = self.frame(m);
-            for t in 0..self.tris.v0.len() {
-                self.forward_tm(brdf, m, t, &fr, hist);
+        // Tiles of M_CHUNK measurements × BLOCK triangles: each task owns its histograms (no lock, no
+        // reduction) and sweeps every block of triangles over them while the block is in cache.
+        data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, hists)| {
+            let mut sc = Scratch::new();
+            for t0 in (0..nt).step_by(BLOCK) {
+                let t1 = (t0 + BLOCK).min(nt);
+                for (j, hist) in hists.chunks_mut(bins).enumerate() {
+                    self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                }
             }
         });
         data
@@ -372,35 +382,65 @@ impl Renderer {
             return Err(RenderError::LengthMismatch { what: "d_loss", expected: self.len(), got: d_loss.len() });
         }
         let bins = self.time.bins;
-        let nv = self.n_vertices;
-        let (dv, dp) = (0..self.wall.l.len())
-            .into_par_iter()
-            .fold(
-                || (vec![DVec3::ZERO; nv], [0.0f64; 4]),
-                |(mut dv, mut dp), m| {
-                    let adj = &d_loss[m * bins..(m + 1) * bins];
-                    if adj.iter().all(|a| *a == 0.0) {
-                        return (dv, dp);
+        let nt = self.tris.v0.len();
+        let nonzero: Vec<bool> = d_loss.par_chunks(bins).map(|a| a.iter().any(|x| *x != 0.0)).collect();
+        // Parallel over blocks of triangles: each task sweeps every measurement over its block and owns the
+        // block's accumulators, so there is no lock and no reduction of per-thread vertex arrays, and the
+        // result does not depend on the thread count. Per triangle: the 12 geometric sums of `Acc`.
+        let mut per_tri = vec![[0.0f64; 12]; nt];
+        let per_block: Vec<[f64; 4]> = per_tri
+            .par_chunks_mut(BLOCK)
+            .enumerate()
+            .map(|(bi, out)| {
+                let (t0, t1) = (bi * BLOCK, bi * BLOCK + out.len());
+                let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
+                let rows = || d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]);
+                match self.fixed_level() {
+                    Some(n) => {
+                        // Sample points outermost: the f32 accumulators then hold plain sums of dE/dx, and
+                        // the barycentric weights are applied once per flush.
+                        let mut acc = Acc::new();
+                        self.centroids(n, |u, v, w| {
+                            let mut pending = 0;
+                            for (m, adj) in rows() {
+                                self.adjoint_block(brdf, m, t0, t1, adj, (u, v, w), &mut acc, &mut sc);
+                                pending += 1;
+                                if pending == FLUSH {
+                                    acc.flush((u, v), out, &mut params);
+                                    pending = 0;
+                                }
+                            }
+                            acc.flush((u, v), out, &mut params);
+                        });
                     }
-                    let fr = self.frame(m);
-                    for t in 0..self.tris.v0.len() {
-                        self.adjoint_tm(brdf, m, t, &fr, adj, &mut dv, &mut dp);
+                    None => {
+                        for (m, adj) in rows() {
+                            self.adjoint_pairs(brdf, m, t0, t1, adj, out, &mut params, &mut sc);
+                        }
                     }
-                    (dv, dp)
-                },
-            )
-            .reduce(
-                || (vec![DVec3::ZERO; nv], [0.0f64; 4]),
-                |(mut a, mut pa), (b, pb)| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        *x += *y;
-                    }
-                    for i in 0..4 {
-                        pa[i] += pb[i];
-                    }
-                    (a, pa)
-                },
-            );
+                }
+                params
+            })
+            .collect();
+        // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
+        // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
+        let mut dv = vec![DVec3::ZERO; self.n_vertices];
+        for (t, g) in per_tri.iter().enumerate() {
+            let v3 = |k: usize| DVec3::new(g[k], g[k + 1], g[k + 2]);
+            let (g0, g1, g2, g_n) = (v3(0), v3(3), v3(6), v3(9));
+            let (e1, e2) = (self.tris.e1[t].as_dvec3(), self.tris.e2[t].as_dvec3());
+            let (d_e1, d_e2) = (e2.cross(g_n), g_n.cross(e1));
+            let [i0, i1, i2] = self.triangles[t];
+            dv[i0 as usize] += g0 - d_e1 - d_e2;
+            dv[i1 as usize] += g1 + d_e1;
+            dv[i2 as usize] += g2 + d_e2;
+        }
+        let dp = per_block.iter().fold([0.0f64; 4], |mut a, b| {
+            for i in 0..4 {
+                a[i] += b[i];
+            }
+            a
+        });
         Ok(Gradient {
             vertices: dv.iter().map(|g| g.as_vec3()).collect(),
             brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
@@ -541,20 +581,164 @@ impl Renderer {
         }
     }
 
+    /// Orientation sign and cached visible fraction of every pair (m, t) of the block `t0..t1`.
     #[inline(always)]
-    fn vis_factor(&self, m: usize, t: usize) -> f32 {
+    fn pair_factors(&self, m: usize, t0: usize, blk: &Block<'_>, fr: &Frame, sc: &mut Scratch) {
+        let len = blk.len;
+        soa::orientation(blk, fr, self.params.two_sided, &mut sc.sign);
         match (&self.params.visibility, &self.cache) {
-            (Visibility::Cached { .. }, Some(c)) => f32::from(c[m * self.tris.v0.len() + t]) * (1.0 / 255.0),
-            _ => 1.0,
+            (Visibility::Cached { .. }, Some(c)) => {
+                let row = &c[m * self.tris.v0.len() + t0..][..len];
+                for (o, b) in sc.vis[..len].iter_mut().zip(row) {
+                    *o = f32::from(*b) * (1.0 / 255.0);
+                }
+            }
+            _ => sc.vis[..len].fill(1.0),
         }
     }
 
-    fn forward_tm<B: RenderBrdf>(&self, brdf: &B, m: usize, t: usize, fr: &Frame, hist: &mut [f32]) {
-        let Some(sign) = self.orientation(t, fr) else { return };
-        let vis_c = self.vis_factor(m, t);
-        if vis_c == 0.0 {
-            return;
+    /// The fixed level when the sampling is the deterministic rule with `min_level = max_level` (the block
+    /// kernels' case), else None.
+    #[inline(always)]
+    fn fixed_level(&self) -> Option<u32> {
+        match self.params.sampling {
+            Sampling::Deterministic(rule) if rule.min_level >= rule.max_level => Some(rule.max_level),
+            _ => None,
         }
+    }
+
+    /// Forward pass of measurement m over the triangles `t0..t1` into its histogram.
+    fn forward_block<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        m: usize,
+        t0: usize,
+        t1: usize,
+        hist: &mut [f32],
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        let blk = self.tris.soa.block(t0, t1);
+        let len = blk.len;
+        self.pair_factors(m, t0, &blk, &fr, sc);
+        let Some(n) = self.fixed_level() else {
+            for i in 0..len {
+                if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
+                    self.forward_tm(brdf, m, t0 + i, &fr, sc.sign[i], sc.vis[i], hist);
+                }
+            }
+            return;
+        };
+        let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
+        self.centroids(n, |u, v, w| {
+            if self.wall.confocal {
+                soa::forward_samples::<B, true>(brdf, &blk, &fr, (u, v, w), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g);
+            } else {
+                soa::forward_samples::<B, false>(brdf, &blk, &fr, (u, v, w), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g);
+            }
+            if live {
+                for i in 0..len {
+                    if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), t0 + i, &fr) {
+                        sc.g[i] = 0.0;
+                    }
+                }
+            }
+            self.kernel.splat_all(&sc.tau[..len], &sc.g[..len], hist);
+        });
+    }
+
+    /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
+    /// the triangles `t0..t1` into `acc`.
+    #[allow(clippy::too_many_arguments)]
+    fn adjoint_block<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        m: usize,
+        t0: usize,
+        t1: usize,
+        adj: &[f32],
+        (u, v, w): (f32, f32, f32),
+        acc: &mut Acc,
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        let blk = self.tris.soa.block(t0, t1);
+        let len = blk.len;
+        self.pair_factors(m, t0, &blk, &fr, sc);
+        let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
+        let confocal = self.wall.confocal;
+        // Stage 1 (vector): |a|, |b| and the cosine tests.
+        if confocal {
+            soa::adjoint_lengths::<true>(&blk, &fr, (u, v), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g, &mut sc.ok);
+        } else {
+            soa::adjoint_lengths::<false>(&blk, &fr, (u, v), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g, &mut sc.ok);
+        }
+        // Stage 2 (scalar): gather the adjoint through the kernel, then the shadow ray of the samples that
+        // carry a gradient; zero for skipped pairs and occluded samples.
+        for i in 0..len {
+            let (mut av, mut ad) = (0.0, 0.0);
+            if sc.ok[i] != 0.0 {
+                (av, ad) = self.kernel.gather(sc.tau[i] + sc.g[i], adj);
+                if live && (av != 0.0 || ad != 0.0) && !self.visible_live(blk.point(i, u, v), t0 + i, &fr) {
+                    (av, ad) = (0.0, 0.0);
+                }
+            }
+            sc.a_val[i] = av;
+            sc.a_der[i] = ad;
+        }
+        // Stage 3 (vector): the gradient terms, accumulated per triangle.
+        if confocal {
+            soa::adjoint_samples::<B, true>(brdf, &blk, &fr, (u, v, w), sc, acc);
+        } else {
+            soa::adjoint_samples::<B, false>(brdf, &blk, &fr, (u, v, w), sc, acc);
+        }
+    }
+
+    /// Adjoint pass of measurement m over the triangles `t0..t1` with any sampling, pair by pair, into `out`
+    /// (the per-triangle sums of [`Renderer::adjoint`]) and `params`, in f64.
+    #[allow(clippy::too_many_arguments)]
+    fn adjoint_pairs<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        m: usize,
+        t0: usize,
+        t1: usize,
+        adj: &[f32],
+        out: &mut [[f64; 12]],
+        params: &mut [f64; 4],
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        let blk = self.tris.soa.block(t0, t1);
+        self.pair_factors(m, t0, &blk, &fr, sc);
+        for (i, o) in out.iter_mut().enumerate() {
+            if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
+                let (g0, g1, g2, g_n, g_p) = self.adjoint_tm(brdf, m, t0 + i, &fr, sc.sign[i], sc.vis[i], adj);
+                for (k, g) in [g0, g1, g2, g_n].iter().enumerate() {
+                    o[3 * k] += f64::from(g.x);
+                    o[3 * k + 1] += f64::from(g.y);
+                    o[3 * k + 2] += f64::from(g.z);
+                }
+                for (p, g) in params.iter_mut().zip(g_p) {
+                    *p += f64::from(g);
+                }
+            }
+        }
+    }
+
+    /// Forward pass of one pair (t, m) with any sampling (`sign` its orientation, `vis_c` its cached visible
+    /// fraction, both non-zero).
+    #[allow(clippy::too_many_arguments)]
+    fn forward_tm<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        m: usize,
+        t: usize,
+        fr: &Frame,
+        sign: f32,
+        vis_c: f32,
+        hist: &mut [f32],
+    ) {
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let inv_2n = 0.5 / n.length();
@@ -578,6 +762,8 @@ impl Renderer {
         });
     }
 
+    /// Adjoint pass of one pair (t, m) with any sampling: `(Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx,
+    /// sign·Σ dE/dN, dE/d(params))` over its samples.
     #[allow(clippy::too_many_arguments)]
     fn adjoint_tm<B: RenderBrdf>(
         &self,
@@ -585,15 +771,10 @@ impl Renderer {
         m: usize,
         t: usize,
         fr: &Frame,
+        sign: f32,
+        vis_c: f32,
         adj: &[f32],
-        dv: &mut [DVec3],
-        dp: &mut [f64; 4],
-    ) {
-        let Some(sign) = self.orientation(t, fr) else { return };
-        let vis_c = self.vis_factor(m, t);
-        if vis_c == 0.0 {
-            return;
-        }
+    ) -> (Vec3, Vec3, Vec3, Vec3, [f32; 4]) {
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let n2 = n.length_squared();
@@ -648,17 +829,8 @@ impl Renderer {
                 g_p[i] += sp * df_p[i];
             }
         });
-        // N = sign·(e1 × e2): dE/de1 = e2 × G_N', dE/de2 = G_N' × e1 with G_N' = sign·G_N.
-        let g_n = sign * g_n;
-        let (e1, e2) = (self.tris.e1[t], self.tris.e2[t]);
-        let (d_e1, d_e2) = (e2.cross(g_n), g_n.cross(e1));
-        let [i0, i1, i2] = self.triangles[t];
-        dv[i0 as usize] += (g0 - d_e1 - d_e2).as_dvec3();
-        dv[i1 as usize] += (g1 + d_e1).as_dvec3();
-        dv[i2 as usize] += (g2 + d_e2).as_dvec3();
-        for i in 0..4 {
-            dp[i] += f64::from(g_p[i]);
-        }
+        // N = sign·(e1 × e2): the vertex distribution needs G_N' = sign·G_N.
+        (g0, g1, g2, sign * g_n, g_p)
     }
 }
 

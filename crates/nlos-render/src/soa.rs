@@ -1,0 +1,377 @@
+//! Triangles as structure of arrays (one `f32` array per coordinate) and the block kernels of the fixed
+//! deterministic rule: for one measurement and one sub-triangle centroid `(u, v)`, the same arithmetic as
+//! the per-pair code of `render.rs` (same operations in the same order, so the same bits) over a block of
+//! triangles at once, written as straight-line loops over the block with selects instead of branches so
+//! that the compiler vectorises them across triangles. The scalar parts (kernel scatter/gather, shadow rays)
+//! run in separate passes over the block's buffers.
+
+use glam::Vec3;
+
+use crate::brdf::RenderBrdf;
+
+/// Triangles per block of the tiled loops: a block's geometry (13 arrays), per-pair buffers and adjoint
+/// accumulators (16 arrays) take about 40 KiB, so they stay in L1/L2 while the measurements stream past.
+pub(crate) const BLOCK: usize = 256;
+
+/// Triangle geometry, structure of arrays.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Soa {
+    v0: [Vec<f32>; 3],
+    e1: [Vec<f32>; 3],
+    e2: [Vec<f32>; 3],
+    /// Unnormalised geometric normal `e1 × e2`.
+    n: [Vec<f32>; 3],
+    /// `0.5/|N|` (0 for degenerate triangles, which `valid` excludes anyway).
+    inv_2n: Vec<f32>,
+    /// `|N|²`.
+    n2: Vec<f32>,
+    valid: Vec<bool>,
+}
+
+impl Soa {
+    pub(crate) fn new(v0: &[Vec3], e1: &[Vec3], e2: &[Vec3], n: &[Vec3], valid: &[bool]) -> Self {
+        let split = |a: &[Vec3]| {
+            [a.iter().map(|p| p.x).collect(), a.iter().map(|p| p.y).collect(), a.iter().map(|p| p.z).collect()]
+        };
+        Self {
+            v0: split(v0),
+            e1: split(e1),
+            e2: split(e2),
+            n: split(n),
+            // Same expressions as the per-pair code: 0.5 / n.length() and n.length_squared().
+            inv_2n: n.iter().zip(valid).map(|(n, ok)| if *ok { 0.5 / n.length() } else { 0.0 }).collect(),
+            n2: n.iter().map(|n| n.length_squared()).collect(),
+            valid: valid.to_vec(),
+        }
+    }
+
+    /// The triangles `t0..t1`.
+    pub(crate) fn block(&self, t0: usize, t1: usize) -> Block<'_> {
+        fn s3(a: &[Vec<f32>; 3], t0: usize, t1: usize) -> [&[f32]; 3] {
+            [&a[0][t0..t1], &a[1][t0..t1], &a[2][t0..t1]]
+        }
+        Block {
+            len: t1 - t0,
+            v0: s3(&self.v0, t0, t1),
+            e1: s3(&self.e1, t0, t1),
+            e2: s3(&self.e2, t0, t1),
+            n: s3(&self.n, t0, t1),
+            inv_2n: &self.inv_2n[t0..t1],
+            n2: &self.n2[t0..t1],
+            valid: &self.valid[t0..t1],
+        }
+    }
+}
+
+/// A block of triangles (every slice `len` long).
+#[derive(Clone, Copy)]
+pub(crate) struct Block<'a> {
+    pub(crate) len: usize,
+    v0: [&'a [f32]; 3],
+    e1: [&'a [f32]; 3],
+    e2: [&'a [f32]; 3],
+    n: [&'a [f32]; 3],
+    inv_2n: &'a [f32],
+    n2: &'a [f32],
+    valid: &'a [bool],
+}
+
+#[inline(always)]
+fn at(a: &[&[f32]; 3], i: usize) -> Vec3 {
+    Vec3::new(a[0][i], a[1][i], a[2][i])
+}
+
+impl Block<'_> {
+    /// `x(u, v) = v0 + u e1 + v e2` of triangle `i` (the expression of `Renderer::point`).
+    #[inline(always)]
+    pub(crate) fn point(&self, i: usize, u: f32, v: f32) -> Vec3 {
+        at(&self.v0, i) + u * at(&self.e1, i) + v * at(&self.e2, i)
+    }
+}
+
+/// One measurement's wall geometry.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Frame {
+    pub(crate) l: Vec3,
+    pub(crate) n_l: Vec3,
+    pub(crate) s: Vec3,
+    pub(crate) n_s: Vec3,
+}
+
+/// Per-pair orientation of a block: `sign[i]` = +1 when l and s are both in front of triangle i, −1 when
+/// both behind and `two_sided`, else 0 (also for degenerate triangles). Exact for the whole face:
+/// `N·(l − x)` does not depend on x in the plane.
+#[inline(always)]
+pub(crate) fn orientation(b: &Block<'_>, fr: &Frame, two_sided: bool, sign: &mut [f32]) {
+    let len = b.len;
+    let sign = &mut sign[..len];
+    let (v0, n, valid) = (
+        [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]],
+        [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]],
+        &b.valid[..len],
+    );
+    for i in 0..len {
+        let (nv, p) = (at(&n, i), at(&v0, i));
+        let (dl, ds) = (nv.dot(fr.l - p), nv.dot(fr.s - p));
+        let s = if dl > 0.0 && ds > 0.0 {
+            1.0
+        } else if two_sided && dl < 0.0 && ds < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        sign[i] = if valid[i] { s } else { 0.0 };
+    }
+}
+
+/// Scratch buffers of one block (one set per task).
+pub(crate) struct Scratch {
+    /// Orientation sign per pair (0 = skipped).
+    pub(crate) sign: Vec<f32>,
+    /// Cached visible fraction per pair (1 without a cache).
+    pub(crate) vis: Vec<f32>,
+    /// Path length τ per pair (forward), `|a|` (adjoint).
+    pub(crate) tau: Vec<f32>,
+    /// Weighted sample value (forward), `|b|` (adjoint).
+    pub(crate) g: Vec<f32>,
+    /// `Σ_k a_k K_k(τ)` per pair (adjoint; 0 when the pair is inactive).
+    pub(crate) a_val: Vec<f32>,
+    /// `Σ_k a_k dK_k/dτ` per pair (adjoint).
+    pub(crate) a_der: Vec<f32>,
+    /// Whether the sample passed the cosine tests (1.0 or 0.0: a float store keeps the loop vectorised).
+    pub(crate) ok: Vec<f32>,
+}
+
+impl Scratch {
+    pub(crate) fn new() -> Self {
+        let z = || vec![0.0f32; BLOCK];
+        Self { sign: z(), vis: z(), tau: z(), g: z(), a_val: z(), a_der: z(), ok: z() }
+    }
+}
+
+/// Forward, one sample `(u, v, w)` per triangle of the block: `tau[i]` and `g[i]` = weight × visibility ×
+/// f_s × Q (0 where the pair or the sample is skipped). `CONFOCAL`: `s = l` (`b = a`, one square root).
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool>(
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    (u, v, w): (f32, f32, f32),
+    sign: &[f32],
+    vis: &[f32],
+    tau: &mut [f32],
+    g: &mut [f32],
+) {
+    let len = b.len;
+    let (sign, vis, tau, g) = (&sign[..len], &vis[..len], &mut tau[..len], &mut g[..len]);
+    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
+    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
+    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
+    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let inv_2n = &b.inv_2n[..len];
+    for i in 0..len {
+        let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
+        let n = sign[i] * at(&nn, i);
+        let a = fr.l - x;
+        let bb = if CONFOCAL { a } else { fr.s - x };
+        let cl = -fr.n_l.dot(a);
+        let pl = n.dot(a);
+        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
+        // One-sided wall and surface cosines (max(0, ·) of eq. 2); NaN fails too.
+        let ok = sign[i] != 0.0 && vis[i] != 0.0 && cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0;
+        let ra2 = a.length_squared();
+        let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
+        let ra = ra2.sqrt();
+        tau[i] = if CONFOCAL { ra + ra } else { ra + rb2.sqrt() };
+        let fs = if CONFOCAL { brdf.eval_confocal(a, n) } else { brdf.eval(a, bb, n) };
+        let q = cl * pl * cs * ps * inv_2n[i] / (ra2 * ra2 * rb2 * rb2);
+        let val = w * vis[i] * fs * q;
+        g[i] = if ok { val } else { 0.0 };
+    }
+}
+
+/// Adjoint, stage 1 of one sample per triangle: `ra[i] = |a|`, `rb[i] = |b|`, `ok[i]` = the pair is
+/// oriented, visible in the cache and passes the cosine tests.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn adjoint_lengths<const CONFOCAL: bool>(
+    b: &Block<'_>,
+    fr: &Frame,
+    (u, v): (f32, f32),
+    sign: &[f32],
+    vis: &[f32],
+    ra: &mut [f32],
+    rb: &mut [f32],
+    ok: &mut [f32],
+) {
+    let len = b.len;
+    let (sign, vis, ra, rb, ok) = (&sign[..len], &vis[..len], &mut ra[..len], &mut rb[..len], &mut ok[..len]);
+    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
+    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
+    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
+    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    for i in 0..len {
+        let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
+        let n = sign[i] * at(&nn, i);
+        let a = fr.l - x;
+        let bb = if CONFOCAL { a } else { fr.s - x };
+        let cl = -fr.n_l.dot(a);
+        let pl = n.dot(a);
+        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
+        ok[i] = f32::from(u8::from(sign[i] != 0.0 && vis[i] != 0.0 && cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0));
+        let r = a.length_squared().sqrt();
+        ra[i] = r;
+        rb[i] = if CONFOCAL { r } else { bb.length_squared().sqrt() };
+    }
+}
+
+/// Per-triangle adjoint accumulators of a block for one sample point (u, v), f32, flushed into f64 every
+/// few measurements: `gx` = Σ dE/dx (distributed to the vertices as (1−u−v, u, v) at the flush),
+/// `gn` = Σ sign·dE/dN, `p` = dE/d(BRDF parameters).
+pub(crate) struct Acc {
+    pub(crate) gx: [Vec<f32>; 3],
+    pub(crate) gn: [Vec<f32>; 3],
+    pub(crate) p: [Vec<f32>; 4],
+}
+
+impl Acc {
+    pub(crate) fn new() -> Self {
+        let z = || vec![0.0f32; BLOCK];
+        Self { gx: [z(), z(), z()], gn: [z(), z(), z()], p: [z(), z(), z(), z()] }
+    }
+
+    /// Adds the accumulators of sample point (u, v) into `out` (per triangle: Σ (1−u−v) dE/dx, Σ u dE/dx,
+    /// Σ v dE/dx, Σ sign·dE/dN, 12 values) and `params`, in f64, and zeroes them.
+    pub(crate) fn flush(&mut self, (u, v): (f32, f32), out: &mut [[f64; 12]], params: &mut [f64; 4]) {
+        let bu = f64::from(1.0 - u - v);
+        let (u, v) = (f64::from(u), f64::from(v));
+        for (i, o) in out.iter_mut().enumerate() {
+            for k in 0..3 {
+                let gx = f64::from(self.gx[k][i]);
+                o[k] += bu * gx;
+                o[3 + k] += u * gx;
+                o[6 + k] += v * gx;
+                o[9 + k] += f64::from(self.gn[k][i]);
+            }
+            for (k, p) in params.iter_mut().enumerate() {
+                *p += f64::from(self.p[k][i]);
+            }
+        }
+        for g in self.gx.iter_mut().chain(&mut self.gn).chain(&mut self.p) {
+            g.fill(0.0);
+        }
+    }
+}
+
+/// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
+/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` where `a_val[i]` or `a_der[i]` is non-zero
+/// (stage 2 zeroes both for skipped pairs and occluded samples).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    (u, v, w): (f32, f32, f32),
+    sc: &Scratch,
+    acc: &mut Acc,
+) {
+    let [gx0, gx1, gx2] = &mut acc.gx;
+    let [gn0, gn1, gn2] = &mut acc.gn;
+    let [p0, p1, p2, p3] = &mut acc.p;
+    // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
+    // vectorises without runtime overlap checks.
+    adjoint_samples_acc::<B, CONFOCAL>(brdf, b, fr, (u, v, w), sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3);
+}
+
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    (u, v, w): (f32, f32, f32),
+    sc: &Scratch,
+    gx0: &mut [f32],
+    gx1: &mut [f32],
+    gx2: &mut [f32],
+    gn0: &mut [f32],
+    gn1: &mut [f32],
+    gn2: &mut [f32],
+    p0: &mut [f32],
+    p1: &mut [f32],
+    p2: &mut [f32],
+    p3: &mut [f32],
+) {
+    let len = b.len;
+    let (sign, vis, ra_s, rb_s, a_val, a_der) =
+        (&sc.sign[..len], &sc.vis[..len], &sc.tau[..len], &sc.g[..len], &sc.a_val[..len], &sc.a_der[..len]);
+    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
+    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
+    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
+    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let (inv_2n, n2s) = (&b.inv_2n[..len], &b.n2[..len]);
+    let np = B::PARAM_NAMES.len().min(4);
+    let (gx0, gx1, gx2, gn0, gn1, gn2) =
+        (&mut gx0[..len], &mut gx1[..len], &mut gx2[..len], &mut gn0[..len], &mut gn1[..len], &mut gn2[..len]);
+    let (p0, p1, p2, p3) = (&mut p0[..len], &mut p1[..len], &mut p2[..len], &mut p3[..len]);
+    for i in 0..len {
+        let (av, ad) = (a_val[i], a_der[i]);
+        let active = av != 0.0 || ad != 0.0;
+        let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
+        let sg = sign[i];
+        let n = sg * at(&nn, i);
+        let a = fr.l - x;
+        let bb = if CONFOCAL { a } else { fr.s - x };
+        let cl = -fr.n_l.dot(a);
+        let pl = n.dot(a);
+        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
+        let ra2 = a.length_squared();
+        let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
+        let (ra, rb) = (ra_s[i], rb_s[i]);
+        let (fs, df_a, df_b, df_n, df_p) = if CONFOCAL {
+            let g = brdf.eval_grad_confocal(a, n);
+            // Total derivative along the shared direction: only d/da + d/db is ever used below.
+            (g.value, g.d_omega, Vec3::ZERO, g.d_n, B::param_grad_array(&g.d_params))
+        } else {
+            let g = brdf.eval_grad(a, bb, n);
+            (g.value, g.d_omega_l, g.d_omega_s, g.d_n, B::param_grad_array(&g.d_params))
+        };
+        // Q = cl pl cs ps / (2|N| ra⁴ rb⁴): the geometry of eq. (2) times the area |N|/2 (see crate docs).
+        let denom = inv_2n[i] / (ra2 * ra2 * rb2 * rb2);
+        let q = cl * pl * cs * ps * denom;
+        let dq_a = cs * ps * denom * (cl * n - pl * fr.n_l) - (4.0 * q / ra2) * a;
+        let dq_b = cl * pl * denom * (cs * n - ps * fr.n_s) - (4.0 * q / rb2) * bb;
+        let dq_n = cl * cs * denom * (ps * a + pl * bb) - (q / n2s[i]) * n;
+        let s = w * vis[i];
+        let h = fs * q;
+        // dE = A_val dh + h A_der dτ, dτ/da = a/ra, dτ/db = b/rb.
+        let ga = s * (av * (fs * dq_a + q * df_a) + (h * ad / ra) * a);
+        let gb = s * (av * (fs * dq_b + q * df_b) + (h * ad / rb) * bb);
+        let gn = sg * (s * av * (fs * dq_n + q * df_n));
+        // x = v0 + u e1 + v e2 and a = l − x, b = s − x ⇒ dE/dx = −(ga + gb).
+        let gx = -(ga + gb);
+        let sp = s * av * q;
+        // A bit mask, not a branch or a select (which the compiler turns back into a conditional store that
+        // blocks vectorisation): inactive lanes (possibly non-finite) add exactly +0.
+        let mask = 0u32.wrapping_sub(u32::from(active));
+        let pick = |z: f32| f32::from_bits(z.to_bits() & mask);
+        gx0[i] += pick(gx.x);
+        gx1[i] += pick(gx.y);
+        gx2[i] += pick(gx.z);
+        gn0[i] += pick(gn.x);
+        gn1[i] += pick(gn.y);
+        gn2[i] += pick(gn.z);
+        p0[i] += pick(sp * df_p[0]);
+        if np > 1 {
+            p1[i] += pick(sp * df_p[1]);
+        }
+        if np > 2 {
+            p2[i] += pick(sp * df_p[2]);
+        }
+        if np > 3 {
+            p3[i] += pick(sp * df_p[3]);
+        }
+    }
+}
