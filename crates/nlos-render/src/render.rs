@@ -384,26 +384,32 @@ impl Renderer {
         let bins = self.time.bins;
         let nt = self.tris.v0.len();
         let nonzero: Vec<bool> = d_loss.par_chunks(bins).map(|a| a.iter().any(|x| *x != 0.0)).collect();
-        // Parallel over blocks of triangles: each task sweeps every measurement over its block and owns the
-        // block's accumulators, so there is no lock and no reduction of per-thread vertex arrays, and the
-        // result does not depend on the thread count. Per triangle: the 12 geometric sums of `Acc`.
+        // Parallel over ranges of triangles: each task sweeps every measurement over its range, block by
+        // block (the adjoint row stays in L1 across the blocks), and owns the range's accumulators, so there
+        // is no lock and no reduction of per-thread vertex arrays. The range size depends on the mesh only
+        // (about 8 tasks, 1..16 blocks each), so the result does not depend on the thread count. Per
+        // triangle: the 12 geometric sums of `Acc::flush`.
+        let per_task = nt.div_ceil(8).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
         let mut per_tri = vec![[0.0f64; 12]; nt];
-        let per_block: Vec<[f64; 4]> = per_tri
-            .par_chunks_mut(BLOCK)
+        let per_task_params: Vec<[f64; 4]> = per_tri
+            .par_chunks_mut(per_task)
             .enumerate()
-            .map(|(bi, out)| {
-                let (t0, t1) = (bi * BLOCK, bi * BLOCK + out.len());
+            .map(|(ci, out)| {
+                let (r0, r1) = (ci * per_task, ci * per_task + out.len());
+                let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
                 let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
                 let rows = || d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]);
                 match self.fixed_level() {
                     Some(n) => {
                         // Sample points outermost: the f32 accumulators then hold plain sums of dE/dx, and
                         // the barycentric weights are applied once per flush.
-                        let mut acc = Acc::new();
+                        let mut acc = Acc::new(out.len());
                         self.centroids(n, |u, v, w| {
                             let mut pending = 0;
                             for (m, adj) in rows() {
-                                self.adjoint_block(brdf, m, t0, t1, adj, (u, v, w), &mut acc, &mut sc);
+                                for (b0, b1) in blocks() {
+                                    self.adjoint_block(brdf, m, b0, b1, adj, (u, v, w), &mut acc, b0 - r0, &mut sc);
+                                }
                                 pending += 1;
                                 if pending == FLUSH {
                                     acc.flush((u, v), out, &mut params);
@@ -415,7 +421,10 @@ impl Renderer {
                     }
                     None => {
                         for (m, adj) in rows() {
-                            self.adjoint_pairs(brdf, m, t0, t1, adj, out, &mut params, &mut sc);
+                            for (b0, b1) in blocks() {
+                                let o = &mut out[b0 - r0..b1 - r0];
+                                self.adjoint_pairs(brdf, m, b0, b1, adj, o, &mut params, &mut sc);
+                            }
                         }
                     }
                 }
@@ -425,7 +434,8 @@ impl Renderer {
         // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
         // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
         let mut dv = vec![DVec3::ZERO; self.n_vertices];
-        for (t, g) in per_tri.iter().enumerate() {
+        for (slot, g) in per_tri.iter().enumerate() {
+            let t = self.mesh_triangle(slot);
             let v3 = |k: usize| DVec3::new(g[k], g[k + 1], g[k + 2]);
             let (g0, g1, g2, g_n) = (v3(0), v3(3), v3(6), v3(9));
             let (e1, e2) = (self.tris.e1[t].as_dvec3(), self.tris.e2[t].as_dvec3());
@@ -435,7 +445,7 @@ impl Renderer {
             dv[i1 as usize] += g1 + d_e1;
             dv[i2 as usize] += g2 + d_e2;
         }
-        let dp = per_block.iter().fold([0.0f64; 4], |mut a, b| {
+        let dp = per_task_params.iter().fold([0.0f64; 4], |mut a, b| {
             for i in 0..4 {
                 a[i] += b[i];
             }
@@ -588,13 +598,25 @@ impl Renderer {
         soa::orientation(blk, fr, self.params.two_sided, &mut sc.sign);
         match (&self.params.visibility, &self.cache) {
             (Visibility::Cached { .. }, Some(c)) => {
-                let row = &c[m * self.tris.v0.len() + t0..][..len];
-                for (o, b) in sc.vis[..len].iter_mut().zip(row) {
-                    *o = f32::from(*b) * (1.0 / 255.0);
+                let row = &c[m * self.tris.v0.len()..][..self.tris.v0.len()];
+                for (o, t) in sc.vis[..len].iter_mut().zip(&self.tris.soa.order[t0..]) {
+                    *o = f32::from(row[*t as usize]) * (1.0 / 255.0);
                 }
             }
             _ => sc.vis[..len].fill(1.0),
         }
+    }
+
+    /// The mesh triangle at storage slot `slot` of the block kernels' layout.
+    #[inline(always)]
+    fn mesh_triangle(&self, slot: usize) -> usize {
+        self.tris.soa.order[slot] as usize
+    }
+
+    /// Whether no pair of the block needs work (every triangle faces away or is hidden in the cache).
+    #[inline(always)]
+    fn block_idle(sc: &Scratch, len: usize) -> bool {
+        sc.sign[..len].iter().zip(&sc.vis[..len]).all(|(s, v)| *s == 0.0 || *v == 0.0)
     }
 
     /// The fixed level when the sampling is the deterministic rule with `min_level = max_level` (the block
@@ -621,10 +643,13 @@ impl Renderer {
         let blk = self.tris.soa.block(t0, t1);
         let len = blk.len;
         self.pair_factors(m, t0, &blk, &fr, sc);
+        if Self::block_idle(sc, len) {
+            return;
+        }
         let Some(n) = self.fixed_level() else {
             for i in 0..len {
                 if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                    self.forward_tm(brdf, m, t0 + i, &fr, sc.sign[i], sc.vis[i], hist);
+                    self.forward_tm(brdf, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
                 }
             }
             return;
@@ -638,7 +663,7 @@ impl Renderer {
             }
             if live {
                 for i in 0..len {
-                    if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), t0 + i, &fr) {
+                    if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr) {
                         sc.g[i] = 0.0;
                     }
                 }
@@ -648,7 +673,7 @@ impl Renderer {
     }
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
-    /// the triangles `t0..t1` into `acc`.
+    /// the triangles `t0..t1` into `acc` (triangle `t0` at index `acc_offset`).
     #[allow(clippy::too_many_arguments)]
     fn adjoint_block<B: RenderBrdf>(
         &self,
@@ -659,12 +684,16 @@ impl Renderer {
         adj: &[f32],
         (u, v, w): (f32, f32, f32),
         acc: &mut Acc,
+        acc_offset: usize,
         sc: &mut Scratch,
     ) {
         let fr = self.frame(m);
         let blk = self.tris.soa.block(t0, t1);
         let len = blk.len;
         self.pair_factors(m, t0, &blk, &fr, sc);
+        if Self::block_idle(sc, len) {
+            return;
+        }
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let confocal = self.wall.confocal;
         // Stage 1 (vector): |a|, |b| and the cosine tests.
@@ -679,7 +708,10 @@ impl Renderer {
             let (mut av, mut ad) = (0.0, 0.0);
             if sc.ok[i] != 0.0 {
                 (av, ad) = self.kernel.gather(sc.tau[i] + sc.g[i], adj);
-                if live && (av != 0.0 || ad != 0.0) && !self.visible_live(blk.point(i, u, v), t0 + i, &fr) {
+                if live
+                    && (av != 0.0 || ad != 0.0)
+                    && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr)
+                {
                     (av, ad) = (0.0, 0.0);
                 }
             }
@@ -688,9 +720,9 @@ impl Renderer {
         }
         // Stage 3 (vector): the gradient terms, accumulated per triangle.
         if confocal {
-            soa::adjoint_samples::<B, true>(brdf, &blk, &fr, (u, v, w), sc, acc);
+            soa::adjoint_samples::<B, true>(brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
         } else {
-            soa::adjoint_samples::<B, false>(brdf, &blk, &fr, (u, v, w), sc, acc);
+            soa::adjoint_samples::<B, false>(brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
         }
     }
 
@@ -713,7 +745,8 @@ impl Renderer {
         self.pair_factors(m, t0, &blk, &fr, sc);
         for (i, o) in out.iter_mut().enumerate() {
             if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                let (g0, g1, g2, g_n, g_p) = self.adjoint_tm(brdf, m, t0 + i, &fr, sc.sign[i], sc.vis[i], adj);
+                let (g0, g1, g2, g_n, g_p) =
+                    self.adjoint_tm(brdf, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], adj);
                 for (k, g) in [g0, g1, g2, g_n].iter().enumerate() {
                     o[3 * k] += f64::from(g.x);
                     o[3 * k + 1] += f64::from(g.y);

@@ -26,13 +26,42 @@ pub(crate) struct Soa {
     /// `|N|²`.
     n2: Vec<f32>,
     valid: Vec<bool>,
+    /// `order[slot]`: the mesh triangle stored at `slot`.
+    pub(crate) order: Vec<u32>,
+}
+
+/// Bucket of a normal direction: a `res × res` grid on its octahedral map (0 for a zero or non-finite
+/// normal).
+fn normal_bucket(n: Vec3, res: u32) -> u32 {
+    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
+    // Guard: degenerate normals (skipped triangles) share bucket 0.
+    if !(l1 > 0.0 && l1.is_finite()) {
+        return 0;
+    }
+    let (mut x, mut y) = (n.x / l1, n.y / l1);
+    if n.z < 0.0 {
+        (x, y) = ((1.0 - y.abs()).copysign(x), (1.0 - x.abs()).copysign(y));
+    }
+    let cell = |c: f32| (((c + 1.0) * 0.5 * res as f32) as u32).min(res - 1);
+    cell(x) * res + cell(y)
 }
 
 impl Soa {
+    /// Stores the triangles grouped by normal direction (stable: mesh order within a group), so that most
+    /// blocks face a wall spot either all toward or all away: whole blocks are then skipped at once.
     pub(crate) fn new(v0: &[Vec3], e1: &[Vec3], e2: &[Vec3], n: &[Vec3], valid: &[bool]) -> Self {
+        // About two blocks per bucket: finer groups would scatter the mesh order (spatial locality of the
+        // histogram accesses), coarser ones would mix orientations within a block.
+        let res = ((v0.len() as f64 / (2 * BLOCK) as f64).sqrt() as u32).clamp(1, 16);
+        let mut order: Vec<u32> = (0..v0.len() as u32).collect();
+        order.sort_by_key(|&t| normal_bucket(n[t as usize], res));
+        let gather = |a: &[Vec3]| order.iter().map(|&t| a[t as usize]).collect::<Vec<_>>();
+        let (v0, e1, e2, n) = (gather(v0), gather(e1), gather(e2), gather(n));
+        let valid: Vec<bool> = order.iter().map(|&t| valid[t as usize]).collect();
         let split = |a: &[Vec3]| {
             [a.iter().map(|p| p.x).collect(), a.iter().map(|p| p.y).collect(), a.iter().map(|p| p.z).collect()]
         };
+        let (v0, e1, e2, n, valid) = (&v0[..], &e1[..], &e2[..], &n[..], &valid[..]);
         Self {
             v0: split(v0),
             e1: split(e1),
@@ -42,6 +71,7 @@ impl Soa {
             inv_2n: n.iter().zip(valid).map(|(n, ok)| if *ok { 0.5 / n.length() } else { 0.0 }).collect(),
             n2: n.iter().map(|n| n.length_squared()).collect(),
             valid: valid.to_vec(),
+            order,
         }
     }
 
@@ -179,7 +209,8 @@ pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool>(
         let pl = n.dot(a);
         let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
         // One-sided wall and surface cosines (max(0, ·) of eq. 2); NaN fails too.
-        let ok = sign[i] != 0.0 && vis[i] != 0.0 && cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0;
+        // NaN fails too; `&`, not `&&`: no short-circuit branches in the loop body.
+        let ok = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
         let ra2 = a.length_squared();
         let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
         let ra = ra2.sqrt();
@@ -193,7 +224,7 @@ pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool>(
 
 /// Adjoint, stage 1 of one sample per triangle: `ra[i] = |a|`, `rb[i] = |b|`, `ok[i]` = the pair is
 /// oriented, visible in the cache and passes the cosine tests.
-#[inline(always)]
+#[inline(never)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn adjoint_lengths<const CONFOCAL: bool>(
     b: &Block<'_>,
@@ -219,14 +250,16 @@ pub(crate) fn adjoint_lengths<const CONFOCAL: bool>(
         let cl = -fr.n_l.dot(a);
         let pl = n.dot(a);
         let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        ok[i] = f32::from(u8::from(sign[i] != 0.0 && vis[i] != 0.0 && cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0));
+        // `&`, not `&&`: no short-circuit branches in the loop body (they block vectorisation).
+        let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        ok[i] = f32::from(u8::from(pass));
         let r = a.length_squared().sqrt();
         ra[i] = r;
         rb[i] = if CONFOCAL { r } else { bb.length_squared().sqrt() };
     }
 }
 
-/// Per-triangle adjoint accumulators of a block for one sample point (u, v), f32, flushed into f64 every
+/// Per-triangle adjoint accumulators of a task's triangles for one sample point (u, v), f32, flushed into f64 every
 /// few measurements: `gx` = Σ dE/dx (distributed to the vertices as (1−u−v, u, v) at the flush),
 /// `gn` = Σ sign·dE/dN, `p` = dE/d(BRDF parameters).
 pub(crate) struct Acc {
@@ -236,8 +269,8 @@ pub(crate) struct Acc {
 }
 
 impl Acc {
-    pub(crate) fn new() -> Self {
-        let z = || vec![0.0f32; BLOCK];
+    pub(crate) fn new(len: usize) -> Self {
+        let z = || vec![0.0f32; len];
         Self { gx: [z(), z(), z()], gn: [z(), z(), z()], p: [z(), z(), z(), z()] }
     }
 
@@ -265,7 +298,7 @@ impl Acc {
 }
 
 /// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
-/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` where `a_val[i]` or `a_der[i]` is non-zero
+/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` from index `offset` on where `a_val[i]` or `a_der[i]` is non-zero
 /// (stage 2 zeroes both for skipped pairs and occluded samples).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -276,10 +309,15 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
     (u, v, w): (f32, f32, f32),
     sc: &Scratch,
     acc: &mut Acc,
+    offset: usize,
 ) {
     let [gx0, gx1, gx2] = &mut acc.gx;
     let [gn0, gn1, gn2] = &mut acc.gn;
     let [p0, p1, p2, p3] = &mut acc.p;
+    let o = offset;
+    let (gx0, gx1, gx2, gn0, gn1, gn2) =
+        (&mut gx0[o..], &mut gx1[o..], &mut gx2[o..], &mut gn0[o..], &mut gn1[o..], &mut gn2[o..]);
+    let (p0, p1, p2, p3) = (&mut p0[o..], &mut p1[o..], &mut p2[o..], &mut p3[o..]);
     // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
     // vectorises without runtime overlap checks.
     adjoint_samples_acc::<B, CONFOCAL>(brdf, b, fr, (u, v, w), sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3);
@@ -318,7 +356,7 @@ fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
     let (p0, p1, p2, p3) = (&mut p0[..len], &mut p1[..len], &mut p2[..len], &mut p3[..len]);
     for i in 0..len {
         let (av, ad) = (a_val[i], a_der[i]);
-        let active = av != 0.0 || ad != 0.0;
+        let active = (av != 0.0) | (ad != 0.0);
         let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
         let sg = sign[i];
         let n = sg * at(&nn, i);
