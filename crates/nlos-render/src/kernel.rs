@@ -4,8 +4,8 @@
 //! kernel gives the weights `K_k(τ)` with `Σ_k K_k(τ) = 1` away from the ends of the axis, so the time sum
 //! of a transient is the steady-state value whatever the kernel. The forward pass splats `g·K_k(τ)`; the
 //! adjoint gathers `Σ_k a_k K_k(τ)` and `Σ_k a_k dK_k/dτ` from the SAME kernel (the original code used
-//! different kernels in the two passes; here both go through [`Kernel::splat`] / [`Kernel::gather`], which
-//! share one weight routine).
+//! different kernels in the two passes; here the splats and the gather of the crate-private evaluator all
+//! go through one weight routine).
 
 /// A temporal kernel `K_k(τ)`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -71,9 +71,19 @@
 //! `∂/∂N` term and used different kernels in the two passes; both are fixed here.
 //!
 //! ## Performance
-//! Parallel over measurements with rayon: the forward pass owns one histogram per measurement, the adjoint
-//! folds per-thread f64 vertex accumulators and reduces them, so the hot loop takes no lock. Triangles are
-//! stored as structure of arrays (`v0`, `e1`, `e2`, `N`).
+//! Triangles are stored as structure of arrays (`f32` per coordinate), grouped by normal direction (so most
+//! blocks of 256 triangles face a wall spot either all toward or all away and are skipped whole). Fixed
+//! deterministic rules (`min_level = max_level`, e.g. [`DeterministicRule::fixed`]) run block kernels that
+//! the compiler vectorises across triangles (straight-line loops, selects and bit masks instead of
+//! branches), with the kernel scatter/gather and the shadow rays in separate scalar passes; adaptive rules
+//! and [`Sampling::Stratified`] run the same arithmetic pair by pair. Parallel with rayon and lock-free:
+//! the forward pass over tiles of 8 measurements (each task owns its histograms) × blocks of triangles; the
+//! adjoint over ranges of triangles (each task owns their accumulators: f32 over at most 16 measurements,
+//! then f64; the ranges depend on the mesh only, so the gradient does not depend on the thread count).
+//! At the seed's setup (full bunny, 64 × 64 confocal, 1200 bins of 1.2 mm, tent kernel) the one-sample
+//! centroid rule `fixed(1)` has a relative bin-level error of 1.9 % (10k faces: 4.8 %) against a fine
+//! reference, the seed's stratified sampling at 20,000 samples per measurement 11 % (6 %); see
+//! `examples/accuracy.rs`.
 #![warn(missing_docs)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which is how non-finite values fall into the skip
 // branches.
