@@ -141,6 +141,10 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
 /// The optimiser's parameters from the arguments (documented defaults otherwise).
 fn params(args: &Args) -> Result<ReconstructParams, CliError> {
     let mut p = ReconstructParams { seed: args.seed, out_dir: Some(args.out.clone()), ..ReconstructParams::default() };
+    // Checked whatever the model, so a typo never silently runs a long reconstruction with another α.
+    if !(1e-3..=1.0).contains(&args.alpha) {
+        return Err(bad(format!("--alpha {}: GGX roughness must lie in [0.001, 1]", args.alpha)));
+    }
     p.reflectance = match args.brdf.as_str() {
         "lambert" | "lambertian" => Reflectance::default(),
         "ggx" => Reflectance::from_ggx(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
