@@ -13,6 +13,7 @@ mod info;
 mod init;
 mod preview;
 mod reconstruct;
+mod render;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -54,6 +55,8 @@ enum Command {
     Init(init::Args),
     /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
     Reconstruct(reconstruct::Args),
+    /// Simulate the measurements of a mesh (box kernel), optionally as Poisson photon counts.
+    Render(render::Args),
 }
 
 /// A failure, with the exit code it maps to.
@@ -92,6 +95,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(&args),
         Command::Init(args) => init::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
+        Command::Render(args) => render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
