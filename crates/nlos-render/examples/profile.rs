@@ -9,27 +9,17 @@ use nlos_brdf::Lambertian;
 use nlos_render::{DeterministicRule, Kernel, Loss, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
+/// The shared bunny as positions + triangles, read with `nlos-mesh` (a dev-dependency only: the renderer
+/// itself takes plain arrays); `None`, with the reason printed, when the file is absent or unreadable.
 fn load() -> Option<(Vec<Vec3>, Vec<[u32; 3]>)> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    let text = std::fs::read_to_string(path).ok()?;
-    let (mut v, mut f) = (Vec::new(), Vec::new());
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<f32> = it.take(3).filter_map(|x| x.parse().ok()).collect();
-                v.push(Vec3::new(c[0], c[1], c[2]));
-            }
-            Some("f") => {
-                let i: Vec<u32> = it.filter_map(|w| w.split('/').next()?.parse::<u32>().ok()).map(|i| i - 1).collect();
-                for k in 1..i.len() - 1 {
-                    f.push([i[0], i[k], i[k + 1]]);
-                }
-            }
-            _ => {}
+    match nlos_mesh::io::load(path) {
+        Ok(mesh) => Some(mesh.to_triangles()),
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
         }
     }
-    Some((v, f))
 }
 
 /// CPU seconds (user + system) of this process so far, from /proc (0 where unavailable).
