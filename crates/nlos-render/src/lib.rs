@@ -80,6 +80,8 @@
 //! the forward pass over tiles of 8 measurements (each task owns its histograms) × blocks of triangles; the
 //! adjoint over ranges of triangles (each task owns their accumulators: f32 over at most 16 measurements,
 //! then f64; the ranges depend on the mesh only, so the gradient does not depend on the thread count).
+//! Every reduction is over fixed chunks summed in chunk order: forward, adjoint and loss are bit-identical
+//! whatever rayon's schedule (`tests/determinism.rs` compares pools of 1, 2 and 3 threads).
 //! At the seed's setup (full bunny, 64 × 64 confocal, 1200 bins of 1.2 mm, tent kernel) the one-sample
 //! centroid rule `fixed(1)` has a relative bin-level error of 1.9 % (10k faces: 4.8 %) against a fine
 //! reference, the seed's stratified sampling at 20,000 samples per measurement 11 % (6 %); see

@@ -1,0 +1,121 @@
+//! Determinism: the forward pass, the adjoint and the fused loss-and-gradient give bit-identical results
+//! whatever the number of rayon threads (the optimiser's resume-after-SIGKILL test relies on it). Every
+//! reduction runs over fixed chunks (chosen from the mesh and scan only) and sums the chunks' partials in
+//! chunk order.
+
+use glam::Vec3;
+use nlos_brdf::{Fresnel, Ggx, Lambertian};
+use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_transient::{PointSet, Scan, TimeAxis};
+
+/// A bumpy height field of `2 n²` triangles at z ≈ 0.4 facing the wall (normals toward −z), plus a small
+/// occluder in front of it; enough triangles for several adjoint tasks (256-triangle blocks).
+fn surface(n: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, y) = (-0.2 + 0.4 * i as f32 / n as f32, -0.2 + 0.4 * j as f32 / n as f32);
+            p.push(Vec3::new(x, y, 0.4 + 0.03 * (17.0 * x).sin() * (11.0 * y).cos()));
+        }
+    }
+    let id = |i: usize, j: usize| (i * (n + 1) + j) as u32;
+    let mut f = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            // (p01 − p00) × (p10 − p00) points to −z.
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
+            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
+        }
+    }
+    let k = p.len() as u32;
+    p.extend([Vec3::new(-0.05, -0.05, 0.2), Vec3::new(0.02, 0.1, 0.21), Vec3::new(0.12, -0.02, 0.19)]);
+    f.push([k, k + 1, k + 2]);
+    (p, f)
+}
+
+/// Forward, adjoint and loss-and-gradient of one configuration in a pool of `threads` threads.
+fn run<B: RenderBrdf + Sync>(
+    threads: usize,
+    p: &[Vec3],
+    f: &[[u32; 3]],
+    scan: &Scan,
+    time: &TimeAxis,
+    params: RenderParams,
+    brdf: &B,
+) -> (Vec<f32>, Vec<Vec3>, Vec<f32>, f64, Vec<Vec3>) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+    pool.install(|| {
+        let r = Renderer::new(p, f, scan, time, params).expect("valid");
+        let data = r.forward(brdf);
+        // A non-trivial adjoint: a smooth oscillation per bin, different per measurement.
+        let bins = time.bins;
+        let adj: Vec<f32> =
+            (0..data.len()).map(|i| ((i % bins) as f32 * 0.13 + (i / bins) as f32 * 0.7).cos() + 0.2).collect();
+        let g = r.adjoint(brdf, &adj).expect("adjoint");
+        let measured: Vec<f32> = data.iter().enumerate().map(|(i, x)| x * (0.7 + 0.001 * (i % 13) as f32)).collect();
+        let lg = r.loss_and_gradient(brdf, &measured, Loss::L2, None).expect("loss");
+        (data, g.vertices, g.brdf, lg.loss, lg.gradient.vertices)
+    })
+}
+
+fn bits(v: &[Vec3]) -> Vec<u32> {
+    v.iter().flat_map(|x| x.to_array()).map(f32::to_bits).collect()
+}
+
+fn fbits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+fn check<B: RenderBrdf + Sync>(params: RenderParams, brdf: &B, exhaustive: bool) {
+    let (p, f) = surface(24);
+    assert!(f.len() > 4 * 256, "several adjoint tasks");
+    let scan = if exhaustive {
+        Scan::exhaustive(
+            PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid"),
+            PointSet::wall_grid(2, 3, 0.15, 0.1).expect("grid"),
+        )
+    } else {
+        Scan::confocal(PointSet::wall_grid(4, 4, 0.2, 0.2).expect("grid"))
+    };
+    let time = TimeAxis::new(0.6, 0.004, 200).expect("axis");
+    let one = run(1, &p, &f, &scan, &time, params, brdf);
+    assert!(one.0.iter().any(|x| *x > 0.0), "non-trivial render");
+    assert!(one.1.iter().any(|g| g.length() > 0.0), "non-trivial gradient");
+    for threads in [2, 3] {
+        let other = run(threads, &p, &f, &scan, &time, params, brdf);
+        assert_eq!(fbits(&one.0), fbits(&other.0), "forward differs with {threads} threads ({params:?})");
+        assert_eq!(bits(&one.1), bits(&other.1), "adjoint differs with {threads} threads ({params:?})");
+        assert_eq!(fbits(&one.2), fbits(&other.2), "BRDF gradient differs with {threads} threads ({params:?})");
+        assert_eq!(one.3.to_bits(), other.3.to_bits(), "loss differs with {threads} threads ({params:?})");
+        assert_eq!(bits(&one.4), bits(&other.4), "loss gradient differs with {threads} threads ({params:?})");
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let lambert = Lambertian::new(0.7f32).expect("valid");
+    let ggx = Ggx::new(0.2f32, 0.8, 0.3, Fresnel::Schlick { f0: 0.5 }).expect("valid");
+    let fixed = RenderParams {
+        kernel: Kernel::Tent,
+        sampling: Sampling::Deterministic(DeterministicRule::fixed(2)),
+        visibility: Visibility::Cached { level: 2 },
+        two_sided: false,
+    };
+    check(fixed, &lambert, false);
+    check(fixed, &ggx, true);
+    // Live shadow rays, adaptive rule (the pair-by-pair path), Gaussian kernel.
+    let adaptive = RenderParams {
+        kernel: Kernel::Gaussian { fwhm_bins: 2.0 },
+        sampling: Sampling::Deterministic(DeterministicRule { max_bin_fraction: 1.0, min_level: 1, max_level: 4 }),
+        visibility: Visibility::Live,
+        two_sided: true,
+    };
+    check(adaptive, &ggx, false);
+    // The seed's stratified Monte Carlo mode.
+    let mc = RenderParams {
+        sampling: Sampling::Stratified { samples_per_measurement: 3000, seed: 9 },
+        visibility: Visibility::Live,
+        ..Default::default()
+    };
+    check(mc, &lambert, false);
+}
