@@ -47,5 +47,5 @@ pub use error::{Result, VizError};
 pub use font::{draw_text, draw_text_vertical, text_height, text_width};
 pub use grid::{Extent, Interp, ScalarGrid, resample};
 pub use image::{MAX_DIMENSION, Rgb, RgbImage};
-pub use plot::{Figure, MAX_PANEL_SIDE, Marker, MarkerAxis, Panel, PanelContent, YDirection};
+pub use plot::{Figure, MAX_PANEL_SIDE, Marker, MarkerAxis, Panel, PanelContent, Series, YDirection};
 pub use ticks::{format_log_tick, format_tick, log_ticks, nice_step, nice_ticks};

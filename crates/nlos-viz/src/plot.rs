@@ -47,6 +47,34 @@ pub enum PanelContent<'a> {
         /// Line colour.
         color: Rgb,
     },
+    /// Several curves on shared axes, with a legend in the top-right corner of the plot area.
+    Lines {
+        /// The curves, drawn in order (their labels listed in the legend in the same order).
+        series: Vec<Series<'a>>,
+        /// Linear y axis from `min(0, y)` to `max(y)`, or a log axis ([`Scale::Log`], floor below max; points
+        /// with y ≤ 0 break the curve there).
+        y_scale: Scale,
+    },
+}
+
+/// One curve of a [`PanelContent::Lines`] panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series<'a> {
+    /// Abscissae.
+    pub x: &'a [f64],
+    /// Ordinates, as many as `x`.
+    pub y: &'a [f64],
+    /// Legend text (empty: not listed).
+    pub label: String,
+    /// Line colour.
+    pub color: Rgb,
+}
+
+impl<'a> Series<'a> {
+    /// A curve with its legend label and colour.
+    pub fn new(x: &'a [f64], y: &'a [f64], label: impl Into<String>, color: Rgb) -> Self {
+        Self { x, y, label: label.into(), color }
+    }
 }
 
 /// Which axis a [`Marker`] sits on.
@@ -135,6 +163,42 @@ impl<'a> Panel<'a> {
         Ok(p)
     }
 
+    /// A panel of several curves on shared axes with a legend, 480 × 320 pixels, linear y axis.
+    ///
+    /// # Example
+    /// ```
+    /// use nlos_viz::{Panel, Rgb, Scale, Series};
+    /// let x: Vec<f64> = (0..50).map(f64::from).collect();
+    /// let a: Vec<f64> = x.iter().map(|i| 1.0 / (1.0 + i)).collect();
+    /// let b: Vec<f64> = x.iter().map(|i| 0.1 / (1.0 + i * i)).collect();
+    /// let p = Panel::lines(vec![Series::new(&x, &a, "total", Rgb::BLACK), Series::new(&x, &b, "reg.", Rgb::RED)])?
+    ///     .with_y_scale(Scale::Log { decades: 4.0 })
+    ///     .with_labels("iteration", "loss");
+    /// assert!(p.render(1)?.width() > 480);
+    /// # Ok::<(), nlos_viz::VizError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`VizError::InvalidArgument`] with no series, a series whose lengths differ, or no finite point in
+    /// any series.
+    pub fn lines(series: Vec<Series<'a>>) -> Result<Self> {
+        if series.is_empty() {
+            return Err(VizError::InvalidArgument { name: "series", reason: "need at least one curve".into() });
+        }
+        if let Some(s) = series.iter().find(|s| s.x.len() != s.y.len()) {
+            return Err(VizError::InvalidArgument {
+                name: "series",
+                reason: format!("curve `{}` has {} x and {} y values", s.label, s.x.len(), s.y.len()),
+            });
+        }
+        if !series.iter().any(|s| s.x.iter().zip(s.y).any(|(a, b)| a.is_finite() && b.is_finite())) {
+            return Err(VizError::InvalidArgument { name: "series", reason: "no finite point in any curve".into() });
+        }
+        let mut p = Self::new(PanelContent::Lines { series, y_scale: Scale::Linear });
+        p.width = 480;
+        Ok(p)
+    }
+
     fn new(content: PanelContent<'a>) -> Self {
         Self {
             title: String::new(),
@@ -200,7 +264,7 @@ impl<'a> Panel<'a> {
 
     /// Sets the y scale of a line panel (no effect on an image panel).
     pub fn with_y_scale(mut self, s: Scale) -> Self {
-        if let PanelContent::Line { y_scale, .. } = &mut self.content {
+        if let PanelContent::Line { y_scale, .. } | PanelContent::Lines { y_scale, .. } = &mut self.content {
             *y_scale = s;
         }
         self
@@ -219,23 +283,10 @@ impl<'a> Panel<'a> {
                 let (x, y) = (grid.x_extent(), grid.y_extent());
                 Ok((Norm::linear(x.min(), x.max())?, Norm::linear(y.min(), y.max())?))
             }
-            PanelContent::Line { x, y, y_scale, .. } => {
-                let pts = || x.iter().zip(y.iter()).filter(|(a, b)| a.is_finite() && b.is_finite());
-                let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |r, (a, _)| (r.0.min(*a), r.1.max(*a)));
-                let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |r, (_, b)| (r.0.min(*b), r.1.max(*b)));
-                if !x0.is_finite() {
-                    return Err(VizError::InvalidArgument { name: "x, y", reason: "no finite point".into() });
-                }
-                let xn = if x1 > x0 { Norm::linear(x0, x1)? } else { Norm::linear(x0 - 0.5, x0 + 0.5)? };
-                let yn = match *y_scale {
-                    Scale::Linear => {
-                        let lo = y0.min(0.0);
-                        let hi = if y1 > lo { y1 + 0.05 * (y1 - lo) } else { lo + 1.0 };
-                        Norm::linear(lo, hi)?
-                    }
-                    Scale::Log { decades } => Norm::log(if y1 > 0.0 { y1 * 1.2 } else { 1.0 }, decades)?,
-                };
-                Ok((xn, yn))
+            PanelContent::Line { x, y, y_scale, .. } => line_axes(&[(x, y)], *y_scale),
+            PanelContent::Lines { series, y_scale } => {
+                let curves: Vec<(&[f64], &[f64])> = series.iter().map(|s| (s.x, s.y)).collect();
+                line_axes(&curves, *y_scale)
             }
         }
     }
@@ -305,18 +356,29 @@ impl<'a> Panel<'a> {
                 }
             }
             PanelContent::Line { x, y, color, .. } => {
-                let mut prev: Option<(i64, i64)> = None;
-                for (&a, &b) in x.iter().zip(y.iter()) {
-                    if !(a.is_finite() && b.is_finite()) {
-                        prev = None;
-                        continue;
+                polyline(&mut img, (px0, py0), (w, h), (&xn, &yn), self.y_direction, (x, y), *color, false);
+            }
+            PanelContent::Lines { series, y_scale } => {
+                let log = matches!(y_scale, Scale::Log { .. });
+                for sr in series {
+                    polyline(&mut img, (px0, py0), (w, h), (&xn, &yn), self.y_direction, (sr.x, sr.y), sr.color, log);
+                }
+                // Legend: a boxed list of colour swatches and labels in the top-right corner.
+                let listed: Vec<&Series<'_>> = series.iter().filter(|sr| !sr.label.is_empty()).collect();
+                if !listed.is_empty() {
+                    let sw = 6 * s as i64;
+                    let lw = listed.iter().map(|sr| text_width(&sr.label, s)).max().unwrap_or(0) as i64;
+                    let row = (ch + gap) as i64;
+                    let bw = gap as i64 * 3 + sw + lw + gap as i64;
+                    let bh = row * listed.len() as i64 + gap as i64;
+                    let (bx, by) = (px0 + wi - bw - gap as i64, py0 + gap as i64);
+                    img.fill_rect(bx, by, bw, bh, bg);
+                    img.rect_outline(bx, by, bw, bh, Rgb::GREY);
+                    for (k, sr) in listed.iter().enumerate() {
+                        let y = by + gap as i64 + row * k as i64;
+                        img.fill_rect(bx + gap as i64, y + (ch as i64) / 2 - s as i64, sw, 2 * s as i64, sr.color);
+                        draw_text(&mut img, bx + 2 * gap as i64 + sw, y, &sr.label, Rgb::BLACK, s);
                     }
-                    let p = (px0 + pos(&xn, a, w, false), py0 + pos(&yn, b, h, self.y_direction == YDirection::Up));
-                    match prev {
-                        Some(q) => img.line(q.0, q.1, p.0, p.1, *color),
-                        None => img.set(p.0, p.1, *color),
-                    }
-                    prev = Some(p);
                 }
             }
         }
@@ -403,6 +465,55 @@ impl<'a> Panel<'a> {
             }
         }
         Ok(img)
+    }
+}
+
+/// The (x, y) axis maps of line plots over all finite points of `curves`.
+fn line_axes(curves: &[(&[f64], &[f64])], y_scale: Scale) -> Result<(Norm, Norm)> {
+    let pts =
+        || curves.iter().flat_map(|(x, y)| x.iter().zip(y.iter())).filter(|(a, b)| a.is_finite() && b.is_finite());
+    let (x0, x1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |r, (a, _)| (r.0.min(*a), r.1.max(*a)));
+    let (y0, y1) = pts().fold((f64::INFINITY, f64::NEG_INFINITY), |r, (_, b)| (r.0.min(*b), r.1.max(*b)));
+    if !x0.is_finite() {
+        return Err(VizError::InvalidArgument { name: "x, y", reason: "no finite point".into() });
+    }
+    let xn = if x1 > x0 { Norm::linear(x0, x1)? } else { Norm::linear(x0 - 0.5, x0 + 0.5)? };
+    let yn = match y_scale {
+        Scale::Linear => {
+            let lo = y0.min(0.0);
+            let hi = if y1 > lo { y1 + 0.05 * (y1 - lo) } else { lo + 1.0 };
+            Norm::linear(lo, hi)?
+        }
+        Scale::Log { decades } => Norm::log(if y1 > 0.0 { y1 * 1.2 } else { 1.0 }, decades)?,
+    };
+    Ok((xn, yn))
+}
+
+/// Draws the curve `(x, y)` in the plot area at `origin` of `size` pixels; non-finite points (and, with
+/// `skip_nonpositive`, points with y ≤ 0) break it.
+#[allow(clippy::too_many_arguments)]
+fn polyline(
+    img: &mut RgbImage,
+    origin: (i64, i64),
+    size: (usize, usize),
+    axes: (&Norm, &Norm),
+    dir: YDirection,
+    (x, y): (&[f64], &[f64]),
+    color: Rgb,
+    skip_nonpositive: bool,
+) {
+    let mut prev: Option<(i64, i64)> = None;
+    for (&a, &b) in x.iter().zip(y.iter()) {
+        if !(a.is_finite() && b.is_finite()) || (skip_nonpositive && b <= 0.0) {
+            prev = None;
+            continue;
+        }
+        let p = (origin.0 + pos(axes.0, a, size.0, false), origin.1 + pos(axes.1, b, size.1, dir == YDirection::Up));
+        match prev {
+            Some(q) => img.line(q.0, q.1, p.0, p.1, color),
+            None => img.set(p.0, p.1, color),
+        }
+        prev = Some(p);
     }
 }
 
@@ -585,6 +696,34 @@ mod tests {
         assert!(blue.clone().any(|(x, y)| img.get(x, y) == Some(Rgb::RED)));
         assert!(Panel::line(&x, &y[..3]).is_err());
         assert!(Panel::line(&[f64::NAN], &[1.0]).is_err());
+    }
+
+    #[test]
+    fn lines_panel_draws_every_series_and_a_legend() {
+        let x: Vec<f64> = (0..100).map(f64::from).collect();
+        let a: Vec<f64> = x.iter().map(|i| 100.0 / (1.0 + i)).collect();
+        let b: Vec<f64> = x.iter().map(|i| if *i < 50.0 { 1.0 } else { 0.0 }).collect();
+        let green = Rgb::new(0, 160, 0);
+        let p = Panel::lines(vec![Series::new(&x, &a, "total", Rgb::BLUE), Series::new(&x, &b, "step", green)])
+            .expect("lines")
+            .with_y_scale(Scale::Log { decades: 3.0 })
+            .with_marker(MarkerAxis::X, 50.0, "stage 2", Rgb::RED);
+        let img = p.render(1).expect("render");
+        let count = |c: Rgb| {
+            (0..img.height())
+                .flat_map(|y| (0..img.width()).map(move |x| (x, y)))
+                .filter(|&(x, y)| img.get(x, y) == Some(c))
+                .count()
+        };
+        // Both curves and the legend swatches are drawn; the zeros of `b` (log axis) are a gap, so its
+        // pixels are only the 50 points of 1.0 (a horizontal run) plus the swatch.
+        let (blue, gr) = (count(Rgb::BLUE), count(green));
+        assert!(blue > 100, "{blue} blue pixels");
+        assert!(gr > 20 && gr < 480, "{gr} green pixels");
+        assert!(count(Rgb::RED) > 0);
+        assert!(Panel::lines(vec![]).is_err());
+        assert!(Panel::lines(vec![Series::new(&x, &a[..3], "bad", Rgb::BLUE)]).is_err());
+        assert!(Panel::lines(vec![Series::new(&[f64::NAN], &[1.0], "nan", Rgb::BLUE)]).is_err());
     }
 
     #[test]
