@@ -92,16 +92,41 @@ pub(crate) fn improve_with_length(
     Ok(report)
 }
 
+/// A multiplicative hash for grid cells (the default SipHash dominated the grid's cost).
+#[derive(Default, Clone, Copy)]
+struct CellHasher(u64);
+
+impl std::hash::Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_i32(&mut self, x: i32) {
+        self.write_u64(x as u32 as u64);
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+type CellMap = HashMap<[i32; 3], Vec<u32>, std::hash::BuildHasherDefault<CellHasher>>;
+
 /// A uniform grid of face bounding boxes, updated lazily: entries of deleted or changed faces stay and are
-/// filtered at query time by the face's current box.
+/// filtered at query time by the face's current box; repeated entries are skipped with a per-face stamp.
 struct FaceGrid {
     h: f32,
-    cells: HashMap<[i32; 3], Vec<u32>>,
+    cells: CellMap,
+    stamp: Vec<u32>,
+    generation: u32,
 }
 
 impl FaceGrid {
     fn new(mesh: &SurfaceMesh, h: f32) -> Self {
-        let mut g = Self { h, cells: HashMap::new() };
+        let mut g = Self { h, cells: CellMap::default(), stamp: Vec::new(), generation: 0 };
         for f in mesh.faces() {
             g.insert(mesh, f);
         }
@@ -130,29 +155,41 @@ impl FaceGrid {
             }
         }
     }
-    /// Live faces whose current box overlaps `[lo, hi]`.
-    fn query(&self, mesh: &SurfaceMesh, lo: Vec3, hi: Vec3, out: &mut Vec<FaceId>) {
+    /// Live faces whose current box overlaps `[lo, hi]`, each once.
+    fn query(&mut self, mesh: &SurfaceMesh, lo: Vec3, hi: Vec3, out: &mut Vec<FaceId>) {
         out.clear();
+        if self.stamp.len() < mesh.faces_size() {
+            self.stamp.resize(mesh.faces_size(), 0);
+        }
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.fill(0);
+            self.generation = 1;
+        }
         let (a, b) = self.range(lo, hi);
         for x in a[0]..=b[0] {
             for y in a[1]..=b[1] {
                 for z in a[2]..=b[2] {
-                    if let Some(v) = self.cells.get(&[x, y, z]) {
-                        out.extend(v.iter().map(|&f| FaceId(f)));
+                    let Some(v) = self.cells.get(&[x, y, z]) else { continue };
+                    for &f in v {
+                        let s = &mut self.stamp[f as usize];
+                        if *s == self.generation {
+                            continue;
+                        }
+                        *s = self.generation;
+                        let f = FaceId(f);
+                        if mesh.is_deleted_face(f) {
+                            continue;
+                        }
+                        let [p, q, r] = mesh.face_points(f);
+                        let (flo, fhi) = (p.min(q).min(r), p.max(q).max(r));
+                        if flo.cmple(hi).all() && lo.cmple(fhi).all() {
+                            out.push(f);
+                        }
                     }
                 }
             }
         }
-        out.sort_unstable();
-        out.dedup();
-        out.retain(|&f| {
-            if mesh.is_deleted_face(f) {
-                return false;
-            }
-            let [p, q, r] = mesh.face_points(f);
-            let (flo, fhi) = (p.min(q).min(r), p.max(q).max(r));
-            flo.cmple(hi).all() && lo.cmple(fhi).all()
-        });
     }
 }
 
@@ -166,9 +203,21 @@ struct Improver<'a> {
     report: &'a mut ImproveReport,
 }
 
+/// Smallest angle of a triangle (degrees): the one opposite the shortest edge, so one `atan2` instead of the
+/// three of [`triangle_angles`] (the same formula, so the same value up to ties).
 fn min_angle_of(p: [Vec3; 3]) -> f32 {
-    let a = triangle_angles(p[0], p[1], p[2]);
-    a[0].min(a[1]).min(a[2])
+    let q = p.map(|x| x.as_dvec3());
+    // edge k is opposite corner k
+    let len2 = [(q[2] - q[1]).length_squared(), (q[0] - q[2]).length_squared(), (q[1] - q[0]).length_squared()];
+    let k = if len2[0] <= len2[1] && len2[0] <= len2[2] {
+        0
+    } else if len2[1] <= len2[2] {
+        1
+    } else {
+        2
+    };
+    let (u, v) = (q[(k + 1) % 3] - q[k], q[(k + 2) % 3] - q[k]);
+    u.cross(v).length().atan2(u.dot(v)).to_degrees() as f32
 }
 
 fn normal(p: [Vec3; 3]) -> DVec3 {
@@ -178,7 +227,7 @@ fn normal(p: [Vec3; 3]) -> DVec3 {
 
 impl Improver<'_> {
     /// Whether the new faces (vertex ids, positions) intersect any live face except those in `skip`.
-    fn new_faces_intersect(&self, mesh: &SurfaceMesh, new: &[([u32; 3], [Vec3; 3])], skip: &[FaceId]) -> bool {
+    fn new_faces_intersect(&mut self, mesh: &SurfaceMesh, new: &[([u32; 3], [Vec3; 3])], skip: &[FaceId]) -> bool {
         let mut cands = Vec::new();
         for (k, (fv, t)) in new.iter().enumerate() {
             let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
@@ -391,7 +440,7 @@ impl Improver<'_> {
     /// corners. Boundary vertices stay. Each move is checked continuously.
     fn smooth(&mut self, mesh: &mut SurfaceMesh) {
         let verts: Vec<VertexId> = mesh.vertices().collect();
-        let mut cands = Vec::new();
+        let mut scratch = MoveScratch::default();
         for v in verts {
             if mesh.is_boundary_vertex(v) || mesh.is_isolated(v) {
                 continue;
@@ -429,7 +478,7 @@ impl Improver<'_> {
             if !to.is_finite() || to == mesh.position(v) {
                 continue;
             }
-            if self.vertex_move_ok(mesh, v, to, &mut cands) {
+            if self.vertex_move_ok(mesh, v, to, &mut scratch) {
                 mesh.set_position(v, to);
                 let faces: Vec<FaceId> = mesh.vertex_faces(v).collect();
                 for f in faces {
@@ -441,14 +490,17 @@ impl Improver<'_> {
     }
 
     /// Whether moving `v` on a straight line to `to` keeps the one-ring's normals and angles acceptable and
-    /// meets nothing (CCD of every vertex–triangle and edge–edge pair involving `v` against nearby faces).
-    fn vertex_move_ok(&mut self, mesh: &SurfaceMesh, v: VertexId, to: Vec3, cands: &mut Vec<FaceId>) -> bool {
+    /// meets nothing: CCD of every vertex–triangle and edge–edge pair that involves `v` (the moving point
+    /// against nearby faces, nearby vertices against the moving one-ring faces, the moving one-ring edges
+    /// against nearby edges), each pair first filtered by its swept box.
+    fn vertex_move_ok(&mut self, mesh: &SurfaceMesh, v: VertexId, to: Vec3, scratch: &mut MoveScratch) -> bool {
         let from = mesh.position(v);
-        let ring: Vec<FaceId> = mesh.vertex_faces(v).collect();
         let at = |w: VertexId| if w == v { to } else { mesh.position(w) };
+        scratch.ring.clear();
+        scratch.ring.extend(mesh.vertex_faces(v));
         let mut lo = to.min(from);
         let mut hi = to.max(from);
-        for &f in &ring {
+        for &f in &scratch.ring {
             let (p, pn) = (mesh.face_points(f), mesh.face_vertices(f).map(at));
             if normal(p).dot(normal(pn)) <= 0.0 || min_angle_of(pn) < self.min_angle.min(min_angle_of(p)) {
                 self.report.rejected_quality += 1;
@@ -460,43 +512,98 @@ impl Improver<'_> {
             }
         }
         let tol = 1e-7 * (self.max_len as f64).max(1e-30);
+        let pad = Vec3::splat(tol as f32);
         let m = |w: VertexId| Moving::new(mesh.position(w), at(w));
-        self.grid.query(mesh, lo, hi, cands);
-        for &g in cands.iter() {
+        let boxed = |ps: &[Vec3]| {
+            let (mut a, mut b) = (ps[0], ps[0]);
+            for &q in &ps[1..] {
+                a = a.min(q);
+                b = b.max(q);
+            }
+            (a - pad, b + pad)
+        };
+        let overlap = |x: &(Vec3, Vec3), y: &(Vec3, Vec3)| x.0.cmple(y.1).all() && y.0.cmple(x.1).all();
+        // swept boxes of the moving primitives: the point, the one-ring faces, the one-ring edges
+        let vbox = boxed(&[from, to]);
+        let ring_m: Vec<([VertexId; 3], (Vec3, Vec3))> = scratch
+            .ring
+            .iter()
+            .map(|&f| {
+                let fv = mesh.face_vertices(f);
+                let p = mesh.face_points(f);
+                (fv, boxed(&[p[0], p[1], p[2], to]))
+            })
+            .collect();
+        let spokes: Vec<(VertexId, (Vec3, Vec3))> =
+            mesh.vertex_vertices(v).map(|u| (u, boxed(&[from, to, mesh.position(u)]))).collect();
+        self.grid.query(mesh, lo - pad, hi + pad, &mut scratch.cands);
+        scratch.verts.clear();
+        scratch.edges.clear();
+        for &g in &scratch.cands {
             let gv = mesh.face_vertices(g);
             if gv.contains(&v) {
                 continue;
             }
-            let gm = gv.map(m);
-            if vertex_triangle_ccd(&m(v), &gm[0], &gm[1], &gm[2], tol).is_some() {
-                self.report.rejected_intersection += 1;
-                return false;
-            }
-            for &f in &ring {
-                let fv = mesh.face_vertices(f);
-                let fm = fv.map(m);
-                for &w in &gv {
-                    if !fv.contains(&w) && vertex_triangle_ccd(&m(w), &fm[0], &fm[1], &fm[2], tol).is_some() {
-                        self.report.rejected_intersection += 1;
-                        return false;
-                    }
+            let gp = mesh.face_points(g);
+            let gbox = boxed(&gp);
+            if overlap(&vbox, &gbox) {
+                let gm = gv.map(m);
+                if vertex_triangle_ccd(&m(v), &gm[0], &gm[1], &gm[2], tol).is_some() {
+                    self.report.rejected_intersection += 1;
+                    return false;
                 }
             }
-            for u in mesh.vertex_vertices(v) {
-                for k in 0..3 {
-                    let (c, d) = (gv[k], gv[(k + 1) % 3]);
-                    if c == u || d == u {
-                        continue;
-                    }
-                    if edge_edge_ccd(&m(v), &m(u), &m(c), &m(d), tol).is_some() {
-                        self.report.rejected_intersection += 1;
-                        return false;
-                    }
+            for k in 0..3 {
+                scratch.verts.push(gv[k].0);
+                let (c, d) = (gv[k].0, gv[(k + 1) % 3].0);
+                scratch.edges.push((c.min(d), c.max(d)));
+            }
+        }
+        scratch.verts.sort_unstable();
+        scratch.verts.dedup();
+        scratch.edges.sort_unstable();
+        scratch.edges.dedup();
+        // static vertices near the one-ring against the moving one-ring faces
+        for &w in &scratch.verts {
+            let w = VertexId(w);
+            let q = mesh.position(w);
+            let wbox = (q, q);
+            for (fv, fbox) in &ring_m {
+                if fv.contains(&w) || !overlap(&wbox, fbox) {
+                    continue;
+                }
+                let fm = fv.map(m);
+                if vertex_triangle_ccd(&m(w), &fm[0], &fm[1], &fm[2], tol).is_some() {
+                    self.report.rejected_intersection += 1;
+                    return false;
+                }
+            }
+        }
+        // moving one-ring edges (spokes) against static edges nearby
+        for &(c, d) in &scratch.edges {
+            let (c, d) = (VertexId(c), VertexId(d));
+            let ebox = boxed(&[mesh.position(c), mesh.position(d)]);
+            for &(u, sbox) in &spokes {
+                if c == u || d == u || !overlap(&ebox, &sbox) {
+                    continue;
+                }
+                if edge_edge_ccd(&m(v), &m(u), &m(c), &m(d), tol).is_some() {
+                    self.report.rejected_intersection += 1;
+                    return false;
                 }
             }
         }
         true
     }
+}
+
+/// Reused buffers of [`Improver::vertex_move_ok`].
+#[derive(Default)]
+struct MoveScratch {
+    ring: Vec<FaceId>,
+    cands: Vec<FaceId>,
+    verts: Vec<u32>,
+    edges: Vec<(u32, u32)>,
 }
 
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations (Golub & Van Loan §8.5):
