@@ -4,8 +4,11 @@
 //! place of the Wiener filter (O'Toole et al. 2018, Sec. "Reconstruction"; `isbackprop` in their
 //! `cnlos_reconstruction.m`). Its blur is sharpened, as in Velten et al. (Nat. Commun. 2012) and the
 //! FBP of Lindell et al.'s f-k code (`filterLaplacian`), by a negative second derivative, here along
-//! depth only and taken in the LCT's `u = t²` domain before resampling back: `2v(u) − v(u − 1) −
-//! v(u + 1)` (0 at both ends of the axis), then clamped at 0. The lateral terms of the full 3-D
+//! depth only and taken in the LCT's `u = t²` domain before resampling back: `(2v(u) − v(u − 2) −
+//! v(u + 2)) / 4`, the square of the central difference (0 within two bins of either end), then clamped
+//! at 0. The three-point rule `2v(u) − v(u − 1) − v(u + 1)` would amplify the Nyquist component
+//! fourfold, and the backprojection's discretisation ripple then becomes a comb of spurious peaks in
+//! front of the surface (seen on rendered planes, `tests/rendered.rs`); the five-point rule passes none. The lateral terms of the full 3-D
 //! Laplacian erase the interior of a flat surface wider than the blur (a plane's backprojection is
 //! laterally constant) and leave only its outline; the depth term alone turns the backprojection's
 //! ramp at the surface into a peak. Taking it in `u`, where the backprojection is smooth, avoids the

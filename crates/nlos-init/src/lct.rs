@@ -225,11 +225,13 @@ pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) ->
                 *a = b * scale;
             }
             if laplacian {
-                // −∂²/∂u²; undefined (set to 0) at both ends, where a zero extension would make a spike.
-                tl[0] = 0.0;
-                tl[m - 1] = 0.0;
-                for i in 1..m - 1 {
-                    tl[i] = 2.0 * ul[i] - ul[i - 1] - ul[i + 1];
+                // −∂²/∂u² as the square of the central difference, (2v[i] − v[i−2] − v[i+2]) / 4: it
+                // passes no Nyquist component (the three-point rule amplifies it fourfold, which turns
+                // the discretisation ripple of the backprojection into a spurious comb). Undefined (0)
+                // within two bins of either end, where a zero extension would make a spike.
+                tl.fill(0.0);
+                for i in 2..m.saturating_sub(2) {
+                    tl[i] = 0.25 * (2.0 * ul[i] - ul[i - 2] - ul[i + 2]);
                 }
                 ul.copy_from_slice(tl);
             }
