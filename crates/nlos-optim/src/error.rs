@@ -83,6 +83,10 @@ pub enum OptimError {
         /// What is wrong.
         message: String,
     },
+    /// The sensor model of the noise-aware fit (jitter kernel, background window, histogram layout) is
+    /// unusable.
+    #[error("sensor fit: {0}; check the jitter response, the background window and the capture's bins")]
+    Sensor(#[from] nlos_transient::TransientError),
     /// The evolution hook (collision handling) failed.
     #[error("evolution hook: {0}; fall back to DirectEvolve or fix the hook")]
     Evolve(String),

@@ -8,6 +8,8 @@
 //! Building blocks:
 //! - [`loss`]: the data term — L2 of eq. (7) or Poisson NLL (`nlos_render::Loss`), per-bin weights, and an
 //!   unknown global intensity scale solved in closed form at every step;
+//! - [`sensor`]: the noise-aware data term (issue 9) — Poisson NLL of photon counts through the SPAD's
+//!   jitter response with a background level, `scale·J(I) + b` (set [`ReconstructParams::sensor`]);
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
@@ -34,6 +36,7 @@ pub mod params;
 pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;
+pub mod sensor;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
 pub use error::{OptimError, Result};
@@ -46,3 +49,4 @@ pub use reconstruct::{
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
+pub use sensor::{SensorBackground, SensorFit};

@@ -9,6 +9,7 @@ use crate::adam::AdamParams;
 use crate::error::{OptimError, Result};
 use crate::loss::DataTerm;
 use crate::reflectance::Reflectance;
+use crate::sensor::SensorFit;
 
 /// The coarse-to-fine schedule (Tsai et al. 2019, Sec. 5: target edge length `L = 0.5/res`, `res × 1.5`
 /// per stage from 64). Stage k has resolution `res_k = initial_resolution · growthᵏ` and target edge
@@ -90,6 +91,10 @@ impl Default for SamplingSchedule {
 pub struct ReconstructParams {
     /// Data term: loss (default L2, eq. 7), weights (none), scale solving (on).
     pub data: DataTerm,
+    /// Noise-aware fit of photon counts (issue 9, [`crate::sensor`]): when set, the data term is the Poisson
+    /// NLL of `scale·J(I) + b` against the counts, replacing `data.loss` (`data.solve_scale` still applies;
+    /// per-bin weights are not supported with it). Default None.
+    pub sensor: Option<SensorFit>,
     /// Initial reflectance (default Lambertian, albedo 1).
     pub reflectance: Reflectance,
     /// Run reflectance blocks (default true; they only move θ when the model has free parameters beyond
@@ -138,6 +143,7 @@ impl Default for ReconstructParams {
     fn default() -> Self {
         Self {
             data: DataTerm::default(),
+            sensor: None,
             reflectance: Reflectance::default(),
             optimise_reflectance: true,
             schedule: Schedule::default(),
@@ -207,6 +213,9 @@ impl ReconstructParams {
             && (initial_samples == 0 || !(growth.is_finite() && growth >= 1.0))
         {
             return bad("sampling.growth", growth, "need initial_samples >= 1 and a finite growth >= 1");
+        }
+        if self.sensor.is_some() && self.data.weights.is_some() {
+            return bad("data.weights", 0.0, "per-bin weights are not supported with the sensor fit");
         }
         Ok(())
     }

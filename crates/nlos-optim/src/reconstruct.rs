@@ -480,10 +480,27 @@ struct Eval {
     grad_theta: Vec<f64>,
 }
 
-fn evaluate(st: &State, r: &Renderer, params: &ReconstructParams, measured: &[f32], norm: f64) -> Result<Eval> {
+/// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit with its resolved background.
+struct Fit<'a> {
+    params: &'a ReconstructParams,
+    measured: &'a [f32],
+    bins: usize,
+    /// Background per bin of the sensor fit (unused without one).
+    background: f64,
+    /// Normaliser of the data term.
+    norm: f64,
+}
+
+fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>) -> Result<Eval> {
+    let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
     let rendered = brdf.forward(r);
-    let ev = params.data.evaluate(&rendered, measured, st.scale)?;
+    let ev = match &params.sensor {
+        Some(sensor) => {
+            sensor.evaluate(&rendered, measured, fit.bins, fit.background, params.data.solve_scale, st.scale)?
+        }
+        None => params.data.evaluate(&rendered, measured, st.scale)?,
+    };
     let inv = (1.0 / norm) as f32;
     let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
     let g = brdf.adjoint(r, &d)?;
@@ -513,11 +530,20 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         return Err(OptimError::NonFiniteMeasurement { index: i, value: data[i] });
     }
     params.data.validate(data.len())?;
-    let norm = params.data.normaliser(data).ok_or(OptimError::InvalidParameter {
+    let background = match &params.sensor {
+        Some(sensor) => sensor.resolve_background(measured)?,
+        None => 0.0,
+    };
+    let norm = match &params.sensor {
+        Some(_) => crate::sensor::SensorFit::normaliser(data),
+        None => params.data.normaliser(data),
+    };
+    let norm = norm.ok_or(OptimError::InvalidParameter {
         name: "measured",
         value: 0.0,
         reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
     })?;
+    let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
     let sch = params.schedule;
     st.max_stages_hint = sch.max_stages;
     let mut direct = DirectEvolve;
@@ -551,7 +577,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let mut it = 0;
         while it < sch.shape_iterations {
             let attempt = (|| -> Result<Option<(Eval, f64, Vec<Vec3>)>> {
-                let ev = evaluate(&st, &renderer, params, data, norm)?;
+                let ev = evaluate(&st, &renderer, &fit)?;
                 let (r, rg) = reg.evaluate(&st.positions, &st.triangles)?;
                 let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
                 Ok(ok.then_some((ev, r, rg)))
@@ -611,7 +637,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             let mut good_refl: Option<(Reflectance, VectorAdam)> = None;
             let mut it = 0;
             while it < refl_iters {
-                let ev = evaluate(&st, &renderer, params, data, norm);
+                let ev = evaluate(&st, &renderer, &fit);
                 let ev = match ev {
                     Ok(ev) if ev.data.is_finite() && ev.grad_theta.iter().all(|g| g.is_finite()) => ev,
                     Ok(_) | Err(OptimError::Brdf(_)) => {

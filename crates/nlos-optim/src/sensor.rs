@@ -1,0 +1,316 @@
+//! The noise-aware data term (issue 9; Tsai et al. 2019, Sec. 7 propose it): fit photon **counts** through
+//! the SPAD's linear response instead of intensities.
+//!
+//! ## Model
+//! The rendered transient `I` (expected flux, arbitrary units) becomes expected counts
+//! ```text
+//! μ(I) = α·J I + b
+//! ```
+//! with `J` the sensor's timing response (convolution with the jitter kernel on the transient's bins,
+//! [`nlos_transient::sensor::BinKernel`]), `α` an unknown global intensity scale and `b` the background
+//! (dark counts + ambient light) per bin. The counts are `n_k ~ Poisson(μ_k)`, so the data term is the
+//! Poisson negative log-likelihood, written as the half-deviance (0 at a perfect fit, same as
+//! [`nlos_transient::sensor::poisson_nll`]):
+//! ```text
+//! E(I, α) = Σ_k [ μ_k − n_k + n_k ln(n_k / μ_k) ]          (μ_k floored at 1e-12)
+//! ```
+//!
+//! ## Scale: 1-D Newton
+//! `∂E/∂α = Σ_k a_k (1 − n_k/μ_k)` with `a = J I`, and `∂²E/∂α² = Σ_k n_k a_k²/μ_k² ≥ 0`: `E` is convex in
+//! `α`. Without background the minimiser is closed-form, `α₀ = Σ n / Σ a`; with `b > 0`, `∂E/∂α(α₀) ≥ 0`,
+//! so the root lies in `(0, α₀]`. Newton's method is run on `∂E/∂α` inside that bracket, falling back to
+//! bisection whenever a step leaves it (safeguarded Newton), to a relative tolerance of 1e-12. When the
+//! root is not positive (the background alone explains the counts) the caller's fallback scale is used.
+//!
+//! ## Gradient
+//! By the envelope theorem (`∂E/∂α = 0` at `α*`), `dE*/dI = ∂E/∂I(α*) = α*·Jᵀ(1 − n/μ)` — the jitter
+//! operator's adjoint applied to the NLL's derivative with respect to `μ`. `tests::whole_data_term_gradient`
+//! checks value and gradient by finite differences, re-solving `α` at every perturbed `I`.
+//!
+//! ## Background
+//! Fixed (known from a dark measurement or the sensor model) or estimated once per run from the bins
+//! before the first return of the measured counts ([`nlos_transient::sensor::estimate_background`]).
+
+use nlos_transient::Transient;
+use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse, SpadModel, estimate_background};
+
+use crate::error::{OptimError, Result};
+use crate::loss::DataEval;
+
+/// Floor on expected counts (value and gradient), as in `nlos_transient::sensor::likelihood`.
+const MU_FLOOR: f64 = 1e-12;
+
+/// Floor of the resolved background, as a fraction of the mean count per bin. A candidate surface that
+/// renders no light in a bin where photons were counted would otherwise meet `μ = 0` (an infinite NLL,
+/// clamped, with a gradient `n/1e-12`); every real SPAD has some background, and a floor this small changes
+/// the fit of bins with signal negligibly.
+pub const MIN_BACKGROUND_FRACTION: f64 = 1e-3;
+
+/// Where the background level `b` (expected counts per bin) comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SensorBackground {
+    /// A known level, counts per bin (≥ 0).
+    Fixed(f64),
+    /// Estimated once, at the start of the run, from these bins of the measured counts (e.g.
+    /// [`BackgroundWindow::Auto`]: the bins before the first return).
+    Estimate(BackgroundWindow),
+}
+
+/// The noise-aware fit: jitter kernel on the measurement's bins and background (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorFit {
+    /// The timing response `J` on the measurement's bins ([`BinKernel::identity`] for an ideal sensor).
+    pub kernel: BinKernel,
+    /// The background level.
+    pub background: SensorBackground,
+}
+
+impl SensorFit {
+    /// A fit with the jitter `response` resampled onto bins of `bin_width` metres of path (the
+    /// measurement's [`nlos_transient::TimeAxis::bin_width`]).
+    ///
+    /// # Errors
+    /// [`OptimError::Sensor`] for a bin width that is not finite and positive.
+    pub fn from_jitter(response: &JitterResponse, bin_width: f64, background: SensorBackground) -> Result<Self> {
+        Ok(Self { kernel: response.to_bins(bin_width)?, background })
+    }
+
+    /// The fit matching a SPAD model: its jitter (identity without one) and its background per bin
+    /// ([`SpadModel::background_per_bin`], fixed). Pile-up, dead time and afterpulsing are not part of the
+    /// linear model: fit pile-up-corrected counts (`nlos_transient::sensor::coates_correction`).
+    ///
+    /// # Errors
+    /// [`OptimError::Sensor`] for an invalid model or bin width.
+    pub fn from_spad(model: &SpadModel, bin_width: f64) -> Result<Self> {
+        model.validate()?;
+        Ok(Self {
+            kernel: model.kernel(bin_width)?,
+            background: SensorBackground::Fixed(model.background_per_bin(bin_width)),
+        })
+    }
+
+    /// The background level for `measured` counts: the fixed value, or the estimate from its window, at least
+    /// [`MIN_BACKGROUND_FRACTION`] × the mean count per bin.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] for a negative or non-finite fixed level, [`OptimError::Sensor`]
+    /// when the window is empty or outside the time axis.
+    pub fn resolve_background(&self, measured: &Transient) -> Result<f64> {
+        let b = match self.background {
+            SensorBackground::Fixed(b) => b,
+            SensorBackground::Estimate(window) => estimate_background(measured, window)?.per_bin.max(0.0),
+        };
+        if !(b.is_finite() && b >= 0.0) {
+            return Err(OptimError::InvalidParameter {
+                name: "sensor.background",
+                value: b,
+                reason: "the background must be finite and >= 0 (expected counts per bin)",
+            });
+        }
+        let data = measured.data();
+        let mean = data.iter().map(|&v| f64::from(v).max(0.0)).sum::<f64>() / data.len().max(1) as f64;
+        Ok(b.max(MIN_BACKGROUND_FRACTION * mean))
+    }
+
+    /// `J I` per histogram of `bins` bins, in f64.
+    fn jitter(&self, rendered: &[f32], bins: usize) -> Result<Vec<f64>> {
+        let x: Vec<f64> = rendered.iter().map(|&v| f64::from(v)).collect();
+        let mut a = vec![0.0; x.len()];
+        self.kernel.apply_f64(&x, bins, &mut a)?;
+        Ok(a)
+    }
+
+    /// The scale `α*` minimising `E` for `a = J I` (module docs), or `None` when it is not positive or
+    /// undefined (no signal).
+    pub fn optimal_scale_jittered(a: &[f64], counts: &[f32], background: f64) -> Option<f64> {
+        let (sum_a, sum_n) =
+            a.iter().zip(counts).fold((0.0, 0.0), |(sa, sn), (&ak, &nk)| (sa + ak, sn + f64::from(nk)));
+        let hi = sum_n / sum_a;
+        if !(sum_a > 0.0 && hi.is_finite() && hi > 0.0) {
+            return None;
+        }
+        if background <= 0.0 {
+            return Some(hi);
+        }
+        // g(α) = ∂E/∂α and g'(α); g is increasing (E convex).
+        let derivs = |alpha: f64| {
+            let (mut g, mut h) = (0.0, 0.0);
+            for (&ak, &nk) in a.iter().zip(counts) {
+                let n = f64::from(nk);
+                let mu = (alpha * ak + background).max(MU_FLOOR);
+                g += ak * (1.0 - n / mu);
+                h += n * ak * ak / (mu * mu);
+            }
+            (g, h)
+        };
+        // The root is in (0, hi]; at α → 0⁺, g = Σa − Σ n a / b: not negative ⇒ no positive root.
+        let (g0, _) = derivs(0.0);
+        if g0 >= 0.0 {
+            return None;
+        }
+        let (mut lo, mut up) = (0.0f64, hi);
+        let mut alpha = hi;
+        for _ in 0..100 {
+            let (g, h) = derivs(alpha);
+            if g == 0.0 {
+                return Some(alpha);
+            }
+            if g > 0.0 {
+                up = alpha;
+            } else {
+                lo = alpha;
+            }
+            let newton = alpha - g / h;
+            let next = if h > 0.0 && newton > lo && newton < up { newton } else { 0.5 * (lo + up) };
+            if (next - alpha).abs() <= 1e-12 * alpha.abs() || (up - lo) <= 1e-14 * up {
+                return Some(next);
+            }
+            alpha = next;
+        }
+        Some(alpha)
+    }
+
+    /// Value, scale and `dE*/dI` of the noise-aware data term for the rendered transient `rendered`
+    /// (expected flux) against `counts` (both measurement-major, `bins` per histogram), background
+    /// `background` (from [`SensorFit::resolve_background`]). With `solve_scale`, `α*` is used when
+    /// defined, else `fallback_scale`; without, `α = 1`.
+    ///
+    /// # Errors
+    /// [`OptimError::LengthMismatch`] for buffers of different lengths, [`OptimError::Sensor`] when they do
+    /// not split into histograms of `bins`, [`OptimError::InvalidParameter`] for negative or non-finite
+    /// counts or background.
+    pub fn evaluate(
+        &self,
+        rendered: &[f32],
+        counts: &[f32],
+        bins: usize,
+        background: f64,
+        solve_scale: bool,
+        fallback_scale: f64,
+    ) -> Result<DataEval> {
+        if counts.len() != rendered.len() {
+            return Err(OptimError::LengthMismatch { what: "measured", expected: rendered.len(), got: counts.len() });
+        }
+        if let Some(c) = counts.iter().find(|c| !(c.is_finite() && **c >= 0.0)) {
+            return Err(OptimError::InvalidParameter {
+                name: "measured",
+                value: f64::from(*c),
+                reason: "the sensor fit needs photon counts: finite and >= 0",
+            });
+        }
+        if !(background.is_finite() && background >= 0.0) {
+            return Err(OptimError::InvalidParameter {
+                name: "sensor.background",
+                value: background,
+                reason: "the background must be finite and >= 0 (expected counts per bin)",
+            });
+        }
+        let a = self.jitter(rendered, bins)?;
+        let scale = if solve_scale {
+            Self::optimal_scale_jittered(&a, counts, background).unwrap_or(fallback_scale)
+        } else {
+            1.0
+        };
+        let mut value = 0.0;
+        let mut r = vec![0.0; a.len()];
+        for ((rk, &ak), &nk) in r.iter_mut().zip(&a).zip(counts) {
+            let n = f64::from(nk);
+            let mu = (scale * ak + background).max(MU_FLOOR);
+            value += mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 };
+            *rk = 1.0 - n / mu;
+        }
+        let mut g = vec![0.0; r.len()];
+        self.kernel.adjoint_f64(&r, bins, &mut g)?;
+        let d_rendered = g.iter().map(|&v| (scale * v) as f32).collect();
+        Ok(DataEval { value, scale, d_rendered })
+    }
+
+    /// The normaliser of the data term, `Σ n` (as [`crate::DataTerm::normaliser`] for Poisson): `None` for
+    /// an all-zero capture.
+    pub fn normaliser(counts: &[f32]) -> Option<f64> {
+        let n: f64 = counts.iter().map(|&c| f64::from(c).abs()).sum();
+        (n > 0.0 && n.is_finite()).then_some(n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nlos_transient::sensor::poisson_nll;
+
+    const BINS: usize = 30;
+
+    fn setup() -> (SensorFit, Vec<f32>, Vec<f32>) {
+        let kernel = BinKernel::new(-1, vec![0.2, 0.5, 0.2, 0.1]).expect("kernel");
+        let fit = SensorFit { kernel, background: SensorBackground::Fixed(0.7) };
+        // Two histograms of a bump plus zeros; counts from a different bump (the fit is not exact).
+        let rendered: Vec<f32> =
+            (0..2 * BINS).map(|i| ((i % BINS) as f32 - 12.0).abs().max(0.0).mul_add(-0.1, 1.0).max(0.0)).collect();
+        let counts: Vec<f32> =
+            (0..2 * BINS).map(|i| ((i * 7 + 3) % 11) as f32 + if i % BINS > 8 { 4.0 } else { 0.0 }).collect();
+        (fit, rendered, counts)
+    }
+
+    #[test]
+    fn newton_scale_minimises_and_matches_the_transient_crate_nll() {
+        let (fit, r, n) = setup();
+        let ev = fit.evaluate(&r, &n, BINS, 0.7, true, 1.0).expect("ok");
+        let e = |s: f64| poisson_nll(&r, &n, BINS, &fit.kernel, s, 0.7).expect("nll").value;
+        assert!((e(ev.scale) - ev.value).abs() <= 1e-9 * ev.value.abs(), "{} vs {}", e(ev.scale), ev.value);
+        assert!(e(ev.scale) < e(ev.scale * 1.001) && e(ev.scale) < e(ev.scale * 0.999));
+        // ∂E/∂α = 0 at the optimum, by the transient crate's own gradient.
+        let g = poisson_nll(&r, &n, BINS, &fit.kernel, ev.scale, 0.7).expect("nll");
+        assert!(g.grad_scale.abs() < 1e-8 * (1.0 + ev.value), "{}", g.grad_scale);
+        // Without background: closed form Σn/ΣJI.
+        let a = fit.jitter(&r, BINS).expect("a");
+        let s0 = SensorFit::optimal_scale_jittered(&a, &n, 0.0).expect("s0");
+        let want = n.iter().map(|&v| f64::from(v)).sum::<f64>() / a.iter().sum::<f64>();
+        assert!((s0 - want).abs() < 1e-12 * want);
+    }
+
+    #[test]
+    fn whole_data_term_gradient_matches_finite_differences() {
+        let (fit, r, n) = setup();
+        // b = 0 only with counts where J I > 0 (elsewhere μ meets its floor, where E is not differentiable).
+        let a = fit.jitter(&r, BINS).expect("a");
+        let n0: Vec<f32> = n.iter().zip(&a).map(|(&c, &ak)| if ak > 0.0 { c } else { 0.0 }).collect();
+        for (b, solve, n) in [(0.7, true, &n), (0.0, true, &n0), (0.7, false, &n)] {
+            let ev = fit.evaluate(&r, n, BINS, b, solve, 1.0).expect("ok");
+            let e_star = |i: usize, h: f32| {
+                let mut rr = r.clone();
+                rr[i] += h;
+                fit.evaluate(&rr, n, BINS, b, solve, 1.0).expect("ok").value
+            };
+            // Interior bins, histogram edges (the kernel's truncation), zero-flux bins.
+            for i in [0, 1, 5, 12, 13, 29, 30, 44, 59] {
+                // A rendered transient is >= 0: at zero flux with b = 0, E has a kink at I = 0 (μ meets its
+                // floor below it), so the difference there is one-sided, from above.
+                let fd = if b == 0.0 && r[i] == 0.0 {
+                    let h = 1e-4f32;
+                    (e_star(i, h) - e_star(i, 0.0)) / f64::from(h)
+                } else {
+                    let h = 1e-3f32;
+                    (e_star(i, h) - e_star(i, -h)) / (2.0 * f64::from(h))
+                };
+                let an = f64::from(ev.d_rendered[i]);
+                assert!((fd - an).abs() <= 1e-3 * (1.0 + an.abs()), "b {b} solve {solve} bin {i}: fd {fd} vs {an}");
+            }
+        }
+    }
+
+    #[test]
+    fn background_alone_falls_back_and_bad_input_is_an_error() {
+        let (fit, r, _) = setup();
+        // Counts below the background everywhere: no positive scale explains them better than α = 0.
+        let n = vec![0.0f32; r.len()];
+        assert!(SensorFit::optimal_scale_jittered(&fit.jitter(&r, BINS).expect("a"), &n, 0.7).is_none());
+        assert_eq!(fit.evaluate(&r, &n, BINS, 0.7, true, 3.5).expect("ok").scale, 3.5);
+        let mut bad = n.clone();
+        bad[3] = -1.0;
+        assert!(matches!(fit.evaluate(&r, &bad, BINS, 0.7, true, 1.0), Err(OptimError::InvalidParameter { .. })));
+        assert!(matches!(fit.evaluate(&r, &n[1..], BINS, 0.7, true, 1.0), Err(OptimError::LengthMismatch { .. })));
+        assert!(matches!(fit.evaluate(&r, &n, 7, 0.7, true, 1.0), Err(OptimError::Sensor(_))));
+        assert!(matches!(fit.evaluate(&r, &n, BINS, f64::NAN, true, 1.0), Err(OptimError::InvalidParameter { .. })));
+        assert_eq!(SensorFit::normaliser(&n), None);
+    }
+}
