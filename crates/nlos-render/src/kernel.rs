@@ -59,6 +59,20 @@ impl KernelEval {
         }
     }
 
+    /// The tent kernel's constants for the block kernels (None for the other kernels).
+    pub(crate) fn tent(&self) -> Option<crate::soa::TentAxis> {
+        (self.kind == Kernel::Tent).then_some(crate::soa::TentAxis {
+            t0: self.t0,
+            inv_dt: self.inv_dt,
+            last: self.bins as f32 - 1.0,
+        })
+    }
+
+    /// `1/Δ`.
+    pub(crate) fn inv_dt(&self) -> f32 {
+        self.inv_dt
+    }
+
     /// Calls `f(k, K_k(τ), dK_k/dτ)` for every bin with a non-zero weight.
     #[inline(always)]
     fn weights(&self, tau: f32, mut f: impl FnMut(usize, f32, f32)) {

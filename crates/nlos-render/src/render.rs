@@ -10,7 +10,7 @@ use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::rng::SplitMix64;
-use crate::soa::{self, Acc, BLOCK, Block, Frame, Scratch, Soa};
+use crate::soa::{self, Acc, BLOCK, Block, Frame, Isa, Scratch, Soa, TentAxis};
 use crate::visibility::Bvh;
 
 /// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
@@ -170,6 +170,8 @@ pub struct Renderer {
     bvh: Option<Bvh>,
     /// Visible fraction × 255 per (measurement, triangle), measurement-major.
     cache: Option<Vec<u8>>,
+    /// Instruction set of the block kernels (runtime-detected).
+    isa: Isa,
 }
 
 impl Renderer {
@@ -227,6 +229,7 @@ impl Renderer {
             kernel: KernelEval::new(params.kernel, time.t0, time.bin_width, time.bins),
             bvh: None,
             cache: None,
+            isa: Isa::detect(),
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -348,14 +351,29 @@ impl Renderer {
         let bins = self.time.bins;
         let nt = self.tris.v0.len();
         let mut data = vec![0.0f32; self.len()];
+        // The tent fast path of the fixed rule splats into histograms padded by one bin at each end.
+        let pad = usize::from(self.tent_path().is_some());
         // Tiles of M_CHUNK measurements × BLOCK triangles: each task owns its histograms (no lock, no
         // reduction) and sweeps every block of triangles over them while the block is in cache.
-        data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, hists)| {
+        data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, out)| {
             let mut sc = Scratch::new();
+            let rows = out.len() / bins;
+            let mut local = vec![0.0f32; if pad == 1 { rows * (bins + 2) } else { 0 }];
             for t0 in (0..nt).step_by(BLOCK) {
                 let t1 = (t0 + BLOCK).min(nt);
-                for (j, hist) in hists.chunks_mut(bins).enumerate() {
-                    self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                if pad == 1 {
+                    for (j, hist) in local.chunks_mut(bins + 2).enumerate() {
+                        self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                    }
+                } else {
+                    for (j, hist) in out.chunks_mut(bins).enumerate() {
+                        self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                    }
+                }
+            }
+            if pad == 1 {
+                for (o, l) in out.chunks_mut(bins).zip(local.chunks(bins + 2)) {
+                    o.copy_from_slice(&l[1..=bins]);
                 }
             }
         });
@@ -387,9 +405,17 @@ impl Renderer {
         // Parallel over ranges of triangles: each task sweeps every measurement over its range, block by
         // block (the adjoint row stays in L1 across the blocks), and owns the range's accumulators, so there
         // is no lock and no reduction of per-thread vertex arrays. The range size depends on the mesh only
-        // (about 8 tasks, 1..16 blocks each), so the result does not depend on the thread count. Per
+        // (about 32 tasks, 1..16 blocks each), so the result does not depend on the thread count. Per
         // triangle: the 12 geometric sums of `Acc::flush`.
-        let per_task = nt.div_ceil(8).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
+        let per_task = nt.div_ceil(32).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
+        // The tent fast path gathers from rows padded by a zero bin at each end (bin k at k + 1).
+        let (padded, row_len) = if self.tent_path().is_some() {
+            let mut p = vec![0.0f32; d_loss.len() / bins * (bins + 2)];
+            p.par_chunks_mut(bins + 2).zip(d_loss.par_chunks(bins)).for_each(|(p, a)| p[1..=bins].copy_from_slice(a));
+            (std::borrow::Cow::Owned(p), bins + 2)
+        } else {
+            (std::borrow::Cow::Borrowed(d_loss), bins)
+        };
         let mut per_tri = vec![[0.0f64; 12]; nt];
         let per_task_params: Vec<[f64; 4]> = per_tri
             .par_chunks_mut(per_task)
@@ -399,6 +425,7 @@ impl Renderer {
                 let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
                 let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
                 let rows = || d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]);
+                let rows_fixed = || padded.chunks(row_len).enumerate().filter(|(m, _)| nonzero[*m]);
                 match self.fixed_level() {
                     Some(n) => {
                         // Sample points outermost: the f32 accumulators then hold plain sums of dE/dx, and
@@ -406,7 +433,7 @@ impl Renderer {
                         let mut acc = Acc::new(out.len());
                         self.centroids(n, |u, v, w| {
                             let mut pending = 0;
-                            for (m, adj) in rows() {
+                            for (m, adj) in rows_fixed() {
                                 for (b0, b1) in blocks() {
                                     self.adjoint_block(brdf, m, b0, b1, adj, (u, v, w), &mut acc, b0 - r0, &mut sc);
                                 }
@@ -655,21 +682,45 @@ impl Renderer {
             return;
         };
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
+        let tent = self.tent_path();
+        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
+        let isa = self.isa;
         self.centroids(n, |u, v, w| {
-            if self.wall.confocal {
-                soa::forward_samples::<B, true>(brdf, &blk, &fr, (u, v, w), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g);
-            } else {
-                soa::forward_samples::<B, false>(brdf, &blk, &fr, (u, v, w), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g);
+            match (self.wall.confocal, tent.is_some()) {
+                (true, true) => soa::forward_samples::<B, true, true>(isa, brdf, &blk, &fr, (u, v, w), &axis, sc),
+                (false, true) => soa::forward_samples::<B, false, true>(isa, brdf, &blk, &fr, (u, v, w), &axis, sc),
+                (true, false) => soa::forward_samples::<B, true, false>(isa, brdf, &blk, &fr, (u, v, w), &axis, sc),
+                (false, false) => soa::forward_samples::<B, false, false>(isa, brdf, &blk, &fr, (u, v, w), &axis, sc),
             }
             if live {
                 for i in 0..len {
                     if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr) {
                         sc.g[i] = 0.0;
+                        sc.w0[i] = 0.0;
+                        sc.w1[i] = 0.0;
                     }
                 }
             }
-            self.kernel.splat_all(&sc.tau[..len], &sc.g[..len], hist);
+            if tent.is_some() {
+                // `hist` is padded (bin k at k + 1) and idx ≤ bins, so both writes are in range; zero weights
+                // (skipped pairs) add nothing.
+                for i in 0..len {
+                    let p = sc.idx[i] as usize;
+                    if let Some([h0, h1]) = hist.get_mut(p..p + 2) {
+                        *h0 += sc.w0[i];
+                        *h1 += sc.w1[i];
+                    }
+                }
+            } else {
+                self.kernel.splat_all(&sc.tau[..len], &sc.g[..len], hist);
+            }
         });
+    }
+
+    /// The tent kernel's block constants when the fast path applies (fixed deterministic rule, tent kernel).
+    #[inline(always)]
+    fn tent_path(&self) -> Option<TentAxis> {
+        self.fixed_level().and(self.kernel.tent())
     }
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
@@ -696,33 +747,41 @@ impl Renderer {
         }
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let confocal = self.wall.confocal;
-        // Stage 1 (vector): |a|, |b| and the cosine tests.
-        if confocal {
-            soa::adjoint_lengths::<true>(&blk, &fr, (u, v), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g, &mut sc.ok);
-        } else {
-            soa::adjoint_lengths::<false>(&blk, &fr, (u, v), &sc.sign, &sc.vis, &mut sc.tau, &mut sc.g, &mut sc.ok);
+        let isa = self.isa;
+        let tent = self.tent_path();
+        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
+        // Stage 1 (vector): |a|, |b|, the cosine tests (and the tent's bins).
+        match (confocal, tent.is_some()) {
+            (true, true) => soa::adjoint_lengths::<true, true>(isa, &blk, &fr, (u, v), &axis, sc),
+            (false, true) => soa::adjoint_lengths::<false, true>(isa, &blk, &fr, (u, v), &axis, sc),
+            (true, false) => soa::adjoint_lengths::<true, false>(isa, &blk, &fr, (u, v), &axis, sc),
+            (false, false) => soa::adjoint_lengths::<false, false>(isa, &blk, &fr, (u, v), &axis, sc),
         }
-        // Stage 2 (scalar): gather the adjoint through the kernel, then the shadow ray of the samples that
-        // carry a gradient; zero for skipped pairs and occluded samples.
-        for i in 0..len {
-            let (mut av, mut ad) = (0.0, 0.0);
-            if sc.ok[i] != 0.0 {
-                (av, ad) = self.kernel.gather(sc.tau[i] + sc.g[i], adj);
-                if live
-                    && (av != 0.0 || ad != 0.0)
+        // Stage 2: gather the adjoint through the kernel (the tent from the padded row `adj`, vectorisable;
+        // other kernels pair by pair), then the shadow ray of the samples that carry a gradient; zero for
+        // skipped pairs and occluded samples.
+        if tent.is_some() {
+            soa::tent_gather(isa, len, adj, self.kernel.inv_dt(), sc);
+        } else {
+            for i in 0..len {
+                (sc.a_val[i], sc.a_der[i]) =
+                    if sc.ok[i] != 0.0 { self.kernel.gather(sc.tau[i] + sc.g[i], adj) } else { (0.0, 0.0) };
+            }
+        }
+        if live {
+            for i in 0..len {
+                if (sc.a_val[i] != 0.0 || sc.a_der[i] != 0.0)
                     && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr)
                 {
-                    (av, ad) = (0.0, 0.0);
+                    (sc.a_val[i], sc.a_der[i]) = (0.0, 0.0);
                 }
             }
-            sc.a_val[i] = av;
-            sc.a_der[i] = ad;
         }
         // Stage 3 (vector): the gradient terms, accumulated per triangle.
         if confocal {
-            soa::adjoint_samples::<B, true>(brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
+            soa::adjoint_samples::<B, true>(isa, brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
         } else {
-            soa::adjoint_samples::<B, false>(brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
+            soa::adjoint_samples::<B, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
         }
     }
 
@@ -895,4 +954,52 @@ fn check_params(p: &RenderParams) -> Result<()> {
         return bad("Visibility::Cached.level", f64::from(level), "must be in 1..=64");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nlos_brdf::{Fresnel, Ggx};
+    use nlos_transient::PointSet;
+
+    /// The AVX2 + FMA instantiations of the block kernels compute the same bits as the baseline ones (no
+    /// fused multiply-adds are requested, and every lane is independent), on a CPU that has AVX2 (else the
+    /// test compares the baseline with itself).
+    #[test]
+    fn avx2_and_baseline_kernels_agree_bitwise() {
+        let mut p = Vec::new();
+        let mut f = Vec::new();
+        for i in 0..300u32 {
+            let (x, y) = ((i % 20) as f32 * 0.02 - 0.2, (i / 20) as f32 * 0.02 - 0.15);
+            let z = 0.4 + 0.05 * (9.0 * x).sin();
+            p.extend([Vec3::new(x, y, z), Vec3::new(x, y + 0.02, z + 0.01), Vec3::new(x + 0.02, y, z - 0.01)]);
+            f.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let time = TimeAxis::new(0.6, 0.004, 150).expect("axis");
+        let brdf = Ggx::new(0.2f32, 0.8, 0.3, Fresnel::Schlick { f0: 0.5 }).expect("valid");
+        for scan in [
+            Scan::confocal(PointSet::wall_grid(3, 3, 0.2, 0.2).expect("grid")),
+            Scan::exhaustive(
+                PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid"),
+                PointSet::wall_grid(2, 1, 0.1, 0.1).expect("grid"),
+            ),
+        ] {
+            for kernel in [Kernel::Tent, Kernel::Gaussian { fwhm_bins: 2.0 }] {
+                let params = RenderParams {
+                    kernel,
+                    sampling: Sampling::Deterministic(DeterministicRule::fixed(2)),
+                    visibility: Visibility::Off,
+                    two_sided: true,
+                };
+                let mut r = Renderer::new(&p, &f, &scan, &time, params).expect("valid");
+                let fast = r.forward(&brdf);
+                let adj: Vec<f32> = (0..fast.len()).map(|i| (i as f32 * 0.37).sin()).collect();
+                let g_fast = r.adjoint(&brdf, &adj).expect("ok");
+                r.isa = Isa::baseline();
+                assert_eq!(fast, r.forward(&brdf), "forward ({kernel:?})");
+                assert_eq!(g_fast, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({kernel:?})");
+                assert!(fast.iter().any(|v| *v > 0.0));
+            }
+        }
+    }
 }

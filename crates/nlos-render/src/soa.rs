@@ -23,8 +23,8 @@ pub(crate) struct Soa {
     n: [Vec<f32>; 3],
     /// `0.5/|N|` (0 for degenerate triangles, which `valid` excludes anyway).
     inv_2n: Vec<f32>,
-    /// `|N|²`.
-    n2: Vec<f32>,
+    /// `1/|N|²` (0 for degenerate triangles).
+    inv_n2: Vec<f32>,
     valid: Vec<bool>,
     /// `order[slot]`: the mesh triangle stored at `slot`.
     pub(crate) order: Vec<u32>,
@@ -67,9 +67,9 @@ impl Soa {
             e1: split(e1),
             e2: split(e2),
             n: split(n),
-            // Same expressions as the per-pair code: 0.5 / n.length() and n.length_squared().
+            // Same expressions as the per-pair code: 0.5 / n.length() and 1 / n.length_squared().
             inv_2n: n.iter().zip(valid).map(|(n, ok)| if *ok { 0.5 / n.length() } else { 0.0 }).collect(),
-            n2: n.iter().map(|n| n.length_squared()).collect(),
+            inv_n2: n.iter().zip(valid).map(|(n, ok)| if *ok { 1.0 / n.length_squared() } else { 0.0 }).collect(),
             valid: valid.to_vec(),
             order,
         }
@@ -87,7 +87,7 @@ impl Soa {
             e2: s3(&self.e2, t0, t1),
             n: s3(&self.n, t0, t1),
             inv_2n: &self.inv_2n[t0..t1],
-            n2: &self.n2[t0..t1],
+            inv_n2: &self.inv_n2[t0..t1],
             valid: &self.valid[t0..t1],
         }
     }
@@ -102,7 +102,7 @@ pub(crate) struct Block<'a> {
     e2: [&'a [f32]; 3],
     n: [&'a [f32]; 3],
     inv_2n: &'a [f32],
-    n2: &'a [f32],
+    inv_n2: &'a [f32],
     valid: &'a [bool],
 }
 
@@ -170,31 +170,147 @@ pub(crate) struct Scratch {
     pub(crate) a_der: Vec<f32>,
     /// Whether the sample passed the cosine tests (1.0 or 0.0: a float store keeps the loop vectorised).
     pub(crate) ok: Vec<f32>,
+    /// Tent fast path: index of the lower bin in the padded histogram / adjoint row (bin k at k + 1).
+    pub(crate) idx: Vec<u32>,
+    /// Tent fast path: weight of the lower bin (forward: times the sample value), or the fraction (adjoint).
+    pub(crate) w0: Vec<f32>,
+    /// Tent fast path: weight of the upper bin times the sample value (forward).
+    pub(crate) w1: Vec<f32>,
 }
 
 impl Scratch {
     pub(crate) fn new() -> Self {
         let z = || vec![0.0f32; BLOCK];
-        Self { sign: z(), vis: z(), tau: z(), g: z(), a_val: z(), a_der: z(), ok: z() }
+        Self {
+            sign: z(),
+            vis: z(),
+            tau: z(),
+            g: z(),
+            a_val: z(),
+            a_der: z(),
+            ok: z(),
+            idx: vec![0; BLOCK],
+            w0: z(),
+            w1: z(),
+        }
+    }
+}
+
+/// The instruction set the block kernels run with: baseline x86-64 (SSE2, 4 lanes), or AVX2 + FMA (8 lanes)
+/// when the CPU has them. A value with `avx2 = true` exists only after a positive runtime check
+/// ([`Isa::detect`]), which is what makes the `unsafe` calls of the `target_feature` kernels sound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Isa {
+    avx2: bool,
+}
+
+impl Isa {
+    /// The best instruction set of this CPU.
+    pub(crate) fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            Self { avx2: std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            Self { avx2: false }
+        }
+    }
+
+    /// Baseline instructions only (for tests of the dispatch).
+    #[cfg(test)]
+    pub(crate) fn baseline() -> Self {
+        Self { avx2: false }
+    }
+}
+
+/// Runs `$body` (a call of an `#[inline(always)]` kernel body) compiled for AVX2 + FMA when `$isa` says the
+/// CPU has them, else for the baseline. The body is instantiated twice: inside a `#[target_feature]` function
+/// (where LLVM vectorises it 8 lanes wide) and in place.
+macro_rules! dispatch {
+    ($isa:expr, $body:expr) => {{
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2,fma")]
+            #[inline]
+            fn avx2<R>(f: impl FnOnce() -> R) -> R {
+                f()
+            }
+            if $isa.avx2 {
+                // SAFETY: `Isa { avx2: true }` is only built by `Isa::detect` after
+                // `is_x86_feature_detected!("avx2")` and `("fma")` both returned true on this CPU.
+                #[allow(unsafe_code)]
+                let r = unsafe { avx2(|| $body) };
+                r
+            } else {
+                $body
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            $body
+        }
+    }};
+}
+
+/// The tent kernel's bin arithmetic in the block kernels (the same expressions as `KernelEval::weights`):
+/// `c = (τ − t0)/Δ − ½`, lower bin `k0 = ⌊c⌋`, weights `1 − (c − k0)` and `c − k0`. Histograms and adjoint
+/// rows are padded by one zero bin at each end (bin k at index k + 1), so a pair whose lower bin is in
+/// `−1..bins` needs no bounds logic; other pairs have no bin in range and get weight 0.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TentAxis {
+    pub(crate) t0: f32,
+    pub(crate) inv_dt: f32,
+    /// `bins − 1`, the largest valid lower bin.
+    pub(crate) last: f32,
+}
+
+impl TentAxis {
+    /// `(padded index of the lower bin, fraction c − k0, whether any bin is in range)`. Branch-free; for a
+    /// non-finite τ the flag is false.
+    #[inline(always)]
+    fn bin(&self, tau: f32) -> (u32, f32, bool) {
+        let c = (tau - self.t0) * self.inv_dt - 0.5;
+        // floor(c) without a libm call: truncate (saturating, NaN → 0), then step down for negative
+        // non-integers (exact for |c| < 2^31; beyond, `in_range` is false anyway).
+        let tr = c as i32 as f32;
+        let kf = if tr > c { tr - 1.0 } else { tr };
+        let frac = c - kf;
+        let in_range = (kf >= -1.0) & (kf <= self.last);
+        let p = (kf.max(-1.0).min(self.last) + 1.0) as u32;
+        (p, frac, in_range)
     }
 }
 
 /// Forward, one sample `(u, v, w)` per triangle of the block: `tau[i]` and `g[i]` = weight × visibility ×
-/// f_s × Q (0 where the pair or the sample is skipped). `CONFOCAL`: `s = l` (`b = a`, one square root).
+/// f_s × Q (0 where the pair or the sample is skipped); with `TENT`, also the tent kernel's padded bin index
+/// `idx[i]` and the two weighted bin contributions `w0[i]`, `w1[i]` (0 out of range). `CONFOCAL`: `s = l`
+/// (`b = a`, one square root).
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool>(
+pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool, const TENT: bool>(
+    isa: Isa,
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    uvw: (f32, f32, f32),
+    tent: &TentAxis,
+    sc: &mut Scratch,
+) {
+    dispatch!(isa, forward_samples_body::<B, CONFOCAL, TENT>(brdf, b, fr, uvw, tent, sc))
+}
+
+#[inline(always)]
+fn forward_samples_body<B: RenderBrdf, const CONFOCAL: bool, const TENT: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
     (u, v, w): (f32, f32, f32),
-    sign: &[f32],
-    vis: &[f32],
-    tau: &mut [f32],
-    g: &mut [f32],
+    tent: &TentAxis,
+    sc: &mut Scratch,
 ) {
     let len = b.len;
-    let (sign, vis, tau, g) = (&sign[..len], &vis[..len], &mut tau[..len], &mut g[..len]);
+    let (sign, vis, tau, g) = (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len]);
+    let (idx, w0, w1) = (&mut sc.idx[..len], &mut sc.w0[..len], &mut sc.w1[..len]);
     let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
     let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
     let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
@@ -208,36 +324,56 @@ pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool>(
         let cl = -fr.n_l.dot(a);
         let pl = n.dot(a);
         let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        // One-sided wall and surface cosines (max(0, ·) of eq. 2); NaN fails too.
-        // NaN fails too; `&`, not `&&`: no short-circuit branches in the loop body.
+        // One-sided wall and surface cosines (max(0, ·) of eq. 2); NaN fails too; `&`, not `&&`: no
+        // short-circuit branches in the loop body.
         let ok = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
         let ra2 = a.length_squared();
         let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
         let ra = ra2.sqrt();
-        tau[i] = if CONFOCAL { ra + ra } else { ra + rb2.sqrt() };
+        let t = if CONFOCAL { ra + ra } else { ra + rb2.sqrt() };
+        tau[i] = t;
         let fs = if CONFOCAL { brdf.eval_confocal(a, n) } else { brdf.eval(a, bb, n) };
         let q = cl * pl * cs * ps * inv_2n[i] / (ra2 * ra2 * rb2 * rb2);
         let val = w * vis[i] * fs * q;
-        g[i] = if ok { val } else { 0.0 };
+        let gv = if ok { val } else { 0.0 };
+        g[i] = gv;
+        if TENT {
+            let (p, frac, in_range) = tent.bin(t);
+            let gt = if in_range { gv } else { 0.0 };
+            idx[i] = p;
+            w0[i] = gt * (1.0 - frac);
+            w1[i] = gt * frac;
+        }
     }
 }
 
 /// Adjoint, stage 1 of one sample per triangle: `ra[i] = |a|`, `rb[i] = |b|`, `ok[i]` = the pair is
-/// oriented, visible in the cache and passes the cosine tests.
+/// oriented, visible in the cache and passes the cosine tests (1.0 or 0.0); with `TENT`, also the padded
+/// bin index `idx[i]` and fraction `w0[i]` of the tent kernel, and `ok[i]` = 0 where no bin is in range.
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn adjoint_lengths<const CONFOCAL: bool>(
+pub(crate) fn adjoint_lengths<const CONFOCAL: bool, const TENT: bool>(
+    isa: Isa,
+    b: &Block<'_>,
+    fr: &Frame,
+    uv: (f32, f32),
+    tent: &TentAxis,
+    sc: &mut Scratch,
+) {
+    dispatch!(isa, adjoint_lengths_body::<CONFOCAL, TENT>(b, fr, uv, tent, sc))
+}
+
+#[inline(always)]
+fn adjoint_lengths_body<const CONFOCAL: bool, const TENT: bool>(
     b: &Block<'_>,
     fr: &Frame,
     (u, v): (f32, f32),
-    sign: &[f32],
-    vis: &[f32],
-    ra: &mut [f32],
-    rb: &mut [f32],
-    ok: &mut [f32],
+    tent: &TentAxis,
+    sc: &mut Scratch,
 ) {
     let len = b.len;
-    let (sign, vis, ra, rb, ok) = (&sign[..len], &vis[..len], &mut ra[..len], &mut rb[..len], &mut ok[..len]);
+    let (sign, vis, ra, rb, ok) =
+        (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len], &mut sc.ok[..len]);
+    let (idx, fr_) = (&mut sc.idx[..len], &mut sc.w0[..len]);
     let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
     let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
     let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
@@ -252,10 +388,40 @@ pub(crate) fn adjoint_lengths<const CONFOCAL: bool>(
         let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
         // `&`, not `&&`: no short-circuit branches in the loop body (they block vectorisation).
         let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
-        ok[i] = f32::from(u8::from(pass));
         let r = a.length_squared().sqrt();
+        let r2 = if CONFOCAL { r } else { bb.length_squared().sqrt() };
         ra[i] = r;
-        rb[i] = if CONFOCAL { r } else { bb.length_squared().sqrt() };
+        rb[i] = r2;
+        if TENT {
+            let (p, frac, in_range) = tent.bin(r + r2);
+            idx[i] = p;
+            fr_[i] = frac;
+            ok[i] = f32::from(u8::from(pass & in_range));
+        } else {
+            ok[i] = f32::from(u8::from(pass));
+        }
+    }
+}
+
+/// Adjoint, stage 2 of the tent kernel: `a_val[i] = Σ_k a_k K_k(τ)` and `a_der[i] = Σ_k a_k dK_k/dτ` from the
+/// padded adjoint row `adj` (bin k at k + 1, zeros at both ends), 0 where `ok[i] = 0`.
+#[inline(never)]
+pub(crate) fn tent_gather(isa: Isa, len: usize, adj: &[f32], inv_dt: f32, sc: &mut Scratch) {
+    dispatch!(isa, tent_gather_body(len, adj, inv_dt, sc))
+}
+
+#[inline(always)]
+fn tent_gather_body(len: usize, adj: &[f32], inv_dt: f32, sc: &mut Scratch) {
+    let (idx, frac, ok) = (&sc.idx[..len], &sc.w0[..len], &sc.ok[..len]);
+    let (a_val, a_der) = (&mut sc.a_val[..len], &mut sc.a_der[..len]);
+    for i in 0..len {
+        let p = idx[i] as usize;
+        // In range by construction (p ≤ bins, the row has bins + 2 entries); `get` keeps it panic-free.
+        let a0 = adj.get(p).copied().unwrap_or(0.0);
+        let a1 = adj.get(p + 1).copied().unwrap_or(0.0);
+        let f = frac[i];
+        a_val[i] = ok[i] * (a0 * (1.0 - f) + a1 * f);
+        a_der[i] = ok[i] * ((a1 - a0) * inv_dt);
     }
 }
 
@@ -298,15 +464,16 @@ impl Acc {
 }
 
 /// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
-/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` from index `offset` on where `a_val[i]` or `a_der[i]` is non-zero
-/// (stage 2 zeroes both for skipped pairs and occluded samples).
-#[inline(always)]
+/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` from index `offset` on where `a_val[i]` or
+/// `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
+    isa: Isa,
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
-    (u, v, w): (f32, f32, f32),
+    uvw: (f32, f32, f32),
     sc: &Scratch,
     acc: &mut Acc,
     offset: usize,
@@ -315,17 +482,66 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
     let [gn0, gn1, gn2] = &mut acc.gn;
     let [p0, p1, p2, p3] = &mut acc.p;
     let o = offset;
-    let (gx0, gx1, gx2, gn0, gn1, gn2) =
-        (&mut gx0[o..], &mut gx1[o..], &mut gx2[o..], &mut gn0[o..], &mut gn1[o..], &mut gn2[o..]);
-    let (p0, p1, p2, p3) = (&mut p0[o..], &mut p1[o..], &mut p2[o..], &mut p3[o..]);
-    // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
-    // vectorises without runtime overlap checks.
-    adjoint_samples_acc::<B, CONFOCAL>(brdf, b, fr, (u, v, w), sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3);
+    let g = [&mut gx0[o..], &mut gx1[o..], &mut gx2[o..], &mut gn0[o..], &mut gn1[o..], &mut gn2[o..]];
+    let p = [&mut p0[o..], &mut p1[o..], &mut p2[o..], &mut p3[o..]];
+    adjoint_samples_acc::<B, CONFOCAL>(isa, brdf, b, fr, uvw, sc, g, p);
 }
 
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
+    isa: Isa,
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    uvw: (f32, f32, f32),
+    sc: &Scratch,
+    [gx0, gx1, gx2, gn0, gn1, gn2]: [&mut [f32]; 6],
+    [p0, p1, p2, p3]: [&mut [f32]; 4],
+) {
+    // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
+    // vectorises without runtime overlap checks. (Not through `dispatch!`: slices captured by a closure lose
+    // that knowledge, and LLVM then leaves the loop scalar.)
+    #[cfg(target_arch = "x86_64")]
+    if isa.avx2 {
+        // SAFETY: `Isa { avx2: true }` is only built by `Isa::detect` after `is_x86_feature_detected!("avx2")`
+        // and `("fma")` both returned true on this CPU.
+        #[allow(unsafe_code)]
+        unsafe {
+            adjoint_samples_avx2::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+        };
+        return;
+    }
+    adjoint_samples_body::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+}
+
+/// [`adjoint_samples_body`] compiled for AVX2 + FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+fn adjoint_samples_avx2<B: RenderBrdf, const CONFOCAL: bool>(
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    uvw: (f32, f32, f32),
+    sc: &Scratch,
+    gx0: &mut [f32],
+    gx1: &mut [f32],
+    gx2: &mut [f32],
+    gn0: &mut [f32],
+    gn1: &mut [f32],
+    gn2: &mut [f32],
+    p0: &mut [f32],
+    p1: &mut [f32],
+    p2: &mut [f32],
+    p3: &mut [f32],
+) {
+    adjoint_samples_body::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
@@ -349,7 +565,7 @@ fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
     let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
     let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
     let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
-    let (inv_2n, n2s) = (&b.inv_2n[..len], &b.n2[..len]);
+    let (inv_2n, inv_n2) = (&b.inv_2n[..len], &b.inv_n2[..len]);
     let np = B::PARAM_NAMES.len().min(4);
     let (gx0, gx1, gx2, gn0, gn1, gn2) =
         (&mut gx0[..len], &mut gx1[..len], &mut gx2[..len], &mut gn0[..len], &mut gn1[..len], &mut gn2[..len]);
@@ -361,36 +577,52 @@ fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
         let sg = sign[i];
         let n = sg * at(&nn, i);
         let a = fr.l - x;
-        let bb = if CONFOCAL { a } else { fr.s - x };
         let cl = -fr.n_l.dot(a);
         let pl = n.dot(a);
-        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        let ra2 = a.length_squared();
-        let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
         let (ra, rb) = (ra_s[i], rb_s[i]);
-        let (fs, df_a, df_b, df_n, df_p) = if CONFOCAL {
-            let g = brdf.eval_grad_confocal(a, n);
-            // Total derivative along the shared direction: only d/da + d/db is ever used below.
-            (g.value, g.d_omega, Vec3::ZERO, g.d_n, B::param_grad_array(&g.d_params))
-        } else {
-            let g = brdf.eval_grad(a, bb, n);
-            (g.value, g.d_omega_l, g.d_omega_s, g.d_n, B::param_grad_array(&g.d_params))
-        };
-        // Q = cl pl cs ps / (2|N| ra⁴ rb⁴): the geometry of eq. (2) times the area |N|/2 (see crate docs).
-        let denom = inv_2n[i] / (ra2 * ra2 * rb2 * rb2);
-        let q = cl * pl * cs * ps * denom;
-        let dq_a = cs * ps * denom * (cl * n - pl * fr.n_l) - (4.0 * q / ra2) * a;
-        let dq_b = cl * pl * denom * (cs * n - ps * fr.n_s) - (4.0 * q / rb2) * bb;
-        let dq_n = cl * cs * denom * (ps * a + pl * bb) - (q / n2s[i]) * n;
         let s = w * vis[i];
-        let h = fs * q;
-        // dE = A_val dh + h A_der dτ, dτ/da = a/ra, dτ/db = b/rb.
-        let ga = s * (av * (fs * dq_a + q * df_a) + (h * ad / ra) * a);
-        let gb = s * (av * (fs * dq_b + q * df_b) + (h * ad / rb) * bb);
-        let gn = sg * (s * av * (fs * dq_n + q * df_n));
-        // x = v0 + u e1 + v e2 and a = l − x, b = s − x ⇒ dE/dx = −(ga + gb).
-        let gx = -(ga + gb);
-        let sp = s * av * q;
+        // One division per pair: 1/|a|² (and 1/|b|²) from 1/(|a|²|b|²); 1/|a| = |a|/|a|².
+        let (gx, gn, sp, df_p) = if CONFOCAL {
+            // b = a, c_s = c_l, p_s = p_l, n_s = n_l: dE/da + dE/db in one expression.
+            let ra2 = a.length_squared();
+            let inv_ra2 = 1.0 / ra2;
+            let i4 = inv_ra2 * inv_ra2;
+            let denom = inv_2n[i] * (i4 * i4);
+            let clpl = cl * pl;
+            let q = clpl * clpl * denom;
+            let g = brdf.eval_grad_confocal(a, n);
+            let fs = g.value;
+            let h = fs * q;
+            // ∂Q/∂a (= ∂Q/∂b): c_l p_l/(2|N| r⁸) (c_l N − p_l n_l) − 4 Q a/r².
+            let dq_a = (clpl * denom) * (cl * n - pl * fr.n_l) - (4.0 * q * inv_ra2) * a;
+            // ∂Q/∂N = c_l² (2 p_l a)/(2|N| r⁸) − Q N/|N|².
+            let dq_n = (cl * cl * denom * 2.0 * pl) * a - (q * inv_n2[i]) * n;
+            // g.d_omega is the total derivative along the shared direction (∂/∂a + ∂/∂b).
+            let gab = s * (av * (2.0 * fs * dq_a + q * g.d_omega) + (2.0 * h * ad * (ra * inv_ra2)) * a);
+            let gn = sg * (s * av * (fs * dq_n + q * g.d_n));
+            (-gab, gn, s * av * q, B::param_grad_array(&g.d_params))
+        } else {
+            let bb = fr.s - x;
+            let cs = -fr.n_s.dot(bb);
+            let ps = n.dot(bb);
+            let (ra2, rb2) = (a.length_squared(), bb.length_squared());
+            let inv = 1.0 / (ra2 * rb2);
+            let (inv_ra2, inv_rb2) = (rb2 * inv, ra2 * inv);
+            let denom = inv_2n[i] * (inv * inv);
+            let q = cl * pl * cs * ps * denom;
+            let g = brdf.eval_grad(a, bb, n);
+            let fs = g.value;
+            let h = fs * q;
+            let dq_a = (cs * ps * denom) * (cl * n - pl * fr.n_l) - (4.0 * q * inv_ra2) * a;
+            let dq_b = (cl * pl * denom) * (cs * n - ps * fr.n_s) - (4.0 * q * inv_rb2) * bb;
+            let dq_n = (cl * cs * denom) * (ps * a + pl * bb) - (q * inv_n2[i]) * n;
+            // dE = A_val dh + h A_der dτ, dτ/da = a/|a|, dτ/db = b/|b|.
+            let ga = s * (av * (fs * dq_a + q * g.d_omega_l) + (h * ad * (ra * inv_ra2)) * a);
+            let gb = s * (av * (fs * dq_b + q * g.d_omega_s) + (h * ad * (rb * inv_rb2)) * bb);
+            let gn = sg * (s * av * (fs * dq_n + q * g.d_n));
+            (-(ga + gb), gn, s * av * q, B::param_grad_array(&g.d_params))
+        };
+        // x = v0 + u e1 + v e2 and a = l − x, b = s − x ⇒ dE/dx = −(ga + gb) (gx above).
         // A bit mask, not a branch or a select (which the compiler turns back into a conditional store that
         // blocks vectorisation): inactive lanes (possibly non-finite) add exactly +0.
         let mask = 0u32.wrapping_sub(u32::from(active));
