@@ -1,0 +1,314 @@
+//! # nlos-report
+//!
+//! The report of a reconstruction run (issue 8: "PNGs of measured vs rendered time-summed images and x–t
+//! slices, a loss-curve plot, a one-page HTML report that shows them"). From a run directory written by
+//! `nlos_optim::reconstruct` / `nlos reconstruct` — `mesh.obj` (final), `init.obj` (initial surface, when
+//! present), `run_log.json`, `checkpoint.json` (for the reflectance), `stage_NN.obj` — and the measured
+//! capture, [`write_report`] writes into the same directory:
+//!
+//! | file | what |
+//! |---|---|
+//! | `summed.png` | measured vs rendered time-summed images (for a sensor list: summed histograms) |
+//! | `xt_slice.png` | measured vs rendered x–t slices through the middle sensor row |
+//! | `loss.png` | total loss, data term and weighted regulariser per iteration, stage starts marked |
+//! | `depth_init.png`, `depth_final.png`, `depth_gt.png` | depth maps seen from the wall (+z rays) |
+//! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
+//! | `report.html` | one self-contained page: run parameters, metrics, per-stage table, the images |
+//!
+//! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
+//! with the run's reflectance (from the checkpoint) and the renderer settings of the run
+//! ([`ReportOptions::render`]). The measured data's scale is arbitrary, so the rendering is shown as
+//! `s*·I` with the closed-form scale of the run's loss (`nlos_optim::DataTerm::optimal_scale`: for L2,
+//! `s* = ⟨I, Ĩ⟩/⟨I, I⟩`, eq. 7 of Tsai et al. 2019 minimised over s), computed on the bins after the
+//! direct-light gate — the bins the figures show.
+//!
+//! **Depth maps.** +z rays from a grid over the scan's bounding rectangle, first hits through
+//! `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one colour range, the 1st–99th
+//! percentile of the ground truth's depths (else the final mesh's), so millimetre relief stays visible.
+//!
+//! **Metrics** (with a ground truth): `nlos_mesh::metrics::evaluate` of the initial and final meshes,
+//! on a [`ReportOptions::eval_grid`]² grid over the same rectangle.
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod figures;
+mod html;
+
+use std::path::{Path, PathBuf};
+
+use nlos_mesh::SurfaceMesh;
+use nlos_mesh::metrics::Metrics;
+use nlos_optim::{DataTerm, Loss, Reflectance, RunLog, SensorFit};
+use nlos_render::{RenderParams, Renderer};
+use nlos_transient::Transient;
+use nlos_viz::RgbImage;
+
+pub use error::{ReportError, Result};
+pub use figures::DepthView;
+
+/// The HTML page's file name in the run directory.
+pub const REPORT_FILE: &str = "report.html";
+/// The final mesh (written by `nlos_optim` when a run finishes).
+pub const MESH_FILE: &str = "mesh.obj";
+/// The initial surface (written by `nlos reconstruct`).
+pub const INIT_FILE: &str = "init.obj";
+
+/// How the report is made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReportOptions {
+    /// Page title (default "nlos reconstruction").
+    pub title: String,
+    /// Run parameters to list, in order (e.g. the command line's), besides what the run directory tells.
+    pub parameters: Vec<(String, String)>,
+    /// The renderer settings of the run (kernel, sampling, visibility, sidedness), used to render the final
+    /// mesh. Default: `nlos_optim::ReconstructParams::default().render`.
+    pub render: RenderParams,
+    /// The run's loss, which defines the closed-form scale (default L2).
+    pub loss: Loss,
+    /// The run's noise-aware sensor fit, if any (`nlos_optim::ReconstructParams::sensor`): the rendering is
+    /// then shown as expected counts `α*·J(I) + b` (jitter kernel `J`, background `b`, the fit's scale `α*`
+    /// on the whole capture), as the fit saw it. Default None.
+    pub sensor: Option<SensorFit>,
+    /// Direct-light gate, metres of path: bins before it are left out of the figures and the scale;
+    /// `None` (default) estimates it (`Transient::direct_light_end`).
+    pub gate: Option<f64>,
+    /// Sensor row of the x–t slices (default: the middle row).
+    pub slice_row: Option<usize>,
+    /// Pixels per side of the depth maps (default 256; 1..=4096).
+    pub depth_grid: usize,
+    /// Pixels per side of the metrics' ray grid (default 128, as `nlos eval`; 1..=4096).
+    pub eval_grid: usize,
+    /// Side of the relief filter's box, metres (default 0.025).
+    pub relief_box: f64,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        Self {
+            title: "nlos reconstruction".into(),
+            parameters: Vec::new(),
+            render: nlos_optim::ReconstructParams::default().render,
+            loss: Loss::L2,
+            sensor: None,
+            gate: None,
+            slice_row: None,
+            depth_grid: 256,
+            eval_grid: 128,
+            relief_box: 0.025,
+        }
+    }
+}
+
+/// What [`write_report`] wrote and found.
+#[derive(Debug, Clone)]
+pub struct Report {
+    /// The HTML page.
+    pub html: PathBuf,
+    /// The images, file names relative to the run directory, in page order.
+    pub images: Vec<String>,
+    /// The closed-form intensity scale of the final rendering against the gated measurement.
+    pub scale: f64,
+    /// Relative residual `‖s*·I − Ĩ‖ / ‖Ĩ‖` over the gated bins.
+    pub relative_residual: f64,
+    /// The direct-light gate used (metres of path; the axis start when nothing was gated).
+    pub gate: f64,
+    /// Metrics of the initial surface against the ground truth (with a ground truth and `init.obj`).
+    pub metrics_init: Option<Metrics>,
+    /// Metrics of the final mesh against the ground truth.
+    pub metrics_final: Option<Metrics>,
+}
+
+fn read(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|source| ReportError::Io { file: path.to_owned(), source })
+}
+
+fn load_mesh(path: &Path, hint: &'static str) -> Result<SurfaceMesh> {
+    if !path.is_file() {
+        return Err(ReportError::MissingFile { file: path.to_owned(), hint });
+    }
+    Ok(nlos_mesh::metrics::load_for_eval(path)?)
+}
+
+/// Reads `run_log.json` of a run directory.
+///
+/// # Errors
+/// [`ReportError::MissingFile`], [`ReportError::Io`], [`ReportError::Json`].
+pub fn read_run_log(dir: &Path) -> Result<RunLog> {
+    let path = dir.join(nlos_optim::RUN_LOG_FILE);
+    if !path.is_file() {
+        return Err(ReportError::MissingFile { file: path, hint: "nlos reconstruct writes it after every block" });
+    }
+    serde_json::from_slice(&read(&path)?).map_err(|e| ReportError::Json { file: path, message: e.to_string() })
+}
+
+/// The reflectance recorded in `checkpoint.json`, or `None` when there is no checkpoint.
+///
+/// # Errors
+/// [`ReportError::Io`], or [`ReportError::Json`] for a checkpoint without a valid `reflectance`.
+pub fn read_reflectance(dir: &Path) -> Result<Option<Reflectance>> {
+    let path = dir.join(nlos_optim::CHECKPOINT_FILE);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let json = |message: String| ReportError::Json { file: path.clone(), message };
+    let v: serde_json::Value = serde_json::from_slice(&read(&path)?).map_err(|e| json(e.to_string()))?;
+    let r = v.get("reflectance").ok_or_else(|| json("no `reflectance` field".into()))?;
+    Ok(Some(serde_json::from_value(r.clone()).map_err(|e| json(e.to_string()))?))
+}
+
+fn save(img: &RgbImage, dir: &Path, name: &str, images: &mut Vec<String>) -> Result<()> {
+    img.save_png(dir.join(name))?;
+    images.push(name.to_string());
+    Ok(())
+}
+
+fn check_grid(name: &'static str, n: usize) -> Result<()> {
+    if (1..=nlos_mesh::metrics::MAX_GRID).contains(&n) {
+        Ok(())
+    } else {
+        Err(ReportError::InvalidOption { name, reason: format!("{n} pixels per side; use 1 to 4096") })
+    }
+}
+
+/// Writes the report of the run in `dir` (module documentation: inputs, files, methods) and returns what
+/// it wrote. `measured` must be the capture the run fitted (after the same rebinning/subsampling);
+/// `ground_truth` adds its depth map and the metrics.
+///
+/// # Errors
+/// [`ReportError::MissingFile`] without `mesh.obj` or `run_log.json`; [`ReportError::InvalidOption`];
+/// errors reading the files, rendering, ray casting or drawing.
+pub fn write_report(
+    dir: &Path,
+    measured: &Transient,
+    ground_truth: Option<&SurfaceMesh>,
+    opts: &ReportOptions,
+) -> Result<Report> {
+    check_grid("depth_grid", opts.depth_grid)?;
+    check_grid("eval_grid", opts.eval_grid)?;
+    if !(opts.relief_box.is_finite() && opts.relief_box > 0.0) {
+        return Err(ReportError::InvalidOption {
+            name: "relief_box",
+            reason: format!("{} m; must be finite and > 0", opts.relief_box),
+        });
+    }
+    let log = read_run_log(dir)?;
+    let final_mesh = load_mesh(&dir.join(MESH_FILE), "nlos reconstruct writes it when the run finishes")?;
+    let init_path = dir.join(INIT_FILE);
+    let init_mesh = if init_path.is_file() { Some(load_mesh(&init_path, "")?) } else { None };
+    let (reflectance, reflectance_note) = match read_reflectance(dir)? {
+        Some(r) => (r, "from checkpoint.json"),
+        None => (Reflectance::default(), "no checkpoint.json: Lambertian assumed"),
+    };
+
+    // ---- render the final mesh and gate both ----
+    let ax = *measured.time();
+    let gate = opts.gate.unwrap_or_else(|| measured.direct_light_end()).clamp(ax.t0, ax.end());
+    let gated = |t: &Transient| -> Result<Transient> { Ok(if gate > ax.t0 { t.gate(gate)? } else { t.clone() }) };
+    let (positions, triangles) = final_mesh.to_triangles();
+    let renderer = Renderer::new(&positions, &triangles, measured.scan(), &ax, opts.render)?;
+    let rendered = reflectance.brdf()?.forward(&renderer);
+    let measured_g = gated(measured)?;
+    let (scaled, scale) = match &opts.sensor {
+        Some(sensor) => {
+            // Expected counts as the sensor fit models them, scale solved on the whole capture like the run.
+            let b = sensor.resolve_background(measured)?;
+            let x: Vec<f64> = rendered.iter().map(|&v| f64::from(v)).collect();
+            let mut a = vec![0.0; x.len()];
+            sensor.kernel.apply_f64(&x, ax.bins, &mut a)?;
+            let alpha = SensorFit::optimal_scale_jittered(&a, measured.data(), b).unwrap_or(1.0);
+            let mu: Vec<f32> = a.iter().map(|&v| (alpha * v + b) as f32).collect();
+            (gated(&Transient::new(measured.scan().clone(), ax, mu)?)?, alpha)
+        }
+        None => {
+            let rendered = gated(&Transient::new(measured.scan().clone(), ax, rendered)?)?;
+            let term = DataTerm { loss: opts.loss, weights: None, solve_scale: true };
+            let scale = term.optimal_scale(rendered.data(), measured_g.data()).unwrap_or(1.0);
+            let mut scaled = rendered;
+            scaled.data_mut().iter_mut().for_each(|v| *v = (f64::from(*v) * scale) as f32);
+            (scaled, scale)
+        }
+    };
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (r, m) in scaled.data().iter().zip(measured_g.data()) {
+        num += (f64::from(*r) - f64::from(*m)).powi(2);
+        den += f64::from(*m).powi(2);
+    }
+    let relative_residual = if den > 0.0 { (num / den).sqrt() } else { f64::NAN };
+
+    // ---- figures ----
+    let mut images = Vec::new();
+    let gate_note = if gate > ax.t0 {
+        format!("bins before {gate:.3} m of path (direct light) left out")
+    } else {
+        "nothing gated".to_string()
+    };
+    match measured.sensor_grid() {
+        Some((_, ny)) => {
+            let notes = [
+                gate_note.clone(),
+                format!("rendered x {scale:.4e} (closed-form scale); relative residual {relative_residual:.3}"),
+            ];
+            save(&figures::summed_figure(&measured_g, &scaled, &notes)?, dir, "summed.png", &mut images)?;
+            let row = opts.slice_row.unwrap_or(ny / 2);
+            let g = (gate > ax.t0).then_some(gate);
+            save(&figures::slice_figure(measured, &scaled, row, g)?, dir, "xt_slice.png", &mut images)?;
+        }
+        None => save(&figures::histogram_figure(&measured_g, &scaled)?, dir, "summed.png", &mut images)?,
+    }
+    if !log.iterations.is_empty() {
+        save(&figures::loss_figure(&log)?, dir, "loss.png", &mut images)?;
+    }
+    let view = DepthView::over_scan(measured, opts.depth_grid)?;
+    let d_final = figures::depth_map(&final_mesh, &view)?;
+    let d_init = init_mesh.as_ref().map(|m| figures::depth_map(m, &view)).transpose()?;
+    let d_gt = ground_truth.map(|m| figures::depth_map(m, &view)).transpose()?;
+    let range = figures::depth_range(d_gt.as_deref().unwrap_or(&d_final))
+        .or_else(|| figures::depth_range(&d_final))
+        .or_else(|| d_init.as_deref().and_then(figures::depth_range))
+        .unwrap_or((0.0, 1.0));
+    if let Some(d) = &d_init {
+        save(&figures::depth_figure(d, &view, range, "depth: initial surface")?, dir, "depth_init.png", &mut images)?;
+    }
+    save(&figures::depth_figure(&d_final, &view, range, "depth: final mesh")?, dir, "depth_final.png", &mut images)?;
+    if let Some(d) = &d_gt {
+        save(&figures::depth_figure(d, &view, range, "depth: ground truth")?, dir, "depth_gt.png", &mut images)?;
+    }
+    let pixel = f64::from(view.x_range[1] - view.x_range[0]) / view.grid as f64;
+    let radius = ((opts.relief_box / pixel / 2.0).round() as usize).clamp(1, view.grid.max(2) / 2);
+    let r_final = figures::relief(&d_final, view.grid, radius);
+    let r_gt = d_gt.as_ref().map(|d| figures::relief(d, view.grid, radius));
+    let mut maps: Vec<(&str, &[f32])> = vec![("final mesh", &r_final)];
+    if let Some(r) = &r_gt {
+        maps.push(("ground truth", r));
+    }
+    let box_m = (2 * radius + 1) as f64 * pixel;
+    save(&figures::relief_figure(&maps, &view, box_m)?, dir, "relief.png", &mut images)?;
+
+    // ---- metrics ----
+    let eval = DepthView { grid: opts.eval_grid, ..view }.eval_params();
+    let (metrics_init, metrics_final) = match ground_truth {
+        Some(gt) => (
+            init_mesh.as_ref().map(|m| nlos_mesh::metrics::evaluate(m, gt, &eval)).transpose()?,
+            Some(nlos_mesh::metrics::evaluate(&final_mesh, gt, &eval)?),
+        ),
+        None => (None, None),
+    };
+
+    let report =
+        Report { html: dir.join(REPORT_FILE), images, scale, relative_residual, gate, metrics_init, metrics_final };
+    let page = html::page(&html::PageInputs {
+        opts,
+        log: &log,
+        report: &report,
+        reflectance: &reflectance,
+        reflectance_note,
+        final_mesh: &final_mesh,
+        dir,
+        eval: &eval,
+        gate_note: &gate_note,
+    });
+    let tmp = dir.join(format!("{REPORT_FILE}.tmp"));
+    std::fs::write(&tmp, page).map_err(|source| ReportError::Io { file: tmp.clone(), source })?;
+    std::fs::rename(&tmp, &report.html).map_err(|source| ReportError::Io { file: report.html.clone(), source })?;
+    Ok(report)
+}
