@@ -291,8 +291,15 @@ pub fn evolve(
 
     // stages 1 and 2, alternating
     for _ in 0..params.collision_passes {
-        report.proximity_pairs += resolve::proximity_pass(&topo, &x0, &mut x1, eps, t);
-        let cols = resolve::detect(&topo, &x0, &x1, tol, t);
+        let (pushed, pairs) = resolve::proximity_pass(&topo, &x0, &mut x1, eps, t);
+        report.proximity_pairs += pushed;
+        // the proximity pass's pairs (padded by ε > tol) still cover this step if it pushed nothing (then
+        // x₁ is bit for bit unchanged: untouched values are written back through an exact f64 round trip)
+        let cols = if pushed == 0 {
+            resolve::detect_among(&pairs, &x0, &x1, tol, t)
+        } else {
+            resolve::detect(&topo, &x0, &x1, tol, t)
+        };
         if cols.is_empty() {
             break;
         }

@@ -61,6 +61,18 @@ pub(crate) fn detect(topo: &Topo, x0: &[Vec3], x1: &[Vec3], tol: f64, time: &mut
     let cands = candidate_pairs(topo, x0, x1, tol as f32, &moving);
     let pairs = pairs_of(topo, &cands);
     time.broad_phase += clock.elapsed();
+    detect_among(&pairs, x0, x1, tol, time)
+}
+
+/// The collisions among `pairs` (a broad-phase result for these very `x₀`, `x₁` with a padding of at
+/// least `tol`, e.g. the proximity pass's when it moved nothing).
+pub(crate) fn detect_among(
+    pairs: &[Pair],
+    x0: &[Vec3],
+    x1: &[Vec3],
+    tol: f64,
+    time: &mut EvolveTimings,
+) -> Vec<Collision> {
     let clock = Instant::now();
     let out = pairs
         .par_iter()
@@ -116,8 +128,15 @@ fn push_apart(x1: &mut [DVec3], verts: &[u32; 4], w: &[f64; 4], n: DVec3, target
 /// Stage 1, proximity repulsion: every pair that ends closer than `eps` and closer than it started is
 /// pushed apart along the direction between its closest points at the end of the step (or, when they
 /// touch there, at its start) until `n·r ≥ min(eps, start separation)`. One Gauss–Seidel sweep; returns
-/// the number of pairs pushed.
-pub(crate) fn proximity_pass(topo: &Topo, x0: &[Vec3], x1: &mut [Vec3], eps: f64, time: &mut EvolveTimings) -> usize {
+/// the number of pairs pushed and the broad-phase pairs (padded by `eps`, so when nothing was pushed they
+/// serve [`detect_among`] for the same step).
+pub(crate) fn proximity_pass(
+    topo: &Topo,
+    x0: &[Vec3],
+    x1: &mut [Vec3],
+    eps: f64,
+    time: &mut EvolveTimings,
+) -> (usize, Vec<Pair>) {
     let clock = Instant::now();
     let moving = moving_flags(x0, x1);
     let cands = candidate_pairs(topo, x0, x1, eps as f32, &moving);
@@ -149,7 +168,7 @@ pub(crate) fn proximity_pass(topo: &Topo, x0: &[Vec3], x1: &mut [Vec3], eps: f64
         .collect();
     time.narrow_phase += clock.elapsed();
     if jobs.is_empty() {
-        return 0;
+        return (0, pairs);
     }
     let mut xd: Vec<DVec3> = x1.iter().map(|p| p.as_dvec3()).collect();
     let mut pushed = 0;
@@ -159,7 +178,7 @@ pub(crate) fn proximity_pass(topo: &Topo, x0: &[Vec3], x1: &mut [Vec3], eps: f64
         }
     }
     write_back(&xd, x1, &jobs.iter().flat_map(|j| j.0.verts).collect::<Vec<_>>());
-    pushed
+    (pushed, pairs)
 }
 
 /// Rounds the touched vertices back to `f32` (others are not rewritten at all).
