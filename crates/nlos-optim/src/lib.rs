@@ -14,8 +14,8 @@
 //!   the automatic weight;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
-//!   non-finite values, checkpoints and [`resume`], the JSON run log, an evolution hook for collision
-//!   handling (El Topo, not yet available: [`DirectEvolve`] applies displacements directly).
+//!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
+//!   shape block (`nlos_mesh::evolve`, after El Topo) and a per-step [`Evolve`] hook.
 //!
 //! ```no_run
 //! use nlos_optim::{ReconstructParams, reconstruct};
@@ -44,8 +44,8 @@ pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};
 pub use reconstruct::{
-    CHECKPOINT_FILE, DirectEvolve, Evolve, Hooks, IterationRecord, Outcome, Progress, ProgressEvent, ProgressFn,
-    RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,
+    CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IterationRecord, Outcome, Progress, ProgressEvent,
+    ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use nlos_mesh::evolve::EvolveParams;
 use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
 use nlos_render::{DeterministicRule, RenderParams};
 
@@ -126,6 +127,14 @@ pub struct ReconstructParams {
     /// Remeshing after every shape block (default: `RemeshParams::fast()` with the boundary remeshed along
     /// itself, so boundary edges follow the target length too).
     pub remesh: RemeshParams,
+    /// Collision-aware evolution (El Topo, issue 7, [`nlos_mesh::evolve::evolve`]) of each shape block's
+    /// accumulated displacement, from the block's starting positions, before the reflectance block and the
+    /// next remeshing (default `Some` with `improve: false` and `edge_length: None` → the stage's target
+    /// length; `None` applies the displacements as they are). `improve` is always treated as false: the
+    /// remeshing that follows improves the mesh, and the Adam state needs fixed connectivity. An input that
+    /// already self-intersects (remeshing does not prevent it) is evolved with `check_input: false`, so only
+    /// new intersections are prevented.
+    pub collision: Option<EvolveParams>,
     /// Delete boundary faces that no measurement can see (facing away from every laser/sensor spot or
     /// outside the time window) before each remeshing (default true).
     pub remove_unlit_boundary_faces: bool,
@@ -157,6 +166,7 @@ impl Default for ReconstructParams {
             render: RenderParams::default(),
             sampling: SamplingSchedule::default(),
             remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
+            collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),
             remove_unlit_boundary_faces: true,
             seed: 0,
             max_rollbacks: 10,

@@ -13,9 +13,12 @@
 //! 4. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
-//! **Collision-aware evolution** (El Topo, issue 7) does not exist yet: the [`Evolve`] hook receives every
-//! displacement and the default [`DirectEvolve`] applies it as is. A collision-aware implementation plugs
-//! in through [`Hooks::evolve`] without other changes.
+//! **Collision-aware evolution** (El Topo, issue 7; Tsai et al. 2019, Sec. 5): within a shape block every
+//! Adam displacement goes through the [`Evolve`] hook (default [`DirectEvolve`]: applied as is). At the end
+//! of the block, the displacement accumulated over it is replayed from the block's starting positions by
+//! `nlos_mesh::evolve::evolve` (continuous collision detection, impulses, impact zones, fail-safe), so the
+//! surface that is remeshed next has no self-intersection the block would have introduced
+//! ([`crate::ReconstructParams::collision`]; [`Outcome::evolve`] records its cost per block).
 //!
 //! **Robustness.** A non-finite loss, gradient, θ or position restores the state before the last step,
 //! halves every learning rate for the rest of the run, and retries ([`crate::ReconstructParams::max_rollbacks`]).
@@ -31,6 +34,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
+use nlos_mesh::evolve::{EvolveError, EvolveParams, evolve};
 use nlos_mesh::{SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
 use nlos_render::{RenderParams, Renderer, Sampling};
 use nlos_transient::{Scan, TimeAxis, Transient};
@@ -195,6 +199,23 @@ pub enum StopReason {
     Interrupted,
 }
 
+/// What the collision-aware evolution did at the end of one shape block.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EvolveRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Wall-clock seconds of the `evolve` call (the only non-deterministic field).
+    pub seconds: f64,
+    /// Vertices whose end position differs from `x₀ + d` (collisions resolved).
+    pub vertices_adjusted: usize,
+    /// Share of the requested motion applied (`nlos_mesh::evolve::EvolveReport::motion_fraction`).
+    pub motion_fraction: f64,
+    /// Whether the block's starting mesh already self-intersected (evolved with `check_input: false`).
+    pub input_intersected: bool,
+}
+
 /// The result of [`reconstruct`] / [`resume`].
 #[derive(Debug, Clone)]
 pub struct Outcome {
@@ -212,6 +233,9 @@ pub struct Outcome {
     pub stage: u32,
     /// Blocks run.
     pub blocks_done: u64,
+    /// One record per collision-aware evolution (per shape block; empty when
+    /// [`ReconstructParams::collision`] is `None`).
+    pub evolve: Vec<EvolveRecord>,
 }
 
 /// Everything needed to continue a run (written as the checkpoint).
@@ -239,6 +263,9 @@ struct State {
     /// Stages planned (for progress reports only).
     #[serde(default)]
     max_stages_hint: u32,
+    /// Collision-aware evolution per block.
+    #[serde(default)]
+    evolve_log: Vec<EvolveRecord>,
 }
 
 /// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
@@ -348,6 +375,7 @@ pub fn reconstruct_with(
         finished: None,
         log: RunLog::default(),
         max_stages_hint: params.schedule.max_stages,
+        evolve_log: Vec::new(),
     };
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
@@ -571,6 +599,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         )?;
         let reg = NormalSmoothing::new(st.positions.len(), &st.triangles)?;
         let (mut block_first, mut block_last) = (f64::NAN, f64::NAN);
+        let block_start = st.positions.clone();
 
         // ---- shape block ----
         let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
@@ -629,6 +658,13 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             renderer.set_positions(&st.positions)?;
             st.iteration += 1;
             it += 1;
+        }
+
+        // ---- collision-aware evolution of the block's accumulated displacement ----
+        if let Some(ep) = params.collision {
+            let rec = evolve_block(&mut st, &block_start, target as f32, ep)?;
+            st.evolve_log.push(rec);
+            renderer.set_positions(&st.positions)?;
         }
 
         // ---- reflectance block ----
@@ -712,6 +748,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 stop: StopReason::Interrupted,
                 stage: st.stage,
                 blocks_done: st.blocks_done,
+                evolve: st.evolve_log.clone(),
             });
         }
     }
@@ -728,6 +765,37 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         stop: st.finished.unwrap_or(StopReason::MaxStages),
         stage: st.stage,
         blocks_done: st.blocks_done,
+        evolve: st.evolve_log.clone(),
+    })
+}
+
+/// Moves the mesh from `start` by the displacement accumulated over the block (`st.positions − start`)
+/// with collision-aware evolution (`nlos_mesh::evolve`), improvement off.
+fn evolve_block(st: &mut State, start: &[Vec3], target: f32, ep: EvolveParams) -> Result<EvolveRecord> {
+    let t0 = Instant::now();
+    let disp: Vec<Vec3> = st.positions.iter().zip(start).map(|(p, q)| *p - *q).collect();
+    let mut mesh = SurfaceMesh::from_triangles(start, &st.triangles)?;
+    let ep = EvolveParams { improve: false, edge_length: ep.edge_length.or(Some(target)), ..ep };
+    let fail = |e: EvolveError| OptimError::Evolve(e.to_string());
+    let (report, input_intersected) = match evolve(&mut mesh, &disp, &ep) {
+        Ok(r) => (r, false),
+        Err(EvolveError::InputSelfIntersects { .. }) => {
+            (evolve(&mut mesh, &disp, &EvolveParams { check_input: false, ..ep }).map_err(fail)?, true)
+        }
+        Err(e) => return Err(fail(e)),
+    };
+    let pos = mesh.positions();
+    if pos.len() != st.positions.len() || pos.iter().any(|p| !p.is_finite()) {
+        return Err(OptimError::Evolve("collision-aware evolution changed the vertex count or diverged".into()));
+    }
+    st.positions = pos.to_vec();
+    Ok(EvolveRecord {
+        stage: st.stage,
+        block: st.block_in_stage,
+        seconds: t0.elapsed().as_secs_f64(),
+        vertices_adjusted: report.vertices_adjusted,
+        motion_fraction: report.motion_fraction,
+        input_intersected,
     })
 }
 

@@ -10,10 +10,11 @@ use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::{SurfaceMesh, shapes};
 use nlos_optim::{
-    Evolve, Hooks, OptimError, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, Schedule, StopReason,
-    reconstruct_with, resume,
+    Evolve, Hooks, OptimError, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, Schedule,
+    SensorBackground, SensorFit, StopReason, reconstruct_with, resume,
 };
 use nlos_render::{DeterministicRule, RenderParams, Renderer, Visibility};
+use nlos_transient::sensor::BinKernel;
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
 /// Truth: a 0.2 m square at ≈ 0.4 m with a 3 cm Gaussian bump toward the wall and a tilt.
@@ -144,6 +145,9 @@ fn flat_start_converges_to_the_bumpy_truth() {
     );
     assert!(e1 < 0.2 * e0, "depth error {e0} -> {e1}");
     assert!(c1 > 0.95);
+    // Collision-aware evolution ran once per block; a height field moving along z never collides.
+    assert_eq!(out.evolve.len() as u64, out.blocks_done);
+    assert!(out.evolve.iter().all(|r| !r.input_intersected && r.motion_fraction > 0.99), "{:?}", out.evolve);
     assert!(l1 < 0.2 * l0);
     assert!(dir.join("mesh.obj").exists() && dir.join("run_log.json").exists());
     assert!(dir.join("checkpoint.json").exists() && dir.join("stage_00.obj").exists());
@@ -273,4 +277,47 @@ fn bad_input_is_an_error_not_a_panic() {
         Err(OptimError::InvalidParameter { name: "lr_interior", .. })
     ));
     assert!(resume(&measured, &params, Hooks::default()).is_err());
+}
+
+/// The noise-aware fit end to end: the measurement is expected counts `s·J(I) + b` (a 5-bin jitter kernel,
+/// background estimated from the pre-return bins); the sensor fit must recover the shape and the scale.
+#[test]
+fn sensor_fit_recovers_shape_from_jittered_counts_with_background() {
+    let clean = measurement(10);
+    let bins = clean.bins();
+    let kernel = BinKernel::new(-1, vec![0.15, 0.4, 0.25, 0.12, 0.08]).unwrap();
+    let jittered = kernel.apply(clean.data(), bins).unwrap();
+    // Counts of ~100 per bin at the peak over a background of 0.5 per bin.
+    let peak = jittered.iter().copied().fold(0.0f32, f32::max);
+    let gain = 100.0 / peak;
+    let counts: Vec<f32> = jittered.iter().map(|v| gain * v + 0.5).collect();
+    let measured = Transient::new(clean.scan().clone(), *clean.time(), counts).unwrap();
+    let init = facing_wall(10, |_, _| 0.40);
+    let (e0, _) = depth_error(&init);
+    let mut params = small_params(out_dir("sensor"));
+    params.out_dir = None;
+    params.reflectance = nlos_optim::Reflectance::default();
+    params.schedule.shape_iterations = 12;
+    params.sensor = Some(SensorFit {
+        kernel,
+        background: SensorBackground::Estimate(nlos_transient::sensor::BackgroundWindow::BeforeFirstReturn),
+    });
+    let out = reconstruct_with(&measured, &init, &params, Hooks::default()).unwrap();
+    let (e1, c1) = depth_error(&out.mesh);
+    let log = &out.log.iterations;
+    println!(
+        "sensor fit: depth error {:.2} -> {:.2} mm, coverage {c1:.2}, data {:.4} -> {:.4}",
+        e0 * 1e3,
+        e1 * 1e3,
+        log[0].data,
+        log.last().unwrap().data
+    );
+    assert!(e1 < 0.5 * e0, "depth error {e0} -> {e1}");
+    assert!(log.last().unwrap().data < 0.5 * log[0].data);
+    // Weights are refused with the sensor fit.
+    params.data.weights = Some(vec![1.0; measured.data().len()]);
+    assert!(matches!(
+        reconstruct_with(&measured, &init, &params, Hooks::default()),
+        Err(OptimError::InvalidParameter { name: "data.weights", .. })
+    ));
 }
