@@ -71,9 +71,18 @@ impl Box3 {
     }
 }
 
-/// All vertex–triangle and edge–edge pairs whose swept boxes, padded by `pad`, overlap and that have at
-/// least one vertex with `moving[v]`: `vt` sorted by vertex then face, `ee` by first then second edge.
-pub(crate) fn candidate_pairs(topo: &Topo, x0: &[Vec3], x1: &[Vec3], pad: f32, moving: &[bool]) -> Pairs {
+/// All vertex–triangle and edge–edge pairs whose swept boxes, padded by `pad`, overlap, that have at least
+/// one vertex with `moving[v]` and, when `active` is given, at least one vertex with `active[v]` (the
+/// incremental passes: only pairs touching a vertex whose end position changed need a new test). `vt` is
+/// sorted by vertex then face, `ee` by first then second edge.
+pub(crate) fn candidate_pairs(
+    topo: &Topo,
+    x0: &[Vec3],
+    x1: &[Vec3],
+    pad: f32,
+    moving: &[bool],
+    active: Option<&[bool]>,
+) -> Pairs {
     if topo.faces.is_empty() {
         return Pairs::default();
     }
@@ -86,62 +95,100 @@ pub(crate) fn candidate_pairs(topo: &Topo, x0: &[Vec3], x1: &[Vec3], pad: f32, m
         Box3::of(&pts[..2 * vs.len()], pad)
     };
     let mv = |v: u32| moving[v as usize];
+    let act = |v: u32| active.is_none_or(|a| a[v as usize]);
     let fbox: Vec<Box3> = topo.faces.par_iter().map(|f| sweep(f)).collect();
     let fmoving: Vec<bool> = topo.faces.par_iter().map(|f| f.iter().any(|&v| mv(v))).collect();
     let ebox: Vec<Box3> = topo.edges.par_iter().map(|e| sweep(e)).collect();
     let emoving: Vec<bool> = topo.edges.par_iter().map(|e| mv(e[0]) || mv(e[1])).collect();
+    let eactive: Vec<bool> = topo.edges.par_iter().map(|e| act(e[0]) || act(e[1])).collect();
     let bvh_of = |boxes: &[Box3]| {
         let aabbs: Vec<Aabb> = boxes.iter().map(|b| Aabb::new(b.lo, b.hi)).collect();
         let mut time = std::time::Duration::ZERO;
         obvhs::bvh2::builder::build_bvh2(&aabbs, obvhs::BvhBuildParams::fast_build(), &mut time)
     };
-    let (fbvh, ebvh) = rayon::join(|| bvh_of(&fbox), || bvh_of(&ebox));
-    // a vertex's hits are unique: `verts` lists each used vertex once
-    let vt: Vec<(u32, u32)> = topo
+    // Incremental calls also need the pairs (inactive vertex, face with an active vertex): faces query a
+    // BVH of the inactive vertices' boxes.
+    let inactive: Vec<u32> = match active {
+        Some(a) => topo.verts.iter().copied().filter(|&v| !a[v as usize]).collect(),
+        None => Vec::new(),
+    };
+    let ((fbvh, ebvh), vbvh) = rayon::join(
+        || rayon::join(|| bvh_of(&fbox), || bvh_of(&ebox)),
+        || (!inactive.is_empty()).then(|| bvh_of(&inactive.iter().map(|&v| sweep(&[v])).collect::<Vec<_>>())),
+    );
+    // each (active vertex, face) once
+    let mut vt: Vec<(u32, u32)> = topo
         .verts
         .par_iter()
+        .filter(|&&v| act(v))
         .flat_map_iter(|&v| {
             let vb = sweep(&[v]);
             let mut hits = Vec::new();
-            fbvh.aabb_traverse(Aabb::new(vb.lo, vb.hi), |bvh, node_index| {
-                let node = &bvh.nodes[node_index as usize];
-                let start = node.first_index as usize;
-                for k in start..start + node.prim_count as usize {
-                    let f = bvh.primitive_indices[k] as usize;
-                    if (mv(v) || fmoving[f]) && !topo.faces[f].contains(&v) && vb.overlaps(&fbox[f]) {
-                        hits.push((v, f as u32));
-                    }
+            for_leaves(&fbvh, &vb, |f| {
+                if (mv(v) || fmoving[f]) && !topo.faces[f].contains(&v) && vb.overlaps(&fbox[f]) {
+                    hits.push((v, f as u32));
                 }
-                true
             });
             hits.sort_unstable();
             hits
         })
         .collect();
+    // each (inactive vertex, face with an active vertex) once
+    if let Some(vbvh) = &vbvh {
+        let more: Vec<(u32, u32)> = (0..topo.faces.len())
+            .into_par_iter()
+            .filter(|&f| topo.faces[f].iter().any(|&v| act(v)))
+            .flat_map_iter(|f| {
+                let mut hits = Vec::new();
+                for_leaves(vbvh, &fbox[f], |k| {
+                    let v = inactive[k];
+                    if (mv(v) || fmoving[f]) && !topo.faces[f].contains(&v) && sweep(&[v]).overlaps(&fbox[f]) {
+                        hits.push((v, f as u32));
+                    }
+                });
+                hits
+            })
+            .collect();
+        vt.extend(more);
+        vt.par_sort_unstable();
+    }
+    // each edge pair with an active vertex once: from the lower index when both edges are active
     let ee: Vec<(u32, u32)> = (0..topo.edges.len())
         .into_par_iter()
+        .filter(|&i| eactive[i])
         .flat_map_iter(|i| {
             let [a, b] = topo.edges[i];
             let mut hits = Vec::new();
-            ebvh.aabb_traverse(Aabb::new(ebox[i].lo, ebox[i].hi), |bvh, node_index| {
-                let node = &bvh.nodes[node_index as usize];
-                let start = node.first_index as usize;
-                for k in start..start + node.prim_count as usize {
-                    let j = bvh.primitive_indices[k] as usize;
-                    if j <= i || !(emoving[i] || emoving[j]) {
-                        continue;
-                    }
-                    let [c, d] = topo.edges[j];
-                    if a == c || a == d || b == c || b == d || !ebox[i].overlaps(&ebox[j]) {
-                        continue;
-                    }
-                    hits.push((i as u32, j as u32));
+            for_leaves(&ebvh, &ebox[i], |j| {
+                if (eactive[j] && j <= i) || !(emoving[i] || emoving[j]) {
+                    return;
                 }
-                true
+                let [c, d] = topo.edges[j];
+                if a == c || a == d || b == c || b == d || !ebox[i].overlaps(&ebox[j]) {
+                    return;
+                }
+                hits.push(((i as u32).min(j as u32), (i as u32).max(j as u32)));
             });
             hits.sort_unstable();
             hits
         })
         .collect();
-    Pairs { vt, ee }
+    let mut pairs = Pairs { vt, ee };
+    if active.is_some() {
+        pairs.ee.par_sort_unstable();
+    }
+    pairs
+}
+
+/// Calls `hit` with every primitive in a BVH leaf whose box overlaps `query`.
+#[inline]
+fn for_leaves(bvh: &obvhs::bvh2::Bvh2, query: &Box3, mut hit: impl FnMut(usize)) {
+    bvh.aabb_traverse(Aabb::new(query.lo, query.hi), |bvh, node_index| {
+        let node = &bvh.nodes[node_index as usize];
+        let start = node.first_index as usize;
+        for k in start..start + node.prim_count as usize {
+            hit(bvh.primitive_indices[k] as usize);
+        }
+        true
+    });
 }

@@ -289,16 +289,19 @@ pub fn evolve(
     let tol = params.collision_epsilon as f64;
     let t = &mut report.timings;
 
-    // stages 1 and 2, alternating
-    for _ in 0..params.collision_passes {
-        let (pushed, pairs) = resolve::proximity_pass(&topo, &x0, &mut x1, eps, t);
+    // Stages 1 and 2, alternating. Detection and proximity are incremental: after their first pass they
+    // re-examine only pairs with a vertex whose end position changed since (see `resolve::Changes`).
+    let mut proximity = resolve::Proximity::default();
+    let mut detector = resolve::Detector::default();
+    for pass in 0..params.collision_passes {
+        let (pushed, pairs) = proximity.pass(&topo, &x0, &mut x1, eps, t);
         report.proximity_pairs += pushed;
-        // the proximity pass's pairs (padded by ε > tol) still cover this step if it pushed nothing (then
-        // x₁ is bit for bit unchanged: untouched values are written back through an exact f64 round trip)
-        let cols = if pushed == 0 {
-            resolve::detect_among(&pairs, &x0, &x1, tol, t)
+        // the first proximity pass's pairs (all vertices, padded by ε > tol) still cover this step if it
+        // pushed nothing (then x₁ is bit for bit unchanged: untouched values round-trip exactly through f64)
+        let cols = if pass == 0 && pushed == 0 {
+            detector.detect_first_among(&pairs, &x0, &x1, tol, t)
         } else {
-            resolve::detect(&topo, &x0, &x1, tol, t)
+            detector.detect(&topo, &x0, &x1, tol, t)
         };
         if cols.is_empty() {
             break;
@@ -308,7 +311,7 @@ pub fn evolve(
     // stage 3
     let mut zones = resolve::Zones::new(x0.len());
     for _ in 0..params.impact_zone_passes {
-        let cols = resolve::detect(&topo, &x0, &x1, tol, t);
+        let cols = detector.detect(&topo, &x0, &x1, tol, t);
         if cols.is_empty() {
             break;
         }
@@ -318,7 +321,7 @@ pub fn evolve(
     let mut halvings = vec![0u8; x0.len()];
     loop {
         loop {
-            let cols = resolve::detect(&topo, &x0, &x1, tol, t);
+            let cols = detector.detect(&topo, &x0, &x1, tol, t);
             if cols.is_empty() {
                 break;
             }

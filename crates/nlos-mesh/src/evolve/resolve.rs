@@ -26,6 +26,8 @@ use super::ccd::{Moving, edge_edge_ccd, point_triangle_distance, segment_segment
 pub(crate) struct Pair {
     pub verts: [u32; 4],
     pub edge_edge: bool,
+    /// (vertex, face) or (edge, edge) indices into [`Topo`]: with `edge_edge`, the canonical order.
+    pub key: (u32, u32),
 }
 
 /// A detected collision: the pair and its earliest contact time.
@@ -39,12 +41,12 @@ fn pairs_of(topo: &Topo, c: &Pairs) -> Vec<Pair> {
     let mut out = Vec::with_capacity(c.vt.len() + c.ee.len());
     for &(v, f) in &c.vt {
         let [a, b, cc] = topo.faces[f as usize];
-        out.push(Pair { verts: [v, a, b, cc], edge_edge: false });
+        out.push(Pair { verts: [v, a, b, cc], edge_edge: false, key: (v, f) });
     }
     for &(e0, e1) in &c.ee {
         let [a, b] = topo.edges[e0 as usize];
         let [cc, d] = topo.edges[e1 as usize];
-        out.push(Pair { verts: [a, b, cc, d], edge_edge: true });
+        out.push(Pair { verts: [a, b, cc, d], edge_edge: true, key: (e0, e1) });
     }
     out
 }
@@ -54,14 +56,86 @@ pub(crate) fn moving_flags(x0: &[Vec3], x1: &[Vec3]) -> Vec<bool> {
     x0.iter().zip(x1).map(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits)).collect()
 }
 
-/// All collisions of the motion `x₀ → x₁` (CCD with distance tolerance `tol`), earliest time per pair.
-pub(crate) fn detect(topo: &Topo, x0: &[Vec3], x1: &[Vec3], tol: f64, time: &mut EvolveTimings) -> Vec<Collision> {
-    let clock = Instant::now();
-    let moving = moving_flags(x0, x1);
-    let cands = candidate_pairs(topo, x0, x1, tol as f32, &moving);
-    let pairs = pairs_of(topo, &cands);
-    time.broad_phase += clock.elapsed();
-    detect_among(&pairs, x0, x1, tol, time)
+/// Which end positions changed since a pass last looked at them. A pair none of whose vertices changed
+/// gives the same answer as then (the tests depend on `x₀` and `x₁` only), so later passes re-examine only
+/// pairs with a changed vertex: in a step where few vertices need resolution the passes after the first cost
+/// little.
+#[derive(Debug, Default)]
+pub(crate) struct Changes {
+    snapshot: Option<Vec<Vec3>>,
+}
+
+impl Changes {
+    /// `Some(changed)` (bitwise) since the last [`Changes::mark`]; `None` before the first (everything).
+    fn since(&self, x1: &[Vec3]) -> Option<Vec<bool>> {
+        self.snapshot.as_ref().map(|s| moving_flags(s, x1))
+    }
+    fn mark(&mut self, x1: &[Vec3]) {
+        match &mut self.snapshot {
+            Some(s) => s.copy_from_slice(x1),
+            None => self.snapshot = Some(x1.to_vec()),
+        }
+    }
+}
+
+/// Collision detection across passes: keeps the last result and re-tests only pairs with a changed vertex.
+#[derive(Debug, Default)]
+pub(crate) struct Detector {
+    changes: Changes,
+    last: Vec<Collision>,
+}
+
+impl Detector {
+    /// All collisions of the motion `x₀ → x₁` (CCD with distance tolerance `tol`), earliest time per pair,
+    /// in the canonical pair order (vertex–triangle by vertex and face, then edge–edge by edges).
+    pub(crate) fn detect(
+        &mut self,
+        topo: &Topo,
+        x0: &[Vec3],
+        x1: &[Vec3],
+        tol: f64,
+        time: &mut EvolveTimings,
+    ) -> Vec<Collision> {
+        let active = self.changes.since(x1);
+        if let Some(a) = &active
+            && !a.contains(&true)
+        {
+            return self.last.clone();
+        }
+        let clock = Instant::now();
+        let moving = moving_flags(x0, x1);
+        let cands = candidate_pairs(topo, x0, x1, tol as f32, &moving, active.as_deref());
+        let pairs = pairs_of(topo, &cands);
+        time.broad_phase += clock.elapsed();
+        let fresh = detect_among(&pairs, x0, x1, tol, time);
+        self.finish(fresh, active.as_deref(), x1)
+    }
+
+    /// The first detection from pairs a broad phase over every vertex produced for these very `x₀`, `x₁`
+    /// with a padding of at least `tol` (the proximity pass's when it pushed nothing).
+    pub(crate) fn detect_first_among(
+        &mut self,
+        pairs: &[Pair],
+        x0: &[Vec3],
+        x1: &[Vec3],
+        tol: f64,
+        time: &mut EvolveTimings,
+    ) -> Vec<Collision> {
+        debug_assert!(self.changes.snapshot.is_none());
+        let fresh = detect_among(pairs, x0, x1, tol, time);
+        self.finish(fresh, None, x1)
+    }
+
+    fn finish(&mut self, fresh: Vec<Collision>, active: Option<&[bool]>, x1: &[Vec3]) -> Vec<Collision> {
+        let mut out = fresh;
+        if let Some(a) = active {
+            out.extend(self.last.iter().filter(|c| c.pair.verts.iter().all(|&v| !a[v as usize])).copied());
+            out.sort_unstable_by_key(|c| (c.pair.edge_edge, c.pair.key));
+        }
+        self.changes.mark(x1);
+        self.last.clone_from(&out);
+        out
+    }
 }
 
 /// The collisions among `pairs` (a broad-phase result for these very `x₀`, `x₁` with a padding of at
@@ -125,60 +199,87 @@ fn push_apart(x1: &mut [DVec3], verts: &[u32; 4], w: &[f64; 4], n: DVec3, target
     true
 }
 
-/// Stage 1, proximity repulsion: every pair that ends closer than `eps` and closer than it started is
-/// pushed apart along the direction between its closest points at the end of the step (or, when they
-/// touch there, at its start) until `n·r ≥ min(eps, start separation)`. One Gauss–Seidel sweep; returns
-/// the number of pairs pushed and the broad-phase pairs (padded by `eps`, so when nothing was pushed they
-/// serve [`detect_among`] for the same step).
-pub(crate) fn proximity_pass(
-    topo: &Topo,
-    x0: &[Vec3],
-    x1: &mut [Vec3],
-    eps: f64,
-    time: &mut EvolveTimings,
-) -> (usize, Vec<Pair>) {
-    let clock = Instant::now();
-    let moving = moving_flags(x0, x1);
-    let cands = candidate_pairs(topo, x0, x1, eps as f32, &moving);
-    let pairs = pairs_of(topo, &cands);
-    time.broad_phase += clock.elapsed();
-    let clock = Instant::now();
-    // geometry of each close pair, computed in parallel on the unmodified end positions
-    let jobs: Vec<(Pair, [f64; 4], DVec3, f64)> = pairs
-        .par_iter()
-        .filter_map(|p| {
-            let e = p.verts.map(|v| x1[v as usize].as_dvec3());
-            let s = p.verts.map(|v| x0[v as usize].as_dvec3());
-            let (w1, r1) = weights_at(p, e);
-            let d1 = r1.length();
-            if d1 >= eps {
-                return None;
+/// A proximity job: the pair, its weights, normal and target separation.
+type Job = (Pair, [f64; 4], DVec3, f64);
+
+/// Stage 1 across passes: keeps the last pass's jobs so that later passes recompute only those of pairs with
+/// a changed vertex (a job depends on `x₀` and `x₁` of its pair only); the sweep itself runs over all jobs.
+#[derive(Debug, Default)]
+pub(crate) struct Proximity {
+    changes: Changes,
+    last: Vec<Job>,
+}
+
+impl Proximity {
+    /// Stage 1, proximity repulsion: every pair that ends closer than `eps` and closer than it started is
+    /// pushed apart along the direction between its closest points at the end of the step (or, when they
+    /// touch there, at its start) until `n·r ≥ min(eps, start separation)`. One Gauss–Seidel sweep in the
+    /// canonical pair order; returns the number of pairs pushed and the broad-phase pairs (padded by `eps`:
+    /// on the first pass, when nothing was pushed, they serve [`Detector::detect_first_among`]).
+    pub(crate) fn pass(
+        &mut self,
+        topo: &Topo,
+        x0: &[Vec3],
+        x1: &mut [Vec3],
+        eps: f64,
+        time: &mut EvolveTimings,
+    ) -> (usize, Vec<Pair>) {
+        let active = self.changes.since(x1);
+        self.changes.mark(x1);
+        let mut jobs: Vec<Job>;
+        let mut pairs = Vec::new();
+        if active.as_ref().is_some_and(|a| !a.contains(&true)) {
+            jobs = self.last.clone();
+        } else {
+            let clock = Instant::now();
+            let moving = moving_flags(x0, x1);
+            let cands = candidate_pairs(topo, x0, x1, eps as f32, &moving, active.as_deref());
+            pairs = pairs_of(topo, &cands);
+            time.broad_phase += clock.elapsed();
+            let clock = Instant::now();
+            // geometry of each close pair, computed in parallel on the unmodified end positions
+            jobs = pairs.par_iter().filter_map(|p| proximity_job(p, x0, x1, eps)).collect();
+            time.narrow_phase += clock.elapsed();
+            if let Some(a) = &active {
+                jobs.extend(self.last.iter().filter(|j| j.0.verts.iter().all(|&v| !a[v as usize])).copied());
+                jobs.sort_unstable_by_key(|j| (j.0.edge_edge, j.0.key));
             }
-            let (w0, r0) = weights_at(p, s);
-            let d0 = r0.length();
-            if d1 >= d0 {
-                return None; // not approaching: leave pairs that were already this close alone
-            }
-            // Guard: closest points that (nearly) coincide at the end give no direction: use the start's.
-            let (w, n) = if d1 > 1e-3 * eps { (w1, r1 / d1) } else { (w0, r0 / d0.max(f64::MIN_POSITIVE)) };
-            let n = if n.dot(rel(&w, &s, &[0, 1, 2, 3])) < 0.0 { -n } else { n };
-            let start_sep = n.dot(rel(&w, &s, &[0, 1, 2, 3]));
-            Some((*p, w, n, eps.min(start_sep)))
-        })
-        .collect();
-    time.narrow_phase += clock.elapsed();
-    if jobs.is_empty() {
-        return (0, pairs);
-    }
-    let mut xd: Vec<DVec3> = x1.iter().map(|p| p.as_dvec3()).collect();
-    let mut pushed = 0;
-    for (p, w, n, target) in &jobs {
-        if push_apart(&mut xd, &p.verts, w, *n, *target) {
-            pushed += 1;
         }
+        self.last.clone_from(&jobs);
+        if jobs.is_empty() {
+            return (0, pairs);
+        }
+        let mut xd: Vec<DVec3> = x1.iter().map(|p| p.as_dvec3()).collect();
+        let mut pushed = 0;
+        for (p, w, n, target) in &jobs {
+            if push_apart(&mut xd, &p.verts, w, *n, *target) {
+                pushed += 1;
+            }
+        }
+        write_back(&xd, x1, &jobs.iter().flat_map(|j| j.0.verts).collect::<Vec<_>>());
+        (pushed, pairs)
     }
-    write_back(&xd, x1, &jobs.iter().flat_map(|j| j.0.verts).collect::<Vec<_>>());
-    (pushed, pairs)
+}
+
+/// The proximity job of pair `p`, if it ends closer than `eps` and closer than it started.
+fn proximity_job(p: &Pair, x0: &[Vec3], x1: &[Vec3], eps: f64) -> Option<Job> {
+    let e = p.verts.map(|v| x1[v as usize].as_dvec3());
+    let s = p.verts.map(|v| x0[v as usize].as_dvec3());
+    let (w1, r1) = weights_at(p, e);
+    let d1 = r1.length();
+    if d1 >= eps {
+        return None;
+    }
+    let (w0, r0) = weights_at(p, s);
+    let d0 = r0.length();
+    if d1 >= d0 {
+        return None; // not approaching: leave pairs that were already this close alone
+    }
+    // Guard: closest points that (nearly) coincide at the end give no direction: use the start's.
+    let (w, n) = if d1 > 1e-3 * eps { (w1, r1 / d1) } else { (w0, r0 / d0.max(f64::MIN_POSITIVE)) };
+    let n = if n.dot(rel(&w, &s, &[0, 1, 2, 3])) < 0.0 { -n } else { n };
+    let start_sep = n.dot(rel(&w, &s, &[0, 1, 2, 3]));
+    Some((*p, w, n, eps.min(start_sep)))
 }
 
 /// Rounds the touched vertices back to `f32` (others are not rewritten at all).
