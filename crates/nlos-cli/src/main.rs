@@ -14,6 +14,7 @@ mod init;
 mod preview;
 mod reconstruct;
 mod render;
+mod report;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -55,8 +56,10 @@ enum Command {
     Init(init::Args),
     /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
     Reconstruct(reconstruct::Args),
-    /// Simulate the measurements of a mesh (box kernel), optionally as Poisson photon counts.
+    /// Simulate the measurements of a mesh (box kernel), optionally as SPAD photon counts.
     Render(render::Args),
+    /// (Re)write the report of a reconstruction run: figures and `report.html` in the run directory.
+    Report(report::Args),
 }
 
 /// A failure, with the exit code it maps to.
@@ -96,6 +99,7 @@ fn main() -> ExitCode {
         Command::Init(args) => init::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Report(args) => report::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,16 +1,26 @@
 //! `nlos reconstruct`: capture → initial surface (LCT, f-k or a mesh file) → optimised mesh.
 //!
 //! The command composes the library crates: [`nlos_init`] for the initial surface, [`nlos_optim`] for the
-//! analysis-by-synthesis loop, [`nlos_mesh::io`] for the meshes. It computes nothing itself.
+//! analysis-by-synthesis loop, [`nlos_mesh::io`] for the meshes, [`nlos_report`] for the report. It
+//! computes nothing itself.
+//!
+//! The command line is saved as `DIR/command.json` so that `nlos report DIR --data DATA` regenerates the
+//! report with the same preprocessing (rebinning, subsampling), renderer settings and sensor fit.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use nlos_brdf::{Fresnel, Ggx};
-use nlos_init::{FkParams, LctParams, SurfaceParams, fk, lct, volume_to_surface};
+use nlos_init::{CarveParams, FkParams, LctParams, SurfaceParams, carve, fk, lct, volume_to_surface};
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, Reflectance, SamplingSchedule, StopReason};
-use nlos_render::{DeterministicRule, Visibility};
+use nlos_optim::{
+    Hooks, Progress, ProgressEvent, ReconstructParams, Reflectance, SamplingSchedule, SensorBackground, SensorFit,
+    StopReason,
+};
+use nlos_render::{DeterministicRule, RenderParams, Sampling, Visibility};
+use nlos_report::ReportOptions;
+use nlos_transient::Transient;
+use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
 
 use crate::CliError;
 
@@ -19,12 +29,13 @@ use crate::CliError;
 pub(crate) struct Args {
     /// The capture (any readable format).
     data: PathBuf,
-    /// Output directory: `mesh.obj`, `mesh.ply`, `init.obj`, `stage_NN.obj`, `run_log.json`,
-    /// `checkpoint.json`.
+    /// Output directory: `mesh.obj`, `mesh.ply` (`mesh.glb` with --glb), `init.obj`, `stage_NN.obj`,
+    /// `run_log.json`, `checkpoint.json`, `command.json`, and the report `report.html` with its PNGs.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Initial surface: `lct`, `fk`, or a mesh file (OBJ/PLY) whose faces face the wall.
-    #[arg(long, default_value = "lct", value_name = "lct|fk|MESH")]
+    /// Initial surface: `lct`, `fk`, `carve` (space carving from first returns), or a mesh file
+    /// (OBJ/PLY/GLB) whose faces face the wall.
+    #[arg(long, default_value = "lct", value_name = "lct|fk|carve|MESH")]
     init: String,
     /// Reflectance model to fit: `lambert` or `ggx` (α starts at --alpha).
     #[arg(long, default_value = "lambert", value_name = "lambert|ggx")]
@@ -65,10 +76,32 @@ pub(crate) struct Args {
     /// most; default 8). Higher is more accurate and slower.
     #[arg(long, default_value_t = 8, value_name = "N")]
     max_level: u32,
+    /// Also write the final mesh as binary glTF, `mesh.glb`.
+    #[arg(long)]
+    glb: bool,
+    /// Ground-truth mesh (OBJ/PLY/GLB): the report adds its depth map and the metrics of the initial and
+    /// final meshes (as `nlos eval`).
+    #[arg(long, value_name = "GT.obj")]
+    gt: Option<PathBuf>,
+    /// Fit photon counts (Poisson NLL of scale·J(I) + background) through this SPAD timing response: a
+    /// jitter file (`JitterResponse::load`: MATLAB v7.3 `t_*`/`counts_*`, or HDF5 `counts` +
+    /// `timebin_width_ps`), or `ideal` for no jitter. Without it the fit is L2 on intensities.
+    #[arg(long, value_name = "FILE|ideal")]
+    sensor: Option<String>,
+    /// Background of the sensor fit: expected counts per bin, or `auto` to estimate it from the bins
+    /// before the first return (the default). Needs --sensor.
+    #[arg(long, value_name = "COUNTS_PER_BIN|auto", requires = "sensor")]
+    background: Option<String>,
+    /// Do not write the report (`nlos report` writes it later).
+    #[arg(long)]
+    no_report: bool,
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
 }
+
+/// The file in the output directory that keeps the command line of the run.
+const COMMAND_FILE: &str = "command.json";
 
 fn fail<E: std::fmt::Display>(e: E) -> CliError {
     CliError::Failure(e.to_string())
@@ -78,8 +111,8 @@ fn bad<E: std::fmt::Display>(e: E) -> CliError {
     CliError::Input(e.to_string())
 }
 
-/// Runs `nlos reconstruct`.
-pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+/// The capture, after the requested rebinning and subsampling.
+fn load_measured(args: &Args) -> Result<Transient, CliError> {
     let mut measured = nlos_transient::read(&args.data).map_err(CliError::input)?;
     if let Some(k) = args.rebin {
         measured = measured.rebin(k).map_err(CliError::input)?;
@@ -87,8 +120,26 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if let Some(k) = args.subsample {
         measured = measured.subsample(k, k).map_err(CliError::input)?;
     }
+    Ok(measured)
+}
+
+/// The ground truth of `--gt` (non-manifold meshes accepted, as by `nlos eval`).
+fn load_gt(args: &Args) -> Result<Option<SurfaceMesh>, CliError> {
+    args.gt
+        .as_ref()
+        .map(|p| nlos_mesh::metrics::load_for_eval(p).map_err(|e| bad(format!("--gt {}: {e}", p.display()))))
+        .transpose()
+}
+
+/// Runs `nlos reconstruct`.
+pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    let measured = load_measured(args)?;
+    let params = params(args, &measured)?;
+    let gt = load_gt(args)?;
     std::fs::create_dir_all(&args.out).map_err(|e| fail(format!("{}: {e}", args.out.display())))?;
-    let params = params(args)?;
+    let argv: Vec<String> = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect();
+    let command = serde_json::json!({ "argv": argv }).to_string();
+    std::fs::write(args.out.join(COMMAND_FILE), command).map_err(|e| fail(format!("{}: {e}", args.out.display())))?;
     let bar = (!args.quiet).then(|| progress_bar(&params));
     let mut on_progress = |p: &Progress| {
         if let Some(bar) = &bar {
@@ -119,6 +170,9 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
+    if args.glb {
+        save(&outcome.mesh, &args.out.join("mesh.glb"))?;
+    }
     let last = outcome.log.iterations.last();
     println!(
         "{}: {} faces, {} vertices after {} blocks (stage {}); loss {:.4e}; scale {:.4e}; stop: {}",
@@ -135,11 +189,130 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             StopReason::Interrupted => "interrupted (resume with --resume)",
         }
     );
+    if outcome.stop != StopReason::Interrupted && !args.no_report {
+        write_report(args, &measured, &params, gt.as_ref()).map_err(|e| match e {
+            CliError::Input(m) | CliError::Failure(m) => {
+                CliError::Failure(format!("the mesh is written, but not the report: {m}"))
+            }
+        })?;
+    }
     Ok(())
 }
 
+/// Writes the report of the run in `args.out` ([`nlos_report::write_report`]) and prints where.
+fn write_report(
+    args: &Args,
+    measured: &Transient,
+    params: &ReconstructParams,
+    gt: Option<&SurfaceMesh>,
+) -> Result<(), CliError> {
+    let opts = report_options(args, params);
+    let report = nlos_report::write_report(&args.out, measured, gt, &opts).map_err(|e| match e {
+        nlos_report::ReportError::MissingFile { .. } | nlos_report::ReportError::Json { .. } => bad(e),
+        other => fail(other),
+    })?;
+    println!("{}: {} figures", report.html.display(), report.images.len());
+    Ok(())
+}
+
+/// `nlos report DIR --data DATA [--gt GT]`: the report of the run in `dir`, with the command line saved in
+/// `dir/command.json` (its data file and ground truth replaced by `data` and `gt`), or the defaults when
+/// there is none.
+pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Result<(), CliError> {
+    let file = dir.join(COMMAND_FILE);
+    let argv: Vec<String> = match std::fs::read(&file) {
+        Ok(bytes) => {
+            let v: serde_json::Value =
+                serde_json::from_slice(&bytes).map_err(|e| bad(format!("{}: {e}", file.display())))?;
+            v["argv"]
+                .as_array()
+                .map(|a| a.iter().filter_map(|x| x.as_str().map(String::from)).collect())
+                .ok_or_else(|| bad(format!("{}: no `argv` list", file.display())))?
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            ["nlos", "reconstruct", "-", "--out", "-"].map(String::from).to_vec()
+        }
+        Err(e) => return Err(fail(format!("{}: {e}", file.display()))),
+    };
+    let cli = <crate::Cli as clap::Parser>::try_parse_from(&argv)
+        .map_err(|e| bad(format!("{}: the saved command line does not parse: {e}", file.display())))?;
+    let crate::Command::Reconstruct(mut args) = cli.command else {
+        return Err(bad(format!("{}: not an `nlos reconstruct` command line", file.display())));
+    };
+    args.data = data.to_owned();
+    args.out = dir.to_owned();
+    if let Some(g) = gt {
+        args.gt = Some(g.to_owned());
+    }
+    let measured = load_measured(&args)?;
+    let params = params(&args, &measured)?;
+    let gt = load_gt(&args)?;
+    write_report(&args, &measured, &params, gt.as_ref())
+}
+
+/// The report's settings: the run's renderer settings, data term and sensor fit, and its command line.
+fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
+    let sampling = match params.sampling {
+        SamplingSchedule::Deterministic(rule) => Sampling::Deterministic(rule),
+        SamplingSchedule::Stratified { initial_samples, .. } => {
+            Sampling::Stratified { samples_per_measurement: initial_samples, seed: params.seed }
+        }
+    };
+    let name = args.data.file_name().map_or_else(|| args.data.display().to_string(), |n| n.to_string_lossy().into());
+    let opt = |v: Option<String>| v.unwrap_or_else(|| "default".into());
+    let parameters = vec![
+        ("data", args.data.display().to_string()),
+        ("initial surface (--init)", args.init.clone()),
+        (
+            "reflectance (--brdf)",
+            if args.brdf == "ggx" { format!("ggx, alpha0 {}", args.alpha) } else { args.brdf.clone() },
+        ),
+        ("seed", args.seed.to_string()),
+        ("stages", opt(args.stages.map(|v| v.to_string()))),
+        ("first-stage resolution", opt(args.resolution.map(|v| v.to_string()))),
+        ("blocks per stage", opt(args.blocks.map(|v| v.to_string()))),
+        ("shape iterations per block", opt(args.iterations.map(|v| v.to_string()))),
+        ("rebin", opt(args.rebin.map(|v| v.to_string()))),
+        ("subsample", opt(args.subsample.map(|v| v.to_string()))),
+        ("visibility", args.visibility.clone()),
+        ("quadrature max level", args.max_level.to_string()),
+        ("sensor", opt(args.sensor.clone())),
+        ("background", opt(args.background.clone())),
+        ("ground truth", opt(args.gt.as_ref().map(|p| p.display().to_string()))),
+        ("resumed", args.resume.to_string()),
+    ];
+    ReportOptions {
+        title: format!("nlos reconstruct {name}"),
+        parameters: parameters.into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
+        render: RenderParams { sampling, ..params.render },
+        loss: params.data.loss,
+        sensor: params.sensor.clone(),
+        ..ReportOptions::default()
+    }
+}
+
+/// The sensor fit of `--sensor` / `--background` on the capture's bins.
+fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, CliError> {
+    let Some(sensor) = &args.sensor else { return Ok(None) };
+    let background = match args.background.as_deref() {
+        None | Some("auto") => SensorBackground::Estimate(BackgroundWindow::Auto),
+        Some(v) => match v.parse::<f64>() {
+            Ok(b) if b.is_finite() && b >= 0.0 => SensorBackground::Fixed(b),
+            _ => return Err(bad(format!("--background `{v}`: expected counts per bin (finite, >= 0) or `auto`"))),
+        },
+    };
+    let bin_width = measured.time().bin_width;
+    Ok(Some(match sensor.as_str() {
+        "ideal" => SensorFit { kernel: BinKernel::identity(), background },
+        file => {
+            let response = JitterResponse::load(file).map_err(|e| bad(format!("--sensor {file}: {e}")))?;
+            SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?
+        }
+    }))
+}
+
 /// The optimiser's parameters from the arguments (documented defaults otherwise).
-fn params(args: &Args) -> Result<ReconstructParams, CliError> {
+fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliError> {
     let mut p = ReconstructParams { seed: args.seed, out_dir: Some(args.out.clone()), ..ReconstructParams::default() };
     // Checked whatever the model, so a typo never silently runs a long reconstruction with another α.
     if !(1e-3..=1.0).contains(&args.alpha) {
@@ -175,6 +348,7 @@ fn params(args: &Args) -> Result<ReconstructParams, CliError> {
     if let Some(i) = args.iterations {
         p.schedule.shape_iterations = i;
     }
+    p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;
     Ok(p)
 }
@@ -184,6 +358,7 @@ fn initial_surface(args: &Args, measured: &nlos_transient::Transient) -> Result<
     let volume = match args.init.as_str() {
         "lct" => lct(measured, &LctParams::default()).map_err(bad)?,
         "fk" => fk(measured, &FkParams::default()).map_err(bad)?,
+        "carve" => carve(measured, &CarveParams::default()).map_err(bad)?,
         file => return nlos_mesh::io::load(file).map_err(bad),
     };
     let surface = volume_to_surface(&volume, &SurfaceParams::default()).map_err(bad)?;

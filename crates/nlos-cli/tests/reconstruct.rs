@@ -48,11 +48,40 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     let common = ["--out", &o, "--stages", "1", "--resolution", "10", "--blocks", "1", "--iterations", "3", "--quiet"];
     let mut args = vec!["reconstruct", d.as_str()];
     args.extend(common);
+    args.push("--glb");
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
-    for f in ["init.obj", "mesh.obj", "mesh.ply", "run_log.json", "checkpoint.json"] {
+    for f in [
+        "init.obj",
+        "mesh.obj",
+        "mesh.ply",
+        "mesh.glb",
+        "run_log.json",
+        "checkpoint.json",
+        "command.json",
+        "report.html",
+        "summed.png",
+        "loss.png",
+        "depth_final.png",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing; output: {}", text(&run));
     }
+    // The GLB holds the same mesh as the OBJ.
+    let (obj, glb) = (
+        nlos_mesh::io::load(out.join("mesh.obj")).expect("obj"),
+        nlos_mesh::io::load(out.join("mesh.glb")).expect("glb"),
+    );
+    assert_eq!((obj.n_faces(), obj.n_vertices()), (glb.n_faces(), glb.n_vertices()));
+    // `nlos report` regenerates the report from the run directory and the capture.
+    std::fs::remove_file(out.join("report.html")).expect("rm report");
+    std::fs::remove_file(out.join("summed.png")).expect("rm png");
+    let rep = nlos(&["report", &o, "--data", &d]);
+    assert!(rep.status.success(), "{}", text(&rep));
+    let html = std::fs::read_to_string(out.join("report.html")).expect("report regenerated");
+    assert!(html.contains("summed.png") && out.join("summed.png").is_file());
+    assert!(html.contains("--iterations") || html.contains("shape iterations per block"), "parameters missing");
+    let missing = nlos(&["report", &dir.join("nowhere").to_string_lossy(), "--data", &d]);
+    assert_eq!(missing.status.code(), Some(2), "{}", text(&missing));
     // The LCT initial surface sits at the square's depth.
     let init = nlos_mesh::io::load(out.join("init.obj")).expect("init mesh");
     let mean_z = init.positions().iter().map(|p| p.z).sum::<f32>() / init.positions().len() as f32;
@@ -81,6 +110,12 @@ fn bad_arguments_are_input_errors() {
         vec!["--brdf", "ggx", "--alpha", "0"],
         vec!["--visibility", "sometimes"],
         vec!["--max-level", "0"],
+        vec!["--init", "voxels"],
+        vec!["--gt", "no-such-gt.obj"],
+        vec!["--sensor", "no-such-jitter.mat"],
+        vec!["--background", "auto"],
+        vec!["--sensor", "ideal", "--background=-3"],
+        vec!["--sensor", "ideal", "--background", "lots"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
@@ -93,4 +128,48 @@ fn bad_arguments_are_input_errors() {
     let missing = nlos(&["reconstruct", "nope.hdf5", "--out", &o]);
     assert_eq!(missing.status.code(), Some(2));
     assert!(text(&missing).contains("nope.hdf5"));
+}
+
+#[test]
+fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
+    let dir = scratch("carve");
+    let data = capture(&dir);
+    let out = dir.join("run");
+    // The ground truth: the rendered square itself.
+    let (h, z) = (0.1f32, 0.35f32);
+    let positions = [Vec3::new(-h, -h, z), Vec3::new(h, -h, z), Vec3::new(h, h, z), Vec3::new(-h, h, z)];
+    let gt = nlos_mesh::SurfaceMesh::from_triangles(&positions, &[[0, 2, 1], [0, 3, 2]]).expect("gt");
+    let gt_file = dir.join("gt.obj");
+    nlos_mesh::io::save(&gt, &gt_file).expect("save gt");
+    let (d, o, g) = (
+        data.to_string_lossy().into_owned(),
+        out.to_string_lossy().into_owned(),
+        gt_file.to_string_lossy().into_owned(),
+    );
+    let run = nlos(&[
+        "reconstruct",
+        &d,
+        "--out",
+        &o,
+        "--init",
+        "carve",
+        "--gt",
+        &g,
+        "--stages",
+        "1",
+        "--resolution",
+        "10",
+        "--blocks",
+        "1",
+        "--iterations",
+        "2",
+        "--quiet",
+    ]);
+    assert!(run.status.success(), "{}", text(&run));
+    let init = nlos_mesh::io::load(out.join("init.obj")).expect("init mesh");
+    let mean_z = init.positions().iter().map(|p| p.z).sum::<f32>() / init.positions().len() as f32;
+    assert!((mean_z - 0.35).abs() < 0.03, "carved surface at {mean_z} m, square at 0.35 m");
+    let html = std::fs::read_to_string(out.join("report.html")).expect("report");
+    assert!(html.contains("Metrics against the ground truth") && html.contains("coverage"));
+    assert!(out.join("depth_gt.png").is_file());
 }
