@@ -80,9 +80,13 @@ pub(crate) fn improve_with_length(
     };
     for _ in 0..params.improve_sweeps {
         imp.split_long_edges(mesh);
+        // drop the stale entries the previous pass left (deleted and reshaped faces)
+        imp.grid.rebuild(mesh);
         imp.collapse_short_edges(mesh);
+        imp.grid.rebuild(mesh);
         imp.flip_edges(mesh);
         if params.smoothing {
+            imp.grid.rebuild(mesh);
             imp.smooth(mesh);
         }
     }
@@ -113,10 +117,23 @@ impl std::hash::Hasher for CellHasher {
     }
 }
 
-type CellMap = HashMap<[i32; 3], Vec<u32>, std::hash::BuildHasherDefault<CellHasher>>;
+/// A grid entry: a face and its box `[lo, hi]` when it was inserted.
+type Entry = (u32, [Vec3; 2]);
 
-/// A uniform grid of face bounding boxes, updated lazily: entries of deleted or changed faces stay and are
-/// filtered at query time by the face's current box; repeated entries are skipped with a per-face stamp.
+type CellMap = HashMap<u64, Vec<Entry>, std::hash::BuildHasherDefault<CellHasher>>;
+
+/// The map key of a cell: 21 bits per axis. Far-apart cells may share a key; their entries are then
+/// filtered by the box test like any other.
+#[inline]
+fn key(c: [i32; 3]) -> u64 {
+    let m = (1u64 << 21) - 1;
+    (c[0] as u64 & m) | ((c[1] as u64 & m) << 21) | ((c[2] as u64 & m) << 42)
+}
+
+/// A uniform grid of face bounding boxes. Every change of a face's geometry inserts it again with its new
+/// box; the entries of deleted faces and the outdated boxes of changed ones stay until the next
+/// [`FaceGrid::rebuild`] and are filtered at query time (deleted faces; a face is reported once, through
+/// an entry whose box overlaps the query, and then tested against its current box).
 struct FaceGrid {
     h: f32,
     cells: CellMap,
@@ -124,12 +141,15 @@ struct FaceGrid {
     generation: u32,
 }
 
+fn face_box(mesh: &SurfaceMesh, f: FaceId) -> [Vec3; 2] {
+    let [a, b, c] = mesh.face_points(f);
+    [a.min(b).min(c), a.max(b).max(c)]
+}
+
 impl FaceGrid {
     fn new(mesh: &SurfaceMesh, h: f32) -> Self {
         let mut g = Self { h, cells: CellMap::default(), stamp: Vec::new(), generation: 0 };
-        for f in mesh.faces() {
-            g.insert(mesh, f);
-        }
+        g.rebuild(mesh);
         g
     }
     fn cell(&self, p: Vec3) -> [i32; 3] {
@@ -144,13 +164,34 @@ impl FaceGrid {
         }
         (a, b)
     }
-    fn insert(&mut self, mesh: &SurfaceMesh, f: FaceId) {
-        let [a, b, c] = mesh.face_points(f);
-        let (lo, hi) = self.range(a.min(b).min(c), a.max(b).max(c));
+    /// Empties the grid and inserts every live face.
+    fn rebuild(&mut self, mesh: &SurfaceMesh) {
+        self.cells.values_mut().for_each(Vec::clear);
+        for f in mesh.faces() {
+            self.insert(mesh, f);
+        }
+    }
+    /// Face `f` had box `old` before its geometry changed: replaces its entries.
+    fn moved(&mut self, mesh: &SurfaceMesh, f: FaceId, old: [Vec3; 2]) {
+        let (lo, hi) = self.range(old[0], old[1]);
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
                 for z in lo[2]..=hi[2] {
-                    self.cells.entry([x, y, z]).or_default().push(f.0);
+                    if let Some(v) = self.cells.get_mut(&key([x, y, z])) {
+                        v.retain(|e| e.0 != f.0);
+                    }
+                }
+            }
+        }
+        self.insert(mesh, f);
+    }
+    fn insert(&mut self, mesh: &SurfaceMesh, f: FaceId) {
+        let bx = face_box(mesh, f);
+        let (lo, hi) = self.range(bx[0], bx[1]);
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    self.cells.entry(key([x, y, z])).or_default().push((f.0, bx));
                 }
             }
         }
@@ -170,20 +211,22 @@ impl FaceGrid {
         for x in a[0]..=b[0] {
             for y in a[1]..=b[1] {
                 for z in a[2]..=b[2] {
-                    let Some(v) = self.cells.get(&[x, y, z]) else { continue };
-                    for &f in v {
-                        let s = &mut self.stamp[f as usize];
-                        if *s == self.generation {
+                    let Some(v) = self.cells.get(&key([x, y, z])) else { continue };
+                    for &(f, bx) in v {
+                        // the entry's box first (cheap); a face is marked only once it is reported, so an
+                        // outdated entry that fails here cannot hide the face's current one
+                        if !(bx[0].cmple(hi).all() && lo.cmple(bx[1]).all())
+                            || self.stamp[f as usize] == self.generation
+                        {
                             continue;
                         }
-                        *s = self.generation;
                         let f = FaceId(f);
                         if mesh.is_deleted_face(f) {
                             continue;
                         }
-                        let [p, q, r] = mesh.face_points(f);
-                        let (flo, fhi) = (p.min(q).min(r), p.max(q).max(r));
+                        let [flo, fhi] = face_box(mesh, f);
                         if flo.cmple(hi).all() && lo.cmple(fhi).all() {
+                            self.stamp[f.0 as usize] = self.generation;
                             out.push(f);
                         }
                     }
@@ -227,6 +270,7 @@ fn normal(p: [Vec3; 3]) -> DVec3 {
 
 impl Improver<'_> {
     /// Whether the new faces (vertex ids, positions) intersect any live face except those in `skip`.
+    #[inline(never)]
     fn new_faces_intersect(&mut self, mesh: &SurfaceMesh, new: &[([u32; 3], [Vec3; 3])], skip: &[FaceId]) -> bool {
         let mut cands = Vec::new();
         for (k, (fv, t)) in new.iter().enumerate() {
@@ -250,6 +294,7 @@ impl Improver<'_> {
         false
     }
 
+    #[inline(never)]
     fn split_long_edges(&mut self, mesh: &mut SurfaceMesh) {
         let mut long: Vec<(f32, EdgeId)> = mesh
             .edges()
@@ -272,6 +317,7 @@ impl Improver<'_> {
         }
     }
 
+    #[inline(never)]
     fn collapse_short_edges(&mut self, mesh: &mut SurfaceMesh) {
         let mut cands: Vec<(f32, EdgeId)> = mesh
             .edges()
@@ -319,22 +365,24 @@ impl Improver<'_> {
     }
 
     /// Collapses `h` (removes `from(h)`, keeps `to(h)` in place) if every check passes.
+    #[inline(never)]
     fn try_collapse(&mut self, mesh: &mut SurfaceMesh, h: HalfedgeId) -> bool {
-        if !mesh.is_collapse_ok(h) {
-            self.report.rejected_quality += 1;
-            return false;
-        }
         let (v0, v1) = (mesh.from_vertex(h), mesh.to_vertex(h));
-        if mesh.is_boundary_vertex(v0) && !mesh.is_boundary_edge(h.edge()) {
-            self.report.rejected_quality += 1;
-            return false; // would pull the boundary inward
-        }
         let (x0, x1) = (mesh.position(v0), mesh.position(v1));
+        // the cheap length test first: with a tight edge band it rejects most candidates
         for w in mesh.vertex_vertices(v0) {
             if w != v1 && (mesh.position(w) - x1).length() > self.max_len {
                 self.report.rejected_quality += 1;
                 return false;
             }
+        }
+        if !mesh.is_collapse_ok(h) {
+            self.report.rejected_quality += 1;
+            return false;
+        }
+        if mesh.is_boundary_vertex(v0) && !mesh.is_boundary_edge(h.edge()) {
+            self.report.rejected_quality += 1;
+            return false; // would pull the boundary inward
         }
         let old_faces: Vec<FaceId> = mesh.vertex_faces(v0).collect();
         let worst_old = old_faces
@@ -385,6 +433,7 @@ impl Improver<'_> {
         true
     }
 
+    #[inline(never)]
     fn flip_edges(&mut self, mesh: &mut SurfaceMesh) {
         let edges: Vec<EdgeId> = mesh.edges().collect();
         for e in edges {
@@ -438,6 +487,7 @@ impl Improver<'_> {
     /// null space of the vertex's normal quadric `Σ Aᶠ nᶠnᶠᵀ` (eigenvectors with eigenvalue below 3 % of
     /// the largest, El Topo's threshold): tangential on smooth parts, along the crease on creases, none at
     /// corners. Boundary vertices stay. Each move is checked continuously.
+    #[inline(never)]
     fn smooth(&mut self, mesh: &mut SurfaceMesh) {
         let verts: Vec<VertexId> = mesh.vertices().collect();
         let mut scratch = MoveScratch::default();
@@ -479,10 +529,10 @@ impl Improver<'_> {
                 continue;
             }
             if self.vertex_move_ok(mesh, v, to, &mut scratch) {
+                let old: Vec<(FaceId, [Vec3; 2])> = mesh.vertex_faces(v).map(|f| (f, face_box(mesh, f))).collect();
                 mesh.set_position(v, to);
-                let faces: Vec<FaceId> = mesh.vertex_faces(v).collect();
-                for f in faces {
-                    self.grid.insert(mesh, f);
+                for (f, p) in old {
+                    self.grid.moved(mesh, f, p);
                 }
                 self.report.smoothed += 1;
             }
@@ -493,6 +543,7 @@ impl Improver<'_> {
     /// meets nothing: CCD of every vertex–triangle and edge–edge pair that involves `v` (the moving point
     /// against nearby faces, nearby vertices against the moving one-ring faces, the moving one-ring edges
     /// against nearby edges), each pair first filtered by its swept box.
+    #[inline(never)]
     fn vertex_move_ok(&mut self, mesh: &SurfaceMesh, v: VertexId, to: Vec3, scratch: &mut MoveScratch) -> bool {
         let from = mesh.position(v);
         let at = |w: VertexId| if w == v { to } else { mesh.position(w) };
