@@ -28,7 +28,30 @@ pub(crate) struct Soa {
     valid: Vec<bool>,
     /// `order[slot]`: the mesh triangle stored at `slot`.
     pub(crate) order: Vec<u32>,
+    /// Per block of `BLOCK` slots: bounds for culling whole blocks that face away from a wall spot.
+    bounds: Vec<BlockBound>,
 }
+
+/// Conservative bounds of a block of triangles: componentwise range `[lo, hi]` of the unit normals and the
+/// smallest plane offset `n̂·v0` of its valid triangles.
+#[derive(Debug, Clone, Copy, Default)]
+struct BlockBound {
+    lo: Vec3,
+    hi: Vec3,
+    d_min: f32,
+}
+
+impl BlockBound {
+    /// An upper bound of `n̂·p − n̂·v0` (signed distance of p in front of the plane) over the block.
+    #[inline(always)]
+    fn max_front(&self, p: Vec3) -> f32 {
+        (self.lo * p).max(self.hi * p).element_sum() - self.d_min
+    }
+}
+
+/// Margin (m) of the block culling test: far above the f32 rounding of the bounds (~1e-6 m at the scale of
+/// metres), so a culled block never holds a pair that the exact per-triangle test would keep.
+const CULL_MARGIN: f32 = 1e-3;
 
 /// Bucket of a normal direction: a `res × res` grid on its octahedral map (0 for a zero or non-finite
 /// normal).
@@ -49,12 +72,27 @@ fn normal_bucket(n: Vec3, res: u32) -> u32 {
 impl Soa {
     /// Stores the triangles grouped by normal direction (stable: mesh order within a group), so that most
     /// blocks face a wall spot either all toward or all away: whole blocks are then skipped at once.
-    pub(crate) fn new(v0: &[Vec3], e1: &[Vec3], e2: &[Vec3], n: &[Vec3], valid: &[bool]) -> Self {
-        // About two blocks per bucket: finer groups would scatter the mesh order (spatial locality of the
-        // histogram accesses), coarser ones would mix orientations within a block.
-        let res = ((v0.len() as f64 / (2 * BLOCK) as f64).sqrt() as u32).clamp(1, 16);
-        let mut order: Vec<u32> = (0..v0.len() as u32).collect();
-        order.sort_by_key(|&t| normal_bucket(n[t as usize], res));
+    ///
+    /// `keep_order`: the storage order to reuse (the visibility cache is stored in it), None to regroup.
+    pub(crate) fn new(
+        v0: &[Vec3],
+        e1: &[Vec3],
+        e2: &[Vec3],
+        n: &[Vec3],
+        valid: &[bool],
+        keep_order: Option<Vec<u32>>,
+    ) -> Self {
+        let order = match keep_order {
+            Some(o) if o.len() == v0.len() => o,
+            _ => {
+                // About two blocks per bucket: finer groups would scatter the mesh order (spatial locality of
+                // the histogram accesses), coarser ones would mix orientations within a block.
+                let res = ((v0.len() as f64 / (2 * BLOCK) as f64).sqrt() as u32).clamp(1, 16);
+                let mut order: Vec<u32> = (0..v0.len() as u32).collect();
+                order.sort_by_key(|&t| normal_bucket(n[t as usize], res));
+                order
+            }
+        };
         let gather = |a: &[Vec3]| order.iter().map(|&t| a[t as usize]).collect::<Vec<_>>();
         let (v0, e1, e2, n) = (gather(v0), gather(e1), gather(e2), gather(n));
         let valid: Vec<bool> = order.iter().map(|&t| valid[t as usize]).collect();
@@ -62,7 +100,27 @@ impl Soa {
             [a.iter().map(|p| p.x).collect(), a.iter().map(|p| p.y).collect(), a.iter().map(|p| p.z).collect()]
         };
         let (v0, e1, e2, n, valid) = (&v0[..], &e1[..], &e2[..], &n[..], &valid[..]);
+        let bounds = (0..v0.len())
+            .step_by(BLOCK)
+            .map(|t0| {
+                let t1 = (t0 + BLOCK).min(v0.len());
+                let mut b = BlockBound { lo: Vec3::INFINITY, hi: Vec3::NEG_INFINITY, d_min: f32::INFINITY };
+                for t in (t0..t1).filter(|t| valid[*t]) {
+                    let u = n[t] / n[t].length();
+                    b.lo = b.lo.min(u);
+                    b.hi = b.hi.max(u);
+                    b.d_min = b.d_min.min(u.dot(v0[t]));
+                }
+                // Guard: a block without a valid triangle (or with a non-finite bound) is never active: a
+                // bound that always culls.
+                if !(b.lo.is_finite() && b.hi.is_finite() && b.d_min.is_finite()) {
+                    b = BlockBound { lo: Vec3::ZERO, hi: Vec3::ZERO, d_min: 1e30 };
+                }
+                b
+            })
+            .collect();
         Self {
+            bounds,
             v0: split(v0),
             e1: split(e1),
             e2: split(e2),
@@ -72,6 +130,22 @@ impl Soa {
             inv_n2: n.iter().zip(valid).map(|(n, ok)| if *ok { 1.0 / n.length_squared() } else { 0.0 }).collect(),
             valid: valid.to_vec(),
             order,
+        }
+    }
+
+    /// Whether every triangle of the block starting at slot `t0` (a multiple of `BLOCK`) certainly faces
+    /// away from l or from s, so that no pair of it reflects (one-sided faces only).
+    #[inline(always)]
+    pub(crate) fn culled(&self, t0: usize, fr: &Frame) -> bool {
+        let b = &self.bounds[t0 / BLOCK];
+        b.max_front(fr.l) < -CULL_MARGIN || b.max_front(fr.s) < -CULL_MARGIN
+    }
+
+    /// Turns the block culling off (bounds that never cull), for tests that it changes nothing.
+    #[cfg(test)]
+    pub(crate) fn disable_culling(&mut self) {
+        for b in &mut self.bounds {
+            *b = BlockBound { lo: Vec3::splat(-1e30), hi: Vec3::splat(1e30), d_min: -1e30 };
         }
     }
 
@@ -266,18 +340,20 @@ pub(crate) struct TentAxis {
 }
 
 impl TentAxis {
-    /// `(padded index of the lower bin, fraction c − k0, whether any bin is in range)`. Branch-free; for a
-    /// non-finite τ the flag is false.
+    /// `(padded index of the lower bin, fraction c − k0, whether any bin is in range)`. Branch-free and free
+    /// of float → int conversions (Rust's saturating casts do not vectorise): c is clamped to
+    /// `[−2, bins]` (NaN → −2, out of range), rounded with the 1.5·2²³ trick (exact round-to-nearest for
+    /// |c| < 2²², no fast-math here), stepped down to the floor, and the integer read from the bits.
     #[inline(always)]
     fn bin(&self, tau: f32) -> (u32, f32, bool) {
-        let c = (tau - self.t0) * self.inv_dt - 0.5;
-        // floor(c) without a libm call: truncate (saturating, NaN → 0), then step down for negative
-        // non-integers (exact for |c| < 2^31; beyond, `in_range` is false anyway).
-        let tr = c as i32 as f32;
-        let kf = if tr > c { tr - 1.0 } else { tr };
+        const MAGIC: f32 = 12_582_912.0; // 1.5 · 2²³: ulp 1 over [2²³, 2²⁴)
+        let c = ((tau - self.t0) * self.inv_dt - 0.5).max(-2.0).min(self.last + 1.0);
+        let r = (c + MAGIC) - MAGIC;
+        let kf = if r > c { r - 1.0 } else { r };
         let frac = c - kf;
         let in_range = (kf >= -1.0) & (kf <= self.last);
-        let p = (kf.max(-1.0).min(self.last) + 1.0) as u32;
+        // kf + 1 ∈ [−1, bins + 1] is an integer: MAGIC + it has it in the low mantissa bits.
+        let p = (kf.max(-1.0).min(self.last) + 1.0 + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits());
         (p, frac, in_range)
     }
 }
@@ -414,11 +490,16 @@ pub(crate) fn tent_gather(isa: Isa, len: usize, adj: &[f32], inv_dt: f32, sc: &m
 fn tent_gather_body(len: usize, adj: &[f32], inv_dt: f32, sc: &mut Scratch) {
     let (idx, frac, ok) = (&sc.idx[..len], &sc.w0[..len], &sc.ok[..len]);
     let (a_val, a_der) = (&mut sc.a_val[..len], &mut sc.a_der[..len]);
+    // p ≤ bins by construction and the row has bins + 2 entries; the `min` lets the compiler drop the bounds
+    // checks (so the loop vectorises with gathers) and keeps it panic-free whatever the input.
+    let last = adj.len().saturating_sub(2);
+    if adj.len() < 2 {
+        return;
+    }
     for i in 0..len {
-        let p = idx[i] as usize;
-        // In range by construction (p ≤ bins, the row has bins + 2 entries); `get` keeps it panic-free.
-        let a0 = adj.get(p).copied().unwrap_or(0.0);
-        let a1 = adj.get(p + 1).copied().unwrap_or(0.0);
+        let p = (idx[i] as usize).min(last);
+        let a0 = adj[p];
+        let a1 = adj[p + 1];
         let f = frac[i];
         a_val[i] = ok[i] * (a0 * (1.0 - f) + a1 * f);
         a_der[i] = ok[i] * ((a1 - a0) * inv_dt);
