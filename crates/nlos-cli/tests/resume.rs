@@ -1,0 +1,114 @@
+//! A run killed with SIGKILL right after its first checkpoint and continued with `--resume` ends with the
+//! same mesh and the same run log (bit for bit, wall-clock times aside) as an uninterrupted run with the
+//! same seed (issue 8: "A run killed mid-way (SIGKILL) and resumed ends with the same result").
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use nlos_brdf::Lambertian;
+use nlos_render::{Kernel, RenderParams, Renderer, Visibility};
+use nlos_transient::{Format, PointSet, Scan, TimeAxis};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("resume-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// A 0.2 m square with a 3 cm ridge, 0.35 m from the wall, on a 12 × 12 confocal scan, 256 bins of 4 mm.
+fn capture(dir: &Path) -> PathBuf {
+    let (h, d) = (0.1f32, 0.35f32);
+    let positions = [
+        Vec3::new(-h, -h, d),
+        Vec3::new(0.0, -h, d - 0.03),
+        Vec3::new(h, -h, d),
+        Vec3::new(h, h, d),
+        Vec3::new(0.0, h, d - 0.03),
+        Vec3::new(-h, h, d),
+    ];
+    let triangles = [[0u32, 4, 1], [0, 5, 4], [1, 3, 2], [1, 4, 3]]; // normals toward the wall
+    let scan = Scan::confocal(PointSet::wall_grid(12, 12, 0.25, 0.25).expect("grid"));
+    let time = TimeAxis::new(0.0, 0.004, 256).expect("axis");
+    let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
+    let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).expect("renderer");
+    let t = renderer.forward_transient(&Lambertian::new(1.0f32).expect("brdf")).expect("render");
+    let file = dir.join("ridge.hdf5");
+    nlos_transient::write(&t, &file, Format::Tal).expect("write");
+    file
+}
+
+/// Fast settings: 3 stages × up to 2 blocks of 6 shape steps, seed 11; every block writes a checkpoint.
+fn command(data: &Path, out: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_nlos"));
+    c.arg("reconstruct").arg(data).arg("--out").arg(out);
+    c.args(["--stages", "3", "--resolution", "8", "--blocks", "2", "--iterations", "6", "--seed", "11", "--quiet"]);
+    c
+}
+
+/// Positions and triangles of an OBJ, exactly as written.
+fn mesh(path: &Path) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let m = nlos_mesh::io::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    m.to_triangles()
+}
+
+/// The run log without its wall-clock times (the only non-deterministic field).
+fn log_without_times(dir: &Path) -> serde_json::Value {
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("run_log.json")).expect("log")).expect("log json");
+    for r in v["iterations"].as_array_mut().expect("iterations") {
+        r["time_s"] = serde_json::Value::Null;
+    }
+    v
+}
+
+#[test]
+fn sigkilled_run_resumes_to_the_uninterrupted_result() {
+    let dir = scratch("kill");
+    let data = capture(&dir);
+
+    // The reference: one uninterrupted run.
+    let whole = dir.join("whole");
+    let t0 = Instant::now();
+    let r = command(&data, &whole).arg("--no-report").output().expect("run nlos");
+    assert!(r.status.success(), "{}", text(&r));
+    let whole_s = t0.elapsed().as_secs_f64();
+
+    // The same run, SIGKILLed as soon as its first checkpoint exists.
+    let killed = dir.join("killed");
+    let mut child = command(&data, &killed).stdout(Stdio::null()).stderr(Stdio::null()).spawn().expect("spawn");
+    let ck = killed.join("checkpoint.json");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !ck.is_file() {
+        assert!(child.try_wait().expect("wait").is_none(), "the run ended before writing a checkpoint");
+        assert!(Instant::now() < deadline, "no checkpoint after 60 s");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("SIGKILL"); // std's Child::kill sends SIGKILL on Unix
+    let status = child.wait().expect("reap");
+    assert!(!status.success(), "the run finished before it could be killed ({whole_s:.2} s uninterrupted)");
+    assert!(!killed.join("mesh.obj").exists(), "the run finished before it was killed: nothing tested");
+    let ck_text = std::fs::read_to_string(&ck).expect("checkpoint");
+    assert!(ck_text.contains("\"finished\":null"), "checkpoint of a finished run");
+
+    // Resume to the end; the report is written after the resumed run too.
+    let r = command(&data, &killed).arg("--resume").output().expect("resume");
+    assert!(r.status.success(), "{}", text(&r));
+    assert!(killed.join("report.html").is_file(), "no report after --resume: {}", text(&r));
+
+    let (pw, tw) = mesh(&whole.join("mesh.obj"));
+    let (pk, tk) = mesh(&killed.join("mesh.obj"));
+    assert_eq!(tw, tk, "triangles differ");
+    assert_eq!(pw.len(), pk.len());
+    // Bit-exact: f32 positions compared by their bits.
+    let differing =
+        pw.iter().zip(&pk).filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits));
+    assert_eq!(differing.count(), 0, "positions differ after resume");
+    assert_eq!(log_without_times(&whole), log_without_times(&killed), "run logs differ");
+}
