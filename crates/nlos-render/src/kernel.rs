@@ -73,6 +73,17 @@ impl KernelEval {
         self.inv_dt
     }
 
+    /// Number of bins.
+    pub(crate) fn bins(&self) -> usize {
+        self.bins
+    }
+
+    /// The steady-state (time-integrated) "kernel": one bin that holds every path length, `K_0(τ) = 1`, no
+    /// τ-derivative (a box of width 10³⁰ m starting at τ = 0; path lengths are ≥ 0).
+    pub(crate) fn steady() -> Self {
+        Self::new(Kernel::Box, 0.0, 1e30, 1)
+    }
+
     /// Calls `f(k, K_k(τ), dK_k/dτ)` for every bin with a non-zero weight.
     #[inline(always)]
     fn weights(&self, tau: f32, mut f: impl FnMut(usize, f32, f32)) {

@@ -35,6 +35,12 @@
 //! normal `N = (v1 − v0) × (v2 − v0)` ([`RenderParams::two_sided`] lifts this). Only three-bounce paths
 //! `l → x → s` are modelled (no interreflection).
 //!
+//! ## Steady state
+//! [`Renderer::forward_steady`], [`Renderer::adjoint_steady`] and [`Renderer::loss_and_gradient_steady`] give
+//! the time-integrated intensity `S(l, s) = ∫_S f v v dA` (eq. 1 without the kernel; one value per measurement)
+//! and its gradient, with the same samples and visibility as the transient: the method applies to any radiometric
+//! measurement (Tsai et al. 2019). `S` is the time sum of the transient when the time axis holds every path.
+//!
 //! ## Scale convention
 //! The relay wall is Lambertian and its own BRDF factors (`ρ_w/π` at l and at s) are **left out**: a unit
 //! transient is "f integrated", nothing more. The shared reference data

@@ -125,7 +125,7 @@ pub struct LossAndGradient {
     pub loss: f64,
     /// dE/d(vertices), dE/d(BRDF parameters).
     pub gradient: Gradient,
-    /// The rendered transient, measurement-major.
+    /// The rendered transient, measurement-major (steady-state: one value per measurement).
     pub rendered: Vec<f32>,
 }
 
@@ -359,11 +359,16 @@ impl Renderer {
     /// The forward pass, eq. (1): `I[m·bins + k] = Σ_t ∫_t K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x)` with f the
     /// product of eq. (2) (see the crate docs for the scale convention).
     pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
-        let bins = self.time.bins;
+        self.forward_with(brdf, &self.kernel)
+    }
+
+    /// The forward pass with kernel `k` (its bin count sets the histogram length).
+    fn forward_with<B: RenderBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
+        let bins = k.bins();
         let nt = self.tris.v0.len();
-        let mut data = vec![0.0f32; self.len()];
+        let mut data = vec![0.0f32; self.wall.l.len() * bins];
         // The tent fast path of the fixed rule splats into histograms padded by one bin at each end.
-        let pad = usize::from(self.tent_path().is_some());
+        let pad = usize::from(self.tent_path(k).is_some());
         // Tiles of M_CHUNK measurements × BLOCK triangles: each task owns its histograms (no lock, no
         // reduction) and sweeps every block of triangles over them while the block is in cache.
         data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, out)| {
@@ -374,11 +379,11 @@ impl Renderer {
                 let t1 = (t0 + BLOCK).min(nt);
                 if pad == 1 {
                     for (j, hist) in local.chunks_mut(bins + 2).enumerate() {
-                        self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                        self.forward_block(brdf, k, c * M_CHUNK + j, t0, t1, hist, &mut sc);
                     }
                 } else {
                     for (j, hist) in out.chunks_mut(bins).enumerate() {
-                        self.forward_block(brdf, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                        self.forward_block(brdf, k, c * M_CHUNK + j, t0, t1, hist, &mut sc);
                     }
                 }
             }
@@ -407,10 +412,16 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
     pub fn adjoint<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
-        if d_loss.len() != self.len() {
-            return Err(RenderError::LengthMismatch { what: "d_loss", expected: self.len(), got: d_loss.len() });
+        self.adjoint_with(brdf, d_loss, &self.kernel)
+    }
+
+    /// The adjoint pass with kernel `k` (its bin count sets the row length of `d_loss`).
+    fn adjoint_with<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32], k: &KernelEval) -> Result<Gradient> {
+        let bins = k.bins();
+        let expected = self.wall.l.len() * bins;
+        if d_loss.len() != expected {
+            return Err(RenderError::LengthMismatch { what: "d_loss", expected, got: d_loss.len() });
         }
-        let bins = self.time.bins;
         let nt = self.tris.v0.len();
         let nonzero: Vec<bool> = d_loss.par_chunks(bins).map(|a| a.iter().any(|x| *x != 0.0)).collect();
         // Parallel over ranges of triangles: each task sweeps every measurement over its range, block by
@@ -420,7 +431,7 @@ impl Renderer {
         // triangle: the 12 geometric sums of `Acc::flush`.
         let per_task = nt.div_ceil(32).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
         // The tent fast path gathers from rows padded by a zero bin at each end (bin k at k + 1).
-        let (padded, row_len) = if self.tent_path().is_some() {
+        let (padded, row_len) = if self.tent_path(k).is_some() {
             let mut p = vec![0.0f32; d_loss.len() / bins * (bins + 2)];
             p.par_chunks_mut(bins + 2).zip(d_loss.par_chunks(bins)).for_each(|(p, a)| p[1..=bins].copy_from_slice(a));
             (std::borrow::Cow::Owned(p), bins + 2)
@@ -446,7 +457,7 @@ impl Renderer {
                             let mut pending = 0;
                             for (m, adj) in rows_fixed() {
                                 for (b0, b1) in blocks() {
-                                    self.adjoint_block(brdf, m, b0, b1, adj, (u, v, w), &mut acc, b0 - r0, &mut sc);
+                                    self.adjoint_block(brdf, k, m, b0, b1, adj, (u, v, w), &mut acc, b0 - r0, &mut sc);
                                 }
                                 pending += 1;
                                 if pending == FLUSH {
@@ -461,7 +472,7 @@ impl Renderer {
                         for (m, adj) in rows() {
                             for (b0, b1) in blocks() {
                                 let o = &mut out[b0 - r0..b1 - r0];
-                                self.adjoint_pairs(brdf, m, b0, b1, adj, o, &mut params, &mut sc);
+                                self.adjoint_pairs(brdf, k, m, b0, b1, adj, o, &mut params, &mut sc);
                             }
                         }
                     }
@@ -493,6 +504,41 @@ impl Renderer {
             vertices: dv.iter().map(|g| g.as_vec3()).collect(),
             brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
         })
+    }
+
+    /// Steady-state (time-integrated) intensity, one value per measurement: `S(l, s) = ∫_S f(x) v(x,l) v(x,s)
+    /// dA(x)`, eq. (1) without the temporal kernel — what a conventional (non-transient) camera would record
+    /// at s under a continuous source at l. Tsai et al. 2019 note that the method applies to any radiometric
+    /// measurement; this is the simplest one. Equals the time sum of [`Renderer::forward`] (any kernel)
+    /// whenever the time axis holds every path length; the same samples and visibility as the transient.
+    pub fn forward_steady<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
+        self.forward_with(brdf, &KernelEval::steady())
+    }
+
+    /// Adjoint of [`Renderer::forward_steady`]: given `d_loss[m] = dE/dS_m` (one per measurement), dE/d(vertices)
+    /// and dE/d(BRDF parameters) (no time-shift term: S does not depend on path length).
+    ///
+    /// # Errors
+    /// [`RenderError::LengthMismatch`] when `d_loss` does not hold one value per measurement.
+    pub fn adjoint_steady<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        self.adjoint_with(brdf, d_loss, &KernelEval::steady())
+    }
+
+    /// [`Renderer::loss_and_gradient`] for steady-state measurements (`measured`: one value per measurement).
+    ///
+    /// # Errors
+    /// As [`Loss::evaluate`].
+    pub fn loss_and_gradient_steady<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        measured: &[f32],
+        loss: Loss,
+        weights: Option<&[f32]>,
+    ) -> Result<LossAndGradient> {
+        let rendered = self.forward_steady(brdf);
+        let (e, adj) = loss.evaluate(&rendered, measured, weights)?;
+        let gradient = self.adjoint_steady(brdf, &adj)?;
+        Ok(LossAndGradient { loss: e, gradient, rendered })
     }
 
     /// Forward pass, loss, adjoint pass: `E(I; measured)` and its gradient (eq. 6–7 of Tsai et al. 2019 for
@@ -672,6 +718,7 @@ impl Renderer {
     fn forward_block<B: RenderBrdf>(
         &self,
         brdf: &B,
+        k: &KernelEval,
         m: usize,
         t0: usize,
         t1: usize,
@@ -687,13 +734,13 @@ impl Renderer {
         let Some(n) = self.fixed_level() else {
             for i in 0..len {
                 if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                    self.forward_tm(brdf, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
+                    self.forward_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
                 }
             }
             return;
         };
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
-        let tent = self.tent_path();
+        let tent = self.tent_path(k);
         let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
         let isa = self.isa;
         self.centroids(n, |u, v, w| {
@@ -723,15 +770,15 @@ impl Renderer {
                     }
                 }
             } else {
-                self.kernel.splat_all(&sc.tau[..len], &sc.g[..len], hist);
+                k.splat_all(&sc.tau[..len], &sc.g[..len], hist);
             }
         });
     }
 
     /// The tent kernel's block constants when the fast path applies (fixed deterministic rule, tent kernel).
     #[inline(always)]
-    fn tent_path(&self) -> Option<TentAxis> {
-        self.fixed_level().and(self.kernel.tent())
+    fn tent_path(&self, k: &KernelEval) -> Option<TentAxis> {
+        self.fixed_level().and(k.tent())
     }
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
@@ -740,6 +787,7 @@ impl Renderer {
     fn adjoint_block<B: RenderBrdf>(
         &self,
         brdf: &B,
+        k: &KernelEval,
         m: usize,
         t0: usize,
         t1: usize,
@@ -758,7 +806,7 @@ impl Renderer {
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let confocal = self.wall.confocal;
         let isa = self.isa;
-        let tent = self.tent_path();
+        let tent = self.tent_path(k);
         let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
         // Stage 1 (vector): |a|, |b|, the cosine tests (and the tent's bins).
         match (confocal, tent.is_some()) {
@@ -771,11 +819,11 @@ impl Renderer {
         // other kernels pair by pair), then the shadow ray of the samples that carry a gradient; zero for
         // skipped pairs and occluded samples.
         if tent.is_some() {
-            soa::tent_gather(isa, len, adj, self.kernel.inv_dt(), sc);
+            soa::tent_gather(isa, len, adj, k.inv_dt(), sc);
         } else {
             for i in 0..len {
                 (sc.a_val[i], sc.a_der[i]) =
-                    if sc.ok[i] != 0.0 { self.kernel.gather(sc.tau[i] + sc.g[i], adj) } else { (0.0, 0.0) };
+                    if sc.ok[i] != 0.0 { k.gather(sc.tau[i] + sc.g[i], adj) } else { (0.0, 0.0) };
             }
         }
         if live {
@@ -801,6 +849,7 @@ impl Renderer {
     fn adjoint_pairs<B: RenderBrdf>(
         &self,
         brdf: &B,
+        k: &KernelEval,
         m: usize,
         t0: usize,
         t1: usize,
@@ -817,7 +866,7 @@ impl Renderer {
         for (i, o) in out.iter_mut().enumerate() {
             if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
                 let (g0, g1, g2, g_n, g_p) =
-                    self.adjoint_tm(brdf, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], adj);
+                    self.adjoint_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], adj);
                 for (k, g) in [g0, g1, g2, g_n].iter().enumerate() {
                     o[3 * k] += f64::from(g.x);
                     o[3 * k + 1] += f64::from(g.y);
@@ -836,6 +885,7 @@ impl Renderer {
     fn forward_tm<B: RenderBrdf>(
         &self,
         brdf: &B,
+        k: &KernelEval,
         m: usize,
         t: usize,
         fr: &Frame,
@@ -862,7 +912,7 @@ impl Renderer {
             let tau = ra2.sqrt() + rb2.sqrt();
             let fs = if self.wall.confocal { brdf.eval_confocal(a, n) } else { brdf.eval(a, b, n) };
             let q = cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2);
-            self.kernel.splat(tau, w * vis_c * fs * q, hist);
+            k.splat(tau, w * vis_c * fs * q, hist);
         });
     }
 
@@ -872,6 +922,7 @@ impl Renderer {
     fn adjoint_tm<B: RenderBrdf>(
         &self,
         brdf: &B,
+        k: &KernelEval,
         m: usize,
         t: usize,
         fr: &Frame,
@@ -895,7 +946,7 @@ impl Renderer {
             }
             let (ra2, rb2) = (a.length_squared(), b.length_squared());
             let (ra, rb) = (ra2.sqrt(), rb2.sqrt());
-            let (a_val, a_der) = self.kernel.gather(ra + rb, adj);
+            let (a_val, a_der) = k.gather(ra + rb, adj);
             if a_val == 0.0 && a_der == 0.0 {
                 return;
             }
