@@ -6,8 +6,11 @@
 //!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the LCT
 //!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
+//! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [-- ARGS…]`:
+//!   the acceptance runs of issues 8 and 9 (see `accept.rs`), appended to `docs/acceptance.md`.
 //! - `cargo xtask help`.
 
+mod accept;
 mod builtin;
 
 use std::path::{Path, PathBuf};
@@ -18,9 +21,13 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("reconstruct") if args.len() > 1 => nlos(&args.iter().map(String::as_str).collect::<Vec<_>>()),
         Some("reconstruct") => demo(),
+        Some("accept") => accept::accept(&workspace_root(), &args[1..]),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
+            println!("       cargo xtask accept SCENARIO [--quick] [--photons N] [-- RECONSTRUCT_ARGS...]");
+            println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
+            println!("                                           ggx, real, sensor or all; docs/acceptance.md");
             Ok(())
         }
         Some(other) => Err(format!("unknown task `{other}`; try `cargo xtask help`")),
