@@ -13,12 +13,16 @@ fn grid_transient() -> Transient {
 }
 
 #[test]
-fn exhaustive_input_is_refused_by_lct_and_fk() {
+fn exhaustive_input_is_refused_by_lct_and_fk_and_lists_by_fbp() {
     let p = PointSet::wall_grid(4, 4, 0.2, 0.2).expect("grid");
     let t = Transient::zeros(Scan::exhaustive(p.clone(), p), TimeAxis::new(0.0, 0.01, 32).expect("axis")).expect("t");
     assert!(matches!(lct(&t, &LctParams::default()), Err(InitError::NotConfocal { .. })));
     assert!(matches!(fk(&t, &FkParams::default()), Err(InitError::NotConfocal { .. })));
-    assert!(matches!(nlos_init::fbp(&t, &nlos_init::FbpParams::default()), Err(InitError::NotConfocal { .. })));
+    // Filtered backprojection handles exhaustive scans (tests/rendered.rs), but not sensor lists.
+    let list = PointSet::list(vec![Vec3::ZERO, Vec3::X, Vec3::Y]);
+    let g = PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid");
+    let t = Transient::zeros(Scan::exhaustive(g, list), TimeAxis::new(0.0, 0.01, 32).expect("axis")).expect("t");
+    assert!(matches!(nlos_init::fbp(&t, &nlos_init::FbpParams::default()), Err(InitError::NotGrid { .. })));
 }
 
 #[test]

@@ -70,3 +70,34 @@ fn rendered_planes_within_one_bin_without_offset() {
         assert!(mean.abs() <= 0.35, "{name}: mean error {mean} bins");
     }
 }
+
+#[test]
+fn exhaustive_fbp_finds_a_rendered_plane() {
+    // 3 × 3 laser spots, 16 × 16 sensor spots; a 0.2 m square at 0.3 m facing the wall.
+    let bin = 0.0048;
+    let d = 0.3f32;
+    let lasers = PointSet::wall_grid(3, 3, 0.1, 0.1).expect("lasers");
+    let sensors = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("sensors");
+    let scan = Scan::exhaustive(lasers, sensors);
+    let time = TimeAxis::new(0.0, bin, 200).expect("axis");
+    let h = 0.1f32;
+    let p = [Vec3::new(-h, -h, d), Vec3::new(h, h, d), Vec3::new(h, -h, d), Vec3::new(-h, h, d)];
+    let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
+    let r = Renderer::new(&p, &[[0, 1, 2], [0, 3, 1]], &scan, &time, params).expect("renderer");
+    let t = r.forward_transient(&Lambertian::new(1.0f32).expect("albedo")).expect("forward");
+    let vol = fbp(&t, &FbpParams { gate: Gate::None, max_depth: Some(0.45), ..FbpParams::default() }).expect("fbp");
+    assert_eq!((vol.nx, vol.ny), (16, 16));
+    let s = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
+    let kept: Vec<usize> = (0..256).filter(|&c| s.mask[c]).collect();
+    let inside = |c: usize| vol.x.at(c % 16).abs() < 0.1 && vol.y.at(c / 16).abs() < 0.1;
+    let median = median_depth_inside(&vol, 0.08);
+    let on = kept.iter().filter(|&&c| inside(c)).count();
+    let square = (0..256).filter(|&c| inside(c)).count();
+    eprintln!(
+        "exhaustive FBP: median depth {median:.4} m (true {d}), kept {} columns, {on} of the {square} facing the square",
+        kept.len()
+    );
+    assert!((median - d as f64).abs() <= bin / 2.0, "depth {median}");
+    // The kept region is the square: most of its columns, few others.
+    assert!(on as f64 >= 0.8 * square as f64 && kept.len() - on <= square / 4, "kept {} / on {on}", kept.len());
+}
