@@ -328,6 +328,61 @@ fn stress(
     assert!(adjusted > 0, "{what}: the fields should have needed resolution");
 }
 
+/// The bulk of the stress calls: small meshes, so that thousands of large random fields stay cheap. The
+/// mesh goes back to its start shape every `reset` calls (a crumpled mesh mostly jams, which tests less).
+fn stress_bulk(start: &SurfaceMesh, calls: usize, reset: usize, seed: u64, scale: f32, what: &str) {
+    let mut rng = Rng(seed);
+    let mut m = start.clone();
+    let mut k = 0;
+    while k < calls {
+        if k % reset == 0 {
+            m = start.clone();
+        }
+        let n = reset.min(calls - k);
+        stress(&mut m, n, &motion_only(), |m, _| (0..m.vertices_size()).map(|_| rng.vec(scale)).collect(), what);
+        k += n;
+    }
+}
+
+#[test]
+fn stress_bulk_small_icospheres() {
+    // 80 faces, edges ≈ 1.1: fields up to ±0.8 per axis fold it everywhere
+    stress_bulk(&shapes::icosphere(Vec3::ZERO, 1.0, 1), 1000, 25, 101, 0.8, "small icosphere");
+}
+
+#[test]
+fn stress_bulk_small_folded_grids() {
+    // a 5×5 open grid (50 faces) folded onto itself, plus random jitter of about an edge length
+    let start = shapes::plane_grid(1.0, 1.0, 5, 5);
+    let mut rng = Rng(103);
+    let mut m = start.clone();
+    for block in 0..40 {
+        m = if block % 2 == 0 { start.clone() } else { m };
+        stress(
+            &mut m,
+            25,
+            &motion_only(),
+            |m, _| {
+                let s = rng.range(0.3, 1.2);
+                let axis = if rng.uniform() < 0.5 { 0 } else { 1 };
+                m.positions()
+                    .iter()
+                    .map(|p| {
+                        let c = p.to_array()[axis];
+                        let mut fold = Vec3::ZERO;
+                        if c > 0.0 {
+                            fold[axis] = -2.0 * c * s;
+                            fold.z = 0.05 * s;
+                        }
+                        fold + rng.vec(0.2)
+                    })
+                    .collect()
+            },
+            "small folded grid",
+        );
+    }
+}
+
 #[test]
 fn stress_icosphere_random_large_displacements() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 2);

@@ -15,6 +15,12 @@ use rayon::prelude::*;
 
 use crate::surface_mesh::SurfaceMesh;
 
+/// Meshes with fewer faces build their BVHs on the calling thread.
+pub(crate) const PARALLEL_FACES: usize = 2048;
+
+/// Smallest number of BVH queries (and of narrow-phase tests) per rayon task.
+pub(crate) const QUERY_CHUNK: usize = 256;
+
 /// A compact snapshot of the mesh's connectivity: live faces and edges as vertex indices.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Topo {
@@ -96,11 +102,11 @@ pub(crate) fn candidate_pairs(
     };
     let mv = |v: u32| moving[v as usize];
     let act = |v: u32| active.is_none_or(|a| a[v as usize]);
-    let fbox: Vec<Box3> = topo.faces.par_iter().map(|f| sweep(f)).collect();
-    let fmoving: Vec<bool> = topo.faces.par_iter().map(|f| f.iter().any(|&v| mv(v))).collect();
-    let ebox: Vec<Box3> = topo.edges.par_iter().map(|e| sweep(e)).collect();
-    let emoving: Vec<bool> = topo.edges.par_iter().map(|e| mv(e[0]) || mv(e[1])).collect();
-    let eactive: Vec<bool> = topo.edges.par_iter().map(|e| act(e[0]) || act(e[1])).collect();
+    let fbox: Vec<Box3> = topo.faces.iter().map(|f| sweep(f)).collect();
+    let fmoving: Vec<bool> = topo.faces.iter().map(|f| f.iter().any(|&v| mv(v))).collect();
+    let ebox: Vec<Box3> = topo.edges.iter().map(|e| sweep(e)).collect();
+    let emoving: Vec<bool> = topo.edges.iter().map(|e| mv(e[0]) || mv(e[1])).collect();
+    let eactive: Vec<bool> = topo.edges.iter().map(|e| act(e[0]) || act(e[1])).collect();
     let bvh_of = |boxes: &[Box3]| {
         let aabbs: Vec<Aabb> = boxes.iter().map(|b| Aabb::new(b.lo, b.hi)).collect();
         let mut time = std::time::Duration::ZERO;
@@ -112,14 +118,18 @@ pub(crate) fn candidate_pairs(
         Some(a) => topo.verts.iter().copied().filter(|&v| !a[v as usize]).collect(),
         None => Vec::new(),
     };
-    let ((fbvh, ebvh), vbvh) = rayon::join(
-        || rayon::join(|| bvh_of(&fbox), || bvh_of(&ebox)),
-        || (!inactive.is_empty()).then(|| bvh_of(&inactive.iter().map(|&v| sweep(&[v])).collect::<Vec<_>>())),
-    );
+    let vboxes = || bvh_of(&inactive.iter().map(|&v| sweep(&[v])).collect::<Vec<_>>());
+    // small meshes: no threads (their scheduling costs more than the work)
+    let ((fbvh, ebvh), vbvh) = if topo.faces.len() < PARALLEL_FACES {
+        ((bvh_of(&fbox), bvh_of(&ebox)), (!inactive.is_empty()).then(vboxes))
+    } else {
+        rayon::join(|| rayon::join(|| bvh_of(&fbox), || bvh_of(&ebox)), || (!inactive.is_empty()).then(vboxes))
+    };
     // each (active vertex, face) once
     let mut vt: Vec<(u32, u32)> = topo
         .verts
         .par_iter()
+        .with_min_len(QUERY_CHUNK)
         .filter(|&&v| act(v))
         .flat_map_iter(|&v| {
             let vb = sweep(&[v]);
@@ -137,6 +147,7 @@ pub(crate) fn candidate_pairs(
     if let Some(vbvh) = &vbvh {
         let more: Vec<(u32, u32)> = (0..topo.faces.len())
             .into_par_iter()
+            .with_min_len(QUERY_CHUNK)
             .filter(|&f| topo.faces[f].iter().any(|&v| act(v)))
             .flat_map_iter(|f| {
                 let mut hits = Vec::new();
@@ -150,11 +161,12 @@ pub(crate) fn candidate_pairs(
             })
             .collect();
         vt.extend(more);
-        vt.par_sort_unstable();
+        vt.sort_unstable();
     }
     // each edge pair with an active vertex once: from the lower index when both edges are active
     let ee: Vec<(u32, u32)> = (0..topo.edges.len())
         .into_par_iter()
+        .with_min_len(QUERY_CHUNK)
         .filter(|&i| eactive[i])
         .flat_map_iter(|i| {
             let [a, b] = topo.edges[i];
@@ -175,7 +187,7 @@ pub(crate) fn candidate_pairs(
         .collect();
     let mut pairs = Pairs { vt, ee };
     if active.is_some() {
-        pairs.ee.par_sort_unstable();
+        pairs.ee.sort_unstable();
     }
     pairs
 }

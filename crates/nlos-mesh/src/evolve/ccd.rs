@@ -31,8 +31,8 @@
 //!    split `[0, 1]` into at most three pieces on which `f` is monotone. Degenerate and near-degenerate
 //!    cubics (leading coefficients ≈ 0, i.e. quadratics, lines, constants) need no special case.
 //! 2. On each monotone piece the set `{t : |f(t)| ≤ ftol}` is one interval `[tₐ, t_b]` (possibly empty),
-//!    found by bisection on `f ∓ ftol` (60 halvings: the width of `[0, 1]` reaches ~10⁻¹⁸, below `f64`
-//!    resolution of `t`). True contact implies exact coplanarity, hence `|f_computed| ≤ ftol`, hence a time
+//!    found by bracketing on `f ∓ ftol` (Illinois regula falsi with a bisection every third step, down to a
+//!    width of 2⁻⁶⁰ ≈ 10⁻¹⁸, below the `f64` resolution of `t`). True contact implies exact coplanarity, hence `|f_computed| ≤ ftol`, hence a time
 //!    inside one of these intervals: no root is lost to rounding, including tangential (double) roots and
 //!    roots at `t = 0` or `t = 1`.
 //! 3. Candidate times in each interval: its start, the sign change of `f` inside it (bisected), and —
@@ -48,6 +48,9 @@ use glam::DVec3;
 
 /// Number of bisection steps: `2⁻⁶⁰ ≈ 8.7·10⁻¹⁹`, finer than the spacing of `f64` near 1.
 const BISECTIONS: u32 = 60;
+
+/// Bracket width at which root isolation stops: `2⁻⁶⁰`.
+const MIN_WIDTH: f64 = 1.0 / (1u64 << 60) as f64;
 
 /// Relative uncertainty of a computed cubic value, in units of the magnitude bound `M` (see module docs).
 const FTOL_REL: f64 = 64.0 * f64::EPSILON;
@@ -98,17 +101,44 @@ fn monotone_breakpoints(c: &[f64; 4], lo: f64, hi: f64) -> ([f64; 4], usize) {
 }
 
 /// On `[l, r]` where `f` is monotone, the first `t` with `g(t) := s·f(t) ≥ level` given `g(l) < level ≤
-/// g(r)` (bisection; `s = ±1` orients it increasing).
+/// g(r)` (`s = ±1` orients it increasing): the bracket `[l, r]` shrinks by the Illinois variant of regula
+/// falsi (superlinear on smooth pieces), with a plain bisection every third step, so that the `3·60` steps
+/// allowed include the 60 halvings of pure bisection; it stops at a width of `2⁻⁶⁰` (or when no `f64` lies
+/// between the ends) and returns the right end, so `g(r) ≥ level` always holds.
 fn bisect_level(c: &[f64; 4], s: f64, level: f64, mut l: f64, mut r: f64) -> f64 {
-    for _ in 0..BISECTIONS {
-        let m = 0.5 * (l + r);
+    let g = |t: f64| s * eval(c, t) - level;
+    let (mut gl, mut gr) = (g(l), g(r));
+    let mut side = 0i8;
+    for step in 0..3 * BISECTIONS {
+        if r - l <= MIN_WIDTH {
+            break;
+        }
+        let mid = 0.5 * (l + r);
+        let m = if step % 3 == 2 || !(gl < 0.0 && gr >= 0.0) {
+            mid
+        } else {
+            let t = l + (r - l) * (gl / (gl - gr));
+            // NaN-safe: a non-finite or outside secant point falls back to the midpoint
+            if t > l && t < r { t } else { mid }
+        };
         if m <= l || m >= r {
             break;
         }
-        if s * eval(c, m) >= level {
+        let gm = g(m);
+        if gm >= 0.0 {
             r = m;
+            gr = gm;
+            if side == 1 {
+                gl *= 0.5;
+            }
+            side = 1;
         } else {
             l = m;
+            gl = gm;
+            if side == -1 {
+                gr *= 0.5;
+            }
+            side = -1;
         }
     }
     r

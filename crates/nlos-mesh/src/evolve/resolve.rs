@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use std::time::Instant;
 
 use super::EvolveTimings;
-use super::broad::{Pairs, Topo, candidate_pairs};
+use super::broad::{Pairs, QUERY_CHUNK, Topo, candidate_pairs};
 use super::ccd::{Moving, edge_edge_ccd, point_triangle_distance, segment_segment_distance, vertex_triangle_ccd};
 
 /// A pair's four vertices: `[p, a, b, c]` (vertex–triangle) or `[a, b, c, d]` (edge–edge).
@@ -150,6 +150,7 @@ pub(crate) fn detect_among(
     let clock = Instant::now();
     let out = pairs
         .par_iter()
+        .with_min_len(QUERY_CHUNK / 4)
         .filter_map(|p| {
             let m = p.verts.map(|v| Moving::new(x0[v as usize], x1[v as usize]));
             let t = if p.edge_edge {
@@ -238,7 +239,7 @@ impl Proximity {
             time.broad_phase += clock.elapsed();
             let clock = Instant::now();
             // geometry of each close pair, computed in parallel on the unmodified end positions
-            jobs = pairs.par_iter().filter_map(|p| proximity_job(p, x0, x1, eps)).collect();
+            jobs = pairs.par_iter().with_min_len(QUERY_CHUNK).filter_map(|p| proximity_job(p, x0, x1, eps)).collect();
             time.narrow_phase += clock.elapsed();
             if let Some(a) = &active {
                 jobs.extend(self.last.iter().filter(|j| j.0.verts.iter().all(|&v| !a[v as usize])).copied());
