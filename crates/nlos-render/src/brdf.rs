@@ -18,6 +18,11 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn with_params(&self, params: &[f32]) -> Result<Self>;
     /// `∂f/∂(parameters)` as an array (first `PARAM_NAMES.len()` entries used).
     fn param_grad_array(g: &Self::ParamGrad) -> [f32; 4];
+    /// The roughness α of a glossy (microfacet) lobe worth importance sampling, None for none (the
+    /// default). Used by the lobe sampling of `Renderer::set_lobe_sampling`.
+    fn lobe_alpha(&self) -> Option<f32> {
+        None
+    }
 }
 
 impl RenderBrdf for Lambertian<f32> {
@@ -54,5 +59,8 @@ impl RenderBrdf for Ggx<f32> {
     #[inline(always)]
     fn param_grad_array(g: &GgxGrad<f32>) -> [f32; 4] {
         [g.albedo_diffuse, g.specular, g.alpha, g.f0]
+    }
+    fn lobe_alpha(&self) -> Option<f32> {
+        (self.specular() > 0.0).then_some(self.alpha())
     }
 }

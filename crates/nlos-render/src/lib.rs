@@ -35,6 +35,9 @@
 //! normal `N = (v1 − v0) × (v2 − v0)` ([`RenderParams::two_sided`] lifts this). Only three-bounce paths
 //! `l → x → s` are modelled (no interreflection).
 //!
+//! Glossy surfaces: [`Renderer::set_lobe_sampling`] adds multiple importance sampling of the GGX lobe to the
+//! stratified mode (balance heuristic, unbiased; `tests/mis.rs`).
+//!
 //! ## Steady state
 //! [`Renderer::forward_steady`], [`Renderer::adjoint_steady`] and [`Renderer::loss_and_gradient_steady`] give
 //! the time-integrated intensity `S(l, s) = ∫_S f v v dA` (eq. 1 without the kernel; one value per measurement)

@@ -175,6 +175,8 @@ pub struct Renderer {
     cache: Option<Vec<u8>>,
     /// Instruction set of the block kernels (runtime-detected).
     isa: Isa,
+    /// Fraction of the stratified samples drawn from the glossy lobe (0: area sampling only).
+    lobe_fraction: f32,
 }
 
 impl Renderer {
@@ -233,6 +235,7 @@ impl Renderer {
             bvh: None,
             cache: None,
             isa: Isa::detect(),
+            lobe_fraction: 0.0,
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -339,6 +342,37 @@ impl Renderer {
     /// The parameters.
     pub fn params(&self) -> &RenderParams {
         &self.params
+    }
+
+    /// Multiple importance sampling of glossy surfaces in [`Sampling::Stratified`] mode (confocal scans; off
+    /// by default): a share `φ = lobe_fraction · Ω_t/(Ω_t + 4πα²)` of each (triangle, measurement)'s expected
+    /// sample count (`Ω_t` the triangle's solid angle seen from the spot: a lobe wider than the triangle is
+    /// left to area sampling) is drawn from the BRDF's microfacet lobe instead of uniformly over the area,
+    /// stratified in the polar angle — a microfacet normal `m` from the GGX
+    /// distribution `D(m)(m·n)` about the triangle's normal (roughness [`RenderBrdf::lobe_alpha`]), mapped
+    /// to the point where the ray from the laser spot along `−m` meets the triangle's plane (for a confocal
+    /// measurement the half vector there is exactly `m`), kept when inside the triangle. Every sample, of
+    /// either strategy, is weighted by the balance heuristic `1/(c₁ p₁(x) + c₂ p₂(x))` (Veach 1997, §9.2;
+    /// `p₁ = 1/A`, `p₂ = D(m)(n·m)²/|x − l|²` the lobe density on the plane, `c₁ = (1 − φ)c`, `c₂ = φc` the
+    /// expected counts), so the estimator stays unbiased; the weights are held fixed when differentiating,
+    /// as the area weights are. Glossy lobes (small α) are then sampled where they peak — the seed's
+    /// stated weakness: on a specular plane (`tests/mis.rs`, 64 samples per measurement, `lobe_fraction`
+    /// 0.9) the single-render error drops to 0.56× at α = 0.1, 0.87× at α = 0.15, and is unchanged (1.03×)
+    /// at α = 0.2. No effect for a BRDF without a lobe, for exhaustive scans or for deterministic sampling.
+    /// `lobe_fraction = 0` turns it off.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidParameter`] unless `0 ≤ lobe_fraction < 1`.
+    pub fn set_lobe_sampling(&mut self, lobe_fraction: f32) -> Result<()> {
+        if !(0.0..1.0).contains(&lobe_fraction) {
+            return Err(RenderError::InvalidParameter {
+                name: "lobe_fraction",
+                value: f64::from(lobe_fraction),
+                reason: "must be in [0, 1)",
+            });
+        }
+        self.lobe_fraction = lobe_fraction;
+        Ok(())
     }
 
     /// Number of skipped degenerate triangles.
@@ -640,9 +674,10 @@ impl Renderer {
     }
 
     /// Calls `f(u, v, w)` for every sample of (t, m); `w` is the sample's weight as a fraction of the
-    /// triangle's area (the estimator of `∫_t h dA` is `A_t Σ w h(x)`).
+    /// triangle's area (the estimator of `∫_t h dA` is `A_t Σ w h(x)`). `lobe`: the BRDF's lobe roughness
+    /// (see [`Renderer::set_lobe_sampling`]); `sign`: the pair's orientation.
     #[inline(always)]
-    fn samples(&self, m: usize, t: usize, fr: &Frame, mut f: impl FnMut(f32, f32, f32)) {
+    fn samples(&self, m: usize, t: usize, fr: &Frame, lobe: Option<f32>, sign: f32, mut f: impl FnMut(f32, f32, f32)) {
         match self.params.sampling {
             Sampling::Deterministic(rule) => {
                 let n = self.level(&rule, t, fr);
@@ -656,12 +691,39 @@ impl Renderer {
                     return;
                 }
                 let mut rng = SplitMix64::new(seed, m as u64, t as u64);
-                let base = c.floor();
-                let n = base as u32 + u32::from(rng.next_f32() < c - base);
-                // Weight 1/c per sample (fraction of the triangle): E[n]/c = 1, so the estimator is unbiased
-                // even though n is random; 1/c is held constant when differentiating (it is a sampling
-                // weight, not part of the integrand).
-                let w = 1.0 / c;
+                let lobe = match lobe {
+                    Some(alpha) if self.lobe_fraction > 0.0 && self.wall.confocal && alpha > 0.0 => {
+                        Some(Lobe::new(alpha, sign * self.tris.n[t], fr.l))
+                    }
+                    _ => None,
+                };
+                // The lobe's share of the samples: `lobe_fraction` scaled by Ω_t/(Ω_t + Ω_lobe), the solid angle
+                // Ω_t of the triangle seen from l against the lobe's Ω_lobe = 4πα² (a lobe wider than the
+                // triangle is better served by area sampling). A function of the geometry only (held fixed
+                // when differentiating, as the weights are).
+                let (c1, c2) = match (&lobe, lobe.map(|_| self.tris.v0[t] + (self.tris.e1[t] + self.tris.e2[t]) / 3.0))
+                {
+                    (Some(l), Some(centroid)) => {
+                        let d = fr.l - centroid;
+                        let r2 = d.length_squared();
+                        let omega_t = area * l.n.dot(d).max(0.0) / (r2 * r2.sqrt());
+                        let omega_lobe = 4.0 * std::f32::consts::PI * l.alpha2;
+                        let phi = self.lobe_fraction * omega_t / (omega_t + omega_lobe);
+                        let phi = if phi.is_finite() { phi } else { 0.0 };
+                        ((1.0 - phi) * c, phi * c)
+                    }
+                    _ => (c, 0.0),
+                };
+                // The balance-heuristic weight of a sample at x, as a fraction of the area: 1/(c₁ + c₂ A p₂(x))
+                // (= 1/c without the lobe).
+                let weight = |u: f32, v: f32| match &lobe {
+                    Some(l) => 1.0 / (c1 + c2 * area * l.pdf(self.point(t, u, v))),
+                    None => 1.0 / c1,
+                };
+                let base = c1.floor();
+                let n = base as u32 + u32::from(rng.next_f32() < c1 - base);
+                // Weights are held constant when differentiating (sampling weights, not part of the
+                // integrand); the random counts have expectation c₁, c₂, so the estimator is unbiased.
                 let inv_n = 1.0 / n.max(1) as f32;
                 for i in 0..n {
                     // Stratified along the first coordinate of the area-preserving map
@@ -669,7 +731,20 @@ impl Renderer {
                     let r1 = (i as f32 + rng.next_f32()) * inv_n;
                     let r2 = rng.next_f32();
                     let sr = r1.sqrt();
-                    f(sr * (1.0 - r2), sr * r2, w);
+                    let (u, v) = (sr * (1.0 - r2), sr * r2);
+                    f(u, v, weight(u, v));
+                }
+                let Some(lobe) = lobe else { return };
+                let base = c2.floor();
+                let n2 = base as u32 + u32::from(rng.next_f32() < c2 - base);
+                let (v0, e1, e2) = (self.tris.v0[t], self.tris.e1[t], self.tris.e2[t]);
+                let inv_n2 = 1.0 / n2.max(1) as f32;
+                for i in 0..n2 {
+                    // Stratified along the lobe's polar coordinate, like the area samples.
+                    let (r1, r2) = ((i as f32 + rng.next_f32()) * inv_n2, rng.next_f32());
+                    if let Some((u, v)) = lobe.sample(r1, r2, v0, e1, e2) {
+                        f(u, v, weight(u, v));
+                    }
                 }
             }
         }
@@ -715,6 +790,7 @@ impl Renderer {
     }
 
     /// Forward pass of measurement m over the triangles `t0..t1` into its histogram.
+    #[allow(clippy::too_many_arguments)]
     fn forward_block<B: RenderBrdf>(
         &self,
         brdf: &B,
@@ -896,7 +972,7 @@ impl Renderer {
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let inv_2n = 0.5 / n.length();
-        self.samples(m, t, fr, |u, v, w| {
+        self.samples(m, t, fr, brdf.lobe_alpha(), sign, |u, v, w| {
             let x = self.point(t, u, v);
             let (a, b) = (fr.l - x, fr.s - x);
             let (cl, cs) = (-fr.n_l.dot(a), -fr.n_s.dot(b));
@@ -936,7 +1012,7 @@ impl Renderer {
         let inv_2n = 0.5 / n2.sqrt();
         let (mut g0, mut g1, mut g2, mut g_n) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
         let mut g_p = [0.0f32; 4];
-        self.samples(m, t, fr, |u, v, w| {
+        self.samples(m, t, fr, brdf.lobe_alpha(), sign, |u, v, w| {
             let x = self.point(t, u, v);
             let (a, b) = (fr.l - x, fr.s - x);
             let (cl, cs) = (-fr.n_l.dot(a), -fr.n_s.dot(b));
@@ -986,6 +1062,71 @@ impl Renderer {
         });
         // N = sign·(e1 × e2): the vertex distribution needs G_N' = sign·G_N.
         (g0, g1, g2, sign * g_n, g_p)
+    }
+}
+
+/// The GGX lobe sampler of [`Renderer::set_lobe_sampling`] for one (triangle, confocal spot): microfacet
+/// normals `m ~ D(m)(m·n)` about the oriented unit normal `n`, mapped to the plane through the ray from `l`
+/// along `−m`.
+#[derive(Debug, Clone, Copy)]
+struct Lobe {
+    alpha2: f32,
+    n: Vec3,
+    /// Tangent frame of n.
+    t1: Vec3,
+    t2: Vec3,
+    l: Vec3,
+}
+
+impl Lobe {
+    fn new(alpha: f32, n_raw: Vec3, l: Vec3) -> Self {
+        let a = alpha.max(1e-3);
+        let n = n_raw.normalize_or_zero();
+        let (t1, t2) = n.any_orthonormal_pair();
+        Self { alpha2: a * a, n, t1, t2, l }
+    }
+
+    /// GGX `D(m)` at `cos θ_m = c`: `α²/(π (c²(α² − 1) + 1)²)`.
+    #[inline(always)]
+    fn d(&self, c: f32) -> f32 {
+        let k = c * c * (self.alpha2 - 1.0) + 1.0;
+        self.alpha2 / (std::f32::consts::PI * k * k)
+    }
+
+    /// The lobe's density at x per unit area of the plane: `D(m)(n·m)²/|x − l|²`, `m = (l − x)/|l − x|`
+    /// (0 behind the plane).
+    #[inline(always)]
+    fn pdf(&self, x: Vec3) -> f32 {
+        let d = self.l - x;
+        let r2 = d.length_squared();
+        let c = self.n.dot(d) / r2.sqrt();
+        if !(c > 0.0 && r2 > 0.0) {
+            return 0.0;
+        }
+        self.d(c) * c * c / r2
+    }
+
+    /// The barycentric coordinates (u along e1, v along e2) of the lobe sample for uniforms `(r1, r2)`, or
+    /// None when the ray misses the plane or the point is outside the triangle.
+    #[inline(always)]
+    fn sample(&self, r1: f32, r2: f32, v0: Vec3, e1: Vec3, e2: Vec3) -> Option<(f32, f32)> {
+        // tan²θ = α² r1/(1 − r1) samples D(m) cos θ_m.
+        let tan2 = self.alpha2 * r1 / (1.0 - r1);
+        let cos = 1.0 / (1.0 + tan2).sqrt();
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        let phi = std::f32::consts::TAU * r2;
+        let m = sin * phi.cos() * self.t1 + sin * phi.sin() * self.t2 + cos * self.n;
+        // x = l − s m on the plane n·(x − v0) = 0: s = n·(l − v0)/(n·m) > 0 for a front-facing pair.
+        let s = self.n.dot(self.l - v0) / self.n.dot(m);
+        if !(s > 0.0 && s.is_finite()) {
+            return None;
+        }
+        let x = self.l - s * m - v0;
+        let nn = e1.cross(e2);
+        let inv = 1.0 / nn.length_squared();
+        let u = x.cross(e2).dot(nn) * inv;
+        let v = e1.cross(x).dot(nn) * inv;
+        (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then_some((u, v))
     }
 }
 
