@@ -90,8 +90,11 @@ fn exhaustive_fbp_finds_a_rendered_plane() {
     let s = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
     let kept: Vec<usize> = (0..256).filter(|&c| s.mask[c]).collect();
     let inside = |c: usize| vol.x.at(c % 16).abs() < 0.1 && vol.y.at(c / 16).abs() < 0.1;
-    let median = median_depth_inside(&vol, 0.08);
-    let on = kept.iter().filter(|&&c| inside(c)).count();
+    let mut ds: Vec<f64> = kept.iter().filter(|&&c| inside(c)).map(|&c| s.depth[c] as f64).collect();
+    ds.sort_by(f64::total_cmp);
+    assert!(!ds.is_empty(), "no kept column faces the square");
+    let median = ds[ds.len() / 2];
+    let on = ds.len();
     let square = (0..256).filter(|&c| inside(c)).count();
     eprintln!(
         "exhaustive FBP: median depth {median:.4} m (true {d}), kept {} columns, {on} of the {square} facing the square",
