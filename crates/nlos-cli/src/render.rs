@@ -1,15 +1,16 @@
 //! `nlos render`: simulate the measurements of a mesh.
 //!
 //! Composes [`nlos_mesh::io`] (the mesh), [`nlos_transient`] (the setup and the output file, and the SPAD
-//! model for `--photons`) and [`nlos_render`] (the transient, with the box kernel of eq. 3 that simulates a
-//! measurement). It computes nothing itself.
+//! model for `--photons`: [`nlos_transient::sensor::SpadModel`] — jitter, background, dead time with
+//! pile-up, afterpulsing, in that physical order) and [`nlos_render`] (the transient, with the box kernel
+//! of eq. 3 that simulates a measurement). It computes nothing itself.
 
 use std::path::PathBuf;
 
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{DeterministicRule, Kernel, RenderParams, Renderer, Sampling, Visibility};
-use nlos_transient::sensor::{PhotonBudget, SpadModel};
-use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
+use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
+use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient};
 
 use crate::CliError;
 
@@ -45,10 +46,66 @@ pub(crate) struct Args {
     /// Seed of the sampling and of the photon noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Replace the expected transient by Poisson photon counts with this many detected photons per
-    /// measurement on average (the SPAD model's ideal detector).
+    /// Replace the expected transient by SPAD photon counts with this many detected signal photons per
+    /// measurement on average. Alone: an ideal photon counter (Poisson counts); the options below add the
+    /// other effects of the SPAD model.
     #[arg(long, value_name = "N")]
     photons: Option<f64>,
+    /// Timing jitter: the SPAD's measured response (`JitterResponse::load`: MATLAB v7.3 `t_*`/`counts_*`,
+    /// e.g. `spad_jitter.mat`, or HDF5 `counts` + `timebin_width_ps`). Needs --photons.
+    #[arg(long, value_name = "FILE", requires = "photons", conflicts_with = "jitter_fwhm")]
+    jitter: Option<PathBuf>,
+    /// Timing jitter: a Gaussian response of this full width at half maximum, picoseconds. Needs --photons.
+    #[arg(long, value_name = "PS", requires = "photons")]
+    jitter_fwhm: Option<f64>,
+    /// Dark-count plus ambient background rate, detected counts per second. Needs --photons.
+    #[arg(long, value_name = "RATE", requires = "photons")]
+    background: Option<f64>,
+    /// Dead time (hold-off) after a detection, seconds; turns on first-photon detection with pile-up.
+    /// Needs --photons and --rep-rate.
+    #[arg(long, value_name = "S", requires_all = ["photons", "rep_rate"])]
+    dead_time: Option<f64>,
+    /// Laser repetition rate, Hz (the SPAD model's default is 10 MHz). Needs --photons.
+    #[arg(long, value_name = "HZ", requires = "photons")]
+    rep_rate: Option<f64>,
+    /// Acquisition time per measurement, seconds (the SPAD model's default is 0.1 s). Needs --photons.
+    #[arg(long, value_name = "S", requires = "photons")]
+    exposure: Option<f64>,
+    /// Afterpulsing probability per detection, in [0, 1). Needs --photons.
+    #[arg(long, value_name = "P", requires = "photons")]
+    afterpulse: Option<f64>,
+}
+
+/// The SPAD model of the arguments: the ideal counter of `--photons n`, plus each effect asked for.
+fn spad_model(args: &Args, n: f64) -> Result<SpadModel, CliError> {
+    let mut m = SpadModel::ideal(PhotonBudget::PerMeasurement(n));
+    if let Some(file) = &args.jitter {
+        m.jitter = Some(JitterResponse::load(file).map_err(|e| bad(format!("--jitter {}: {e}", file.display())))?);
+    }
+    if let Some(ps) = args.jitter_fwhm {
+        // picoseconds → metres of path, the workspace's time unit
+        m.jitter = Some(
+            JitterResponse::gaussian(ps * 1e-12 * SPEED_OF_LIGHT).map_err(|e| bad(format!("--jitter-fwhm: {e}")))?,
+        );
+    }
+    if let Some(r) = args.background {
+        m.background_rate = r;
+    }
+    if let Some(f) = args.rep_rate {
+        m.rep_rate = f;
+    }
+    if let Some(t) = args.exposure {
+        m.exposure = t;
+    }
+    if let Some(p) = args.afterpulse {
+        m.afterpulse_probability = p;
+    }
+    if let Some(d) = args.dead_time {
+        m.dead_time = d;
+        m.pile_up = true;
+    }
+    m.validate().map_err(bad)?;
+    Ok(m)
 }
 
 fn bad<E: std::fmt::Display>(e: E) -> CliError {
@@ -79,11 +136,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         "mc" => return Err(bad("--spp must be at least 1")),
         other => return Err(bad(format!("--mode `{other}`: expected `exact` or `mc`"))),
     };
-    if let Some(n) = args.photons {
-        if !(n.is_finite() && n > 0.0) {
-            return Err(bad(format!("--photons {n}: must be finite and > 0")));
-        }
-    }
+    let model = match args.photons {
+        Some(n) if !(n.is_finite() && n > 0.0) => return Err(bad(format!("--photons {n}: must be finite and > 0"))),
+        Some(n) => Some(spad_model(args, n)?),
+        None => None,
+    };
     let mesh = nlos_mesh::io::load(&args.mesh).map_err(bad)?;
     let (positions, triangles) = mesh.to_triangles();
     let params =
@@ -95,8 +152,8 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         other => return Err(bad(format!("--brdf `{other}`: expected `lambert` or `ggx`"))),
     }
     .map_err(bad)?;
-    let out = match args.photons {
-        Some(n) => SpadModel::ideal(PhotonBudget::PerMeasurement(n)).simulate(&rendered, args.seed).map_err(bad)?,
+    let out = match &model {
+        Some(m) => m.simulate(&rendered, args.seed).map_err(bad)?,
         None => rendered,
     };
     nlos_transient::write(&out, &args.out, format).map_err(CliError::output)?;

@@ -80,3 +80,199 @@ fn bad_arguments_are_input_errors() {
     let r = nlos(&["render", &mesh, "--out", &dir.join("x.txt").to_string_lossy(), "--setup", &setup]);
     assert_eq!(r.status.code(), Some(2), "{}", text(&r));
 }
+
+// ---- the SPAD model through `nlos render --photons N [--jitter …] [--background …] [--dead-time …]` ----
+
+/// The square of [`inputs`] and a longer setup (10 × 10 scan, 400 bins of 4 mm = 1.6 m of path), so that
+/// jitter tails and early background bins fit on the axis; returns (mesh, setup).
+fn spad_inputs(dir: &Path) -> (String, String) {
+    let (mesh, _) = inputs(dir);
+    let scan = Scan::confocal(PointSet::wall_grid(10, 10, 0.25, 0.25).expect("grid"));
+    let setup = Transient::zeros(scan, TimeAxis::new(0.0, 0.004, 400).expect("axis")).expect("setup");
+    let setup_file = dir.join("setup400.npy");
+    nlos_transient::write(&setup, &setup_file, Format::NpyJson).expect("write setup");
+    (mesh, setup_file.to_string_lossy().into_owned())
+}
+
+/// `nlos render MESH --setup SETUP --out DIR/NAME.npy EXTRA…`, read back.
+fn render_with(dir: &Path, mesh: &str, setup: &str, name: &str, extra: &[&str]) -> Transient {
+    let out = dir.join(format!("{name}.npy"));
+    let mut args = vec!["render", mesh, "--setup", setup, "--out"];
+    let o = out.to_string_lossy().into_owned();
+    args.push(&o);
+    args.extend(extra);
+    let r = nlos(&args);
+    assert!(r.status.success(), "{extra:?}: {}", text(&r));
+    nlos_transient::read(&out).expect("read rendered")
+}
+
+/// (sum, mean path, variance of the path) of the histogram summed over all measurements.
+fn moments(t: &Transient) -> (f64, f64, f64) {
+    let h = t.summed_histogram();
+    let ax = t.time();
+    let sum: f64 = h.iter().sum();
+    let mean = h.iter().enumerate().map(|(k, v)| v * ax.bin_center(k)).sum::<f64>() / sum;
+    let var = h.iter().enumerate().map(|(k, v)| v * (ax.bin_center(k) - mean).powi(2)).sum::<f64>() / sum;
+    (sum, mean, var)
+}
+
+#[test]
+fn jitter_widens_the_summed_histogram_by_its_variance() {
+    let dir = scratch("jitter");
+    let (mesh, setup) = spad_inputs(&dir);
+    let plain = render_with(&dir, &mesh, &setup, "plain", &["--photons", "100000", "--seed", "1"]);
+    let fwhm_ps = 200.0;
+    let jit = render_with(&dir, &mesh, &setup, "jit", &["--photons", "100000", "--seed", "2", "--jitter-fwhm", "200"]);
+    let (s0, m0, v0) = moments(&plain);
+    let (s1, m1, v1) = moments(&jit);
+    // A convolution with a zero-mean kernel of variance σ² adds σ² to the variance and keeps the mass and
+    // the mean (up to Poisson noise of 10⁷ photons: ~1e-3 relative on the variance difference).
+    let sigma = fwhm_ps * 1e-12 * nlos_transient::SPEED_OF_LIGHT / (2.0 * (2.0 * std::f64::consts::LN_2).sqrt());
+    let added = v1 - v0;
+    assert!(
+        (added / (sigma * sigma) - 1.0).abs() < 0.03,
+        "variance grew by {added:.3e} m², expected {:.3e}",
+        sigma * sigma
+    );
+    assert!((s1 / s0 - 1.0).abs() < 0.005, "photon totals {s0} vs {s1}");
+    assert!((m1 - m0).abs() < 5e-4, "mean path moved from {m0} to {m1}");
+    // The shared SPAD jitter file, when present, loads and widens the histogram too.
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/sensor/spad_jitter.mat");
+    if file.is_file() {
+        let f = file.to_string_lossy().into_owned();
+        let real = render_with(&dir, &mesh, &setup, "real", &["--photons", "100000", "--seed", "3", "--jitter", &f]);
+        let (_, _, v2) = moments(&real);
+        assert!(v2 > v0 * 1.001, "the measured SPAD response did not widen the histogram ({v0} → {v2})");
+    } else {
+        eprintln!("skipping the jitter-file part: {} not found", file.display());
+    }
+}
+
+#[test]
+fn background_raises_the_early_bins_to_its_mean_and_info_reports_it() {
+    let dir = scratch("background");
+    let (mesh, setup) = spad_inputs(&dir);
+    // `SpadModel::background_per_bin` = R·(Δ/c)·T_exp; a rate giving ≈ 3 counts per 4 mm bin in 0.1 s.
+    let model = nlos_transient::sensor::SpadModel {
+        background_rate: 2.25e12,
+        ..nlos_transient::sensor::SpadModel::ideal(nlos_transient::sensor::PhotonBudget::PerMeasurement(1.0))
+    };
+    let b = model.background_per_bin(0.004);
+    assert!(b > 2.0 && b < 4.0, "{b}");
+    let t = render_with(&dir, &mesh, &setup, "bg", &["--photons", "2000", "--seed", "5", "--background", "2.25e12"]);
+    // Before the first return (path 0.6 m: the square at 0.3 m) only background is counted.
+    let early: Vec<f64> = t.histograms().flat_map(|h| h[..140].iter().map(|&v| f64::from(v))).collect();
+    let mean = early.iter().sum::<f64>() / early.len() as f64;
+    let se = (b / early.len() as f64).sqrt();
+    assert!((mean - b).abs() < 5.0 * se, "early bins hold {mean} counts on average, expected {b} ± {se}");
+    let var = early.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (early.len() - 1) as f64;
+    assert!((var / b - 1.0).abs() < 0.1, "Poisson background: variance {var}, mean {b}");
+    // `nlos info` estimates that background and the signal photons.
+    let file = dir.join("bg.npy");
+    let r = nlos(&["info", &file.to_string_lossy(), "--json"]);
+    assert!(r.status.success(), "{}", text(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).expect("info json");
+    let pc = &v["photon_counts"];
+    let est = pc["background_per_bin"].as_f64().expect("background in info");
+    assert!((est / b - 1.0).abs() < 0.05, "nlos info: background {est} per bin, simulated {b}");
+    let signal = pc["signal_per_measurement"].as_f64().expect("signal in info");
+    assert!((signal / 2000.0 - 1.0).abs() < 0.1, "nlos info: {signal} signal photons per measurement, simulated 2000");
+    let r = nlos(&["info", &file.to_string_lossy()]);
+    assert!(text(&r).contains("photon counts: background"), "{}", text(&r));
+}
+
+/// Physical units: a background of `R` counts per second puts `R·Δt` counts per bin into every laser period,
+/// i.e. `R·Δt·f_rep·T_exp` per bin over the exposure (`Δt = Δ/c`). `SpadModel::background_per_bin` computes
+/// `R·Δt·T_exp`, without the `f_rep` factor (10⁷ at the default 10 MHz), so a realistic rate (1000 /s) adds
+/// ~1e-9 counts per bin instead of ~0.013. Owned by `nlos-transient`; ignored until it is fixed there.
+#[test]
+#[ignore = "nlos-transient: SpadModel::background_per_bin omits the repetition rate (R·Δt·T_exp, should be R·Δt·f_rep·T_exp)"]
+fn background_rate_is_counts_per_second() {
+    let dir = scratch("background-units");
+    let (mesh, setup) = spad_inputs(&dir);
+    // 1e6 counts/s, 13.3 ps bins, 10 MHz, 0.1 s: 1e6 · 1.334e-11 · 1e7 · 0.1 = 13.3 counts per bin.
+    let t = render_with(&dir, &mesh, &setup, "bgu", &["--photons", "2000", "--background", "1e6", "--rep-rate", "1e7"]);
+    let early: Vec<f64> = t.histograms().flat_map(|h| h[..140].iter().map(|&v| f64::from(v))).collect();
+    let mean = early.iter().sum::<f64>() / early.len() as f64;
+    let expected = 1e6 * 0.004 / nlos_transient::SPEED_OF_LIGHT * 1e7 * 0.1;
+    assert!((mean / expected - 1.0).abs() < 0.05, "{mean} counts per bin, expected {expected}");
+}
+
+#[test]
+fn dead_time_skews_the_histogram_early_as_first_photon_theory_predicts() {
+    let dir = scratch("deadtime");
+    let (mesh, setup) = spad_inputs(&dir);
+    let flux = render_with(&dir, &mesh, &setup, "flux", &[]);
+    // 2·10⁶ photons per measurement over 10⁶ laser cycles (10 MHz × 0.1 s): ~2 photons per cycle, deep
+    // pile-up. The 50 ns hold-off ends before the next period (100 ns) with this 5.3 ns window: no cycle lost.
+    let (n, cycles) = (2.0e6, 1.0e6);
+    let piled = render_with(
+        &dir,
+        &mesh,
+        &setup,
+        "piled",
+        &["--photons", "2e6", "--seed", "9", "--dead-time", "50e-9", "--rep-rate", "10e6"],
+    );
+    // Theory (Coates 1968): per cycle, bin k fires first with p_k = (1 − e^{−λ_k}) e^{−Σ_{j<k} λ_j},
+    // λ_k = s·x_k / N, s scaling the flux to n photons per measurement on average. Each histogram skews
+    // toward its early bins (the sum over measurements need not: the brightest, nearest spots saturate most).
+    let x = flux.data();
+    let s = n * flux.measurements() as f64 / x.iter().map(|&v| f64::from(v)).sum::<f64>();
+    let ax = *flux.time();
+    let mean_path = |h: &mut dyn Iterator<Item = f64>| {
+        let (mut w, mut wp) = (0.0, 0.0);
+        for (k, v) in h.enumerate() {
+            (w, wp) = (w + v, wp + v * ax.bin_center(k));
+        }
+        (w, wp / w)
+    };
+    let (mut skew, mut worst, mut lost) = (0.0f64, 0.0f64, 0.0f64);
+    for (m, h) in flux.histograms().enumerate() {
+        let mut before = 0.0f64;
+        let expected: Vec<f64> = h
+            .iter()
+            .map(|&v| {
+                let lambda = s * f64::from(v) / cycles;
+                let p = (1.0 - (-lambda).exp()) * (-before).exp();
+                before += lambda;
+                cycles * p
+            })
+            .collect();
+        let (_, m_flux) = mean_path(&mut h.iter().map(|&v| f64::from(v)));
+        let (total, m_theory) = mean_path(&mut expected.iter().copied());
+        let (count, m_sim) = mean_path(&mut piled.histogram(m).iter().map(|&v| f64::from(v)));
+        skew += (m_flux - m_theory) / flux.measurements() as f64;
+        // In standard errors of the mean path over `count` detections drawn from the theoretical histogram.
+        let var: f64 =
+            expected.iter().enumerate().map(|(k, v)| v * (ax.bin_center(k) - m_theory).powi(2)).sum::<f64>() / total;
+        worst = worst.max((m_sim - m_theory).abs() / (var / count).sqrt());
+        lost += (total - count).abs() / total / flux.measurements() as f64;
+    }
+    assert!(skew > 2e-3, "theory: pile-up moves each histogram's mean path earlier by {skew} m on average");
+    assert!(worst < 5.0, "simulated and theoretical mean paths differ by up to {worst} standard errors");
+    assert!(lost < 0.01, "detections differ from theory by {lost} on average (relative)");
+    let (sum_piled, _, _) = moments(&piled);
+    assert!(sum_piled < 0.9 * n * flux.measurements() as f64, "pile-up must lose photons: {sum_piled}");
+}
+
+#[test]
+fn bad_spad_arguments_are_input_errors() {
+    let dir = scratch("bad-spad");
+    let (mesh, setup) = inputs(&dir);
+    let out = dir.join("x.npy").to_string_lossy().into_owned();
+    for extra in [
+        vec!["--jitter-fwhm", "100"],
+        vec!["--background", "10"],
+        vec!["--photons", "10", "--dead-time", "5e-8"],
+        vec!["--photons", "10", "--jitter", "missing-jitter.mat"],
+        vec!["--photons", "10", "--jitter-fwhm=-3"],
+        vec!["--photons", "10", "--afterpulse", "1.5"],
+        vec!["--photons", "10", "--background=-1"],
+        vec!["--photons", "10", "--dead-time", "5e-8", "--rep-rate", "0"],
+    ] {
+        let mut args = vec!["render", mesh.as_str(), "--out", out.as_str(), "--setup", setup.as_str()];
+        args.extend(extra.iter().copied());
+        let r = nlos(&args);
+        assert_eq!(r.status.code(), Some(2), "{extra:?}: {}", text(&r));
+    }
+}
