@@ -173,3 +173,46 @@ fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
     assert!(html.contains("Metrics against the ground truth") && html.contains("coverage"));
     assert!(out.join("depth_gt.png").is_file());
 }
+
+#[test]
+fn sensor_fit_reconstructs_photon_counts() {
+    let dir = scratch("sensor");
+    let data = capture(&dir);
+    // Poisson counts of the square (the SPAD model's ideal counter), 500 photons per measurement.
+    let positions = [Vec3::new(-0.1, -0.1, 0.35), Vec3::new(0.1, -0.1, 0.35), Vec3::new(0.1, 0.1, 0.35)];
+    let tri = nlos_mesh::SurfaceMesh::from_triangles(&positions, &[[0, 2, 1]]).expect("mesh");
+    let mesh_file = dir.join("tri.obj");
+    nlos_mesh::io::save(&tri, &mesh_file).expect("save");
+    let counts = dir.join("counts.npy");
+    let (d, c) = (data.to_string_lossy().into_owned(), counts.to_string_lossy().into_owned());
+    let r = nlos(&["render", &mesh_file.to_string_lossy(), "--setup", &d, "--out", &c, "--photons", "500"]);
+    assert!(r.status.success(), "{}", text(&r));
+    let out = dir.join("run");
+    let o = out.to_string_lossy().into_owned();
+    let run = nlos(&[
+        "reconstruct",
+        &c,
+        "--out",
+        &o,
+        "--sensor",
+        "ideal",
+        "--background",
+        "auto",
+        "--stages",
+        "1",
+        "--resolution",
+        "10",
+        "--blocks",
+        "1",
+        "--iterations",
+        "2",
+        "--quiet",
+    ]);
+    assert!(run.status.success(), "{}", text(&run));
+    let html = std::fs::read_to_string(out.join("report.html")).expect("report");
+    assert!(html.contains("sensor fit: Poisson NLL"), "the report does not name the sensor fit");
+    let log: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("run_log.json")).expect("log")).expect("json");
+    let it = log["iterations"].as_array().expect("iterations");
+    assert!(it.iter().all(|r| r["loss"].as_f64().is_some_and(f64::is_finite)), "non-finite loss in {log}");
+}
