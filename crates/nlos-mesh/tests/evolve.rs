@@ -261,11 +261,11 @@ fn bad_inputs_give_typed_errors() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 1);
     let n = m.vertices_size();
     let before = m.positions().to_vec();
-    let e = evolve(&mut m, &vec![Vec3::ZERO; n - 1], &motion_only()).unwrap_err();
+    let e = evolve(&mut m, &vec![Vec3::ZERO; n - 1], &motion_only()).expect_err("short displacements");
     assert!(matches!(e, EvolveError::DisplacementCount { expected, got } if expected == n && got == n - 1), "{e}");
     let mut d = vec![Vec3::ZERO; n];
     d[5] = Vec3::new(f32::NAN, 0.0, 0.0);
-    let e = evolve(&mut m, &d, &motion_only()).unwrap_err();
+    let e = evolve(&mut m, &d, &motion_only()).expect_err("NaN displacement");
     assert!(matches!(e, EvolveError::NonFiniteDisplacement { vertex: 5, .. }), "{e}");
     d[5] = Vec3::new(0.0, f32::INFINITY, 0.0);
     assert!(matches!(evolve(&mut m, &d, &motion_only()), Err(EvolveError::NonFiniteDisplacement { .. })));
@@ -289,7 +289,7 @@ fn bad_inputs_give_typed_errors() {
         let p = crossing.positions()[i];
         crossing.positions_mut()[i] = Vec3::new(p.x, p.y, -0.3 + p.x); // tilted through the lower sheet
     }
-    let e = evolve(&mut crossing, &vec![Vec3::ZERO; nv], &motion_only()).unwrap_err();
+    let e = evolve(&mut crossing, &vec![Vec3::ZERO; nv], &motion_only()).expect_err("intersecting input");
     assert!(matches!(e, EvolveError::InputSelfIntersects { .. }), "{e}");
 }
 

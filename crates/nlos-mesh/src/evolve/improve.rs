@@ -659,6 +659,7 @@ struct MoveScratch {
 
 /// Eigen-decomposition of a symmetric 3×3 matrix by cyclic Jacobi rotations (Golub & Van Loan §8.5):
 /// eigenvalues and unit eigenvectors.
+#[allow(clippy::needless_range_loop)] // the rotations read more clearly with explicit indices
 fn symmetric_eigen(m: DMat3) -> ([f64; 3], [DVec3; 3]) {
     let mut a = [[0.0f64; 3]; 3];
     for i in 0..3 {
