@@ -17,7 +17,8 @@ use crate::CliError;
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// The mesh (OBJ or PLY); faces reflect on the side of `(v1 − v0) × (v2 − v0)` unless --two-sided.
+    /// The mesh (OBJ, PLY or GLB; any triangle list, manifold or not); faces reflect on the side of
+    /// `(v1 − v0) × (v2 − v0)` unless --two-sided.
     mesh: PathBuf,
     /// The output capture; the format follows the extension (.hdf5 → y-tal HDF5_TAL, .npy → npy + json,
     /// .exr → EXR).
@@ -141,8 +142,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Some(n) => Some(spad_model(args, n)?),
         None => None,
     };
-    let mesh = nlos_mesh::io::load(&args.mesh).map_err(bad)?;
-    let (positions, triangles) = mesh.to_triangles();
+    // The renderer needs only the triangles: read them as a soup, so that scanned or exported models with
+    // non-manifold edges (e.g. the shared soap bar) render as they are; the renderer checks the indices.
+    let bytes = std::fs::read(&args.mesh).map_err(|e| bad(format!("{}: {e}", args.mesh.display())))?;
+    let soup = nlos_mesh::io::read_any(&bytes, &args.mesh.display().to_string()).map_err(bad)?;
+    let (positions, triangles) = (soup.positions, soup.triangles);
     let params =
         RenderParams { kernel: Kernel::Box, sampling, visibility: Visibility::Live, two_sided: args.two_sided };
     let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;

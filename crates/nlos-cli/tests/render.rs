@@ -58,6 +58,23 @@ fn renders_a_square_on_the_setup_of_a_capture() {
 }
 
 #[test]
+fn renders_a_non_manifold_mesh() {
+    // Three triangles sharing one edge (non-manifold, as in the shared soap bar): rendered as they are.
+    let dir = scratch("nonmanifold");
+    let (_, setup) = inputs(&dir);
+    let obj = "v -0.1 -0.1 0.3\nv 0.1 -0.1 0.3\nv 0 0.1 0.3\nv 0 0.1 0.35\nv 0 0.1 0.4\nf 1 3 2\nf 1 4 2\nf 1 5 2\n";
+    let mesh = dir.join("fin.obj");
+    std::fs::write(&mesh, obj).expect("write obj");
+    assert!(nlos_mesh::io::load(&mesh).is_err(), "the test mesh should be non-manifold");
+    let out = dir.join("fin.npy");
+    let r =
+        nlos(&["render", &mesh.to_string_lossy(), "--out", &out.to_string_lossy(), "--setup", &setup, "--two-sided"]);
+    assert!(r.status.success(), "{}", text(&r));
+    let t = nlos_transient::read(&out).expect("read");
+    assert!(t.data().iter().sum::<f32>() > 0.0, "nothing rendered");
+}
+
+#[test]
 fn bad_arguments_are_input_errors() {
     let dir = scratch("bad");
     let (mesh, setup) = inputs(&dir);
