@@ -24,6 +24,9 @@ fn remesh(c: &mut Criterion) {
     for (name, params) in [
         ("bunny_3mm_5_iterations", RemeshParams { iterations: 5, ..RemeshParams::pmp() }),
         ("bunny_3mm_5_iterations_features22", RemeshParams { iterations: 5, ..RemeshParams::preserve_features(22.0) }),
+        // the acceptance test's setting (10 rounds, Hausdorff <= 0.5 mm) with 5 rounds
+        ("bunny_3mm_5_iterations_bounded_error", RemeshParams { iterations: 5, ..RemeshParams::bounded_error(0.0003) }),
+        ("bunny_3mm_10_iterations_bounded_error", RemeshParams::bounded_error(0.0003)),
     ] {
         g.bench_function(name, |b| {
             b.iter_batched(

@@ -201,6 +201,43 @@ impl TriangleBvh {
         best
     }
 
+    /// Whether some triangle lies within `max_distance` of `p` (inclusive). Stops at the first one found, so
+    /// it is much cheaper than [`Self::closest_point_within`] when only the answer matters (tolerance
+    /// checks).
+    pub fn any_within(&self, p: Vec3, max_distance: f32) -> bool {
+        let q = Vec3A::from(p);
+        let r2 = max_distance * max_distance;
+        let nodes = &self.bvh.nodes;
+        let mut stack: Vec<u32> = Vec::with_capacity(64);
+        if box_distance_squared(nodes[0].aabb(), q) <= r2 {
+            stack.push(0);
+        }
+        while let Some(ni) = stack.pop() {
+            let node = &nodes[ni as usize];
+            if node.is_leaf() {
+                let start = node.first_index as usize;
+                for k in start..start + node.prim_count as usize {
+                    let t = &self.tris[self.bvh.primitive_indices[k] as usize];
+                    if closest_point_on_triangle(q, t[0], t[1], t[2]).0.distance_squared(q) <= r2 {
+                        return true;
+                    }
+                }
+            } else {
+                let l = node.first_index;
+                let dl = box_distance_squared(nodes[l as usize].aabb(), q);
+                let dr = box_distance_squared(nodes[l as usize + 1].aabb(), q);
+                // nearer child on top of the stack
+                let (near, far) = if dl <= dr { ((l, dl), (l + 1, dr)) } else { ((l + 1, dr), (l, dl)) };
+                for (n, d) in [far, near] {
+                    if d <= r2 {
+                        stack.push(n);
+                    }
+                }
+            }
+        }
+        false
+    }
+
     /// The closest point to `p`, searching first within `hint` (cheap when `p` is known to be close to the
     /// surface) and then everywhere.
     pub fn closest_point_near(&self, p: Vec3, hint: f32) -> ClosestPoint {
