@@ -9,6 +9,9 @@
 //! very call `nlos render --photons N --seed S` makes — so that several budgets and the SPAD scenario share
 //! one (slow) render of the 70k-face bunny.
 //!
+//! `--threshold T` extracts the LCT surface with `nlos init --method lct --threshold T` and starts
+//! `nlos reconstruct` from that mesh (the default Otsu mask covers about half of the bunny's silhouette).
+//!
 //! The binary is `$NLOS_BIN` when set (e.g. a copy that other builds in a shared `target/` cannot
 //! overwrite mid-run), else `target/release/nlos`, built first with `cargo build --release -p nlos-cli`.
 
@@ -234,6 +237,11 @@ fn reconstruct_args(opts: &Opts) -> Vec<String> {
     a
 }
 
+/// The LCT mask threshold for `nlos init` (`--threshold` of `cargo xtask accept`), if any.
+fn threshold() -> Option<String> {
+    THRESHOLD.with(|c| c.borrow().clone())
+}
+
 /// Result of one reconstruction scenario.
 struct Outcome {
     init: Metrics,
@@ -250,7 +258,19 @@ fn reconstruct_and_eval(
     args: &[String],
 ) -> Result<Outcome, String> {
     let _ = std::fs::remove_dir_all(run_dir);
-    let mut a = vec![s("reconstruct"), p(capture), s("--out"), p(run_dir), s("--init"), s("lct"), s("--seed"), s("1")];
+    // `--threshold T`: the LCT surface is extracted by `nlos init` with that mask threshold (Otsu's default
+    // keeps only the brightest columns: about half the bunny's silhouette), then passed as the mesh to
+    // start from.
+    let init = match threshold() {
+        Some(t) => {
+            std::fs::create_dir_all(run_dir).map_err(|e| format!("{}: {e}", run_dir.display()))?;
+            let f = run_dir.join("lct_init.obj");
+            r.nlos(&[s("init"), p(capture), s("--method"), s("lct"), s("--threshold"), t, s("--out"), p(&f)])?;
+            p(&f)
+        }
+        None => s("lct"),
+    };
+    let mut a = vec![s("reconstruct"), p(capture), s("--out"), p(run_dir), s("--init"), init, s("--seed"), s("1")];
     a.extend([s("--quiet"), s("--gt"), p(gt)]);
     a.extend_from_slice(args);
     let recon = r.nlos(&a)?;
@@ -508,6 +528,10 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
     while let Some(a) = it.next() {
         match a.as_str() {
             "--quick" => opts.quick = true,
+            "--threshold" => {
+                let t = it.next().ok_or("--threshold needs a value (otsu, a fraction or abs:VALUE)")?;
+                set_threshold(t);
+            }
             "--photons" => {
                 opts.photons = it.next().and_then(|v| v.parse().ok()).ok_or("--photons needs a number")?;
             }
@@ -565,6 +589,14 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
         }
     }
     if failed.is_empty() { Ok(()) } else { Err(format!("scenarios not passing: {}", failed.join(", "))) }
+}
+
+fn set_threshold(t: &str) {
+    THRESHOLD.with(|c| *c.borrow_mut() = Some(t.to_string()));
+}
+
+thread_local! {
+    static THRESHOLD: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
 }
 
 fn append_doc(root: &Path, md: &str) -> Result<(), String> {

@@ -99,7 +99,7 @@ pub struct ReconstructParams {
     /// Initial reflectance (default Lambertian, albedo 1).
     pub reflectance: Reflectance,
     /// Run reflectance blocks (default true; they only move θ when the model has free parameters beyond
-    /// the scale, see [`Reflectance`]).
+    /// the scale, see [`Reflectance`], so they are skipped for a Lambertian model with the scale solved).
     pub optimise_reflectance: bool,
     /// Coarse-to-fine schedule.
     pub schedule: Schedule,

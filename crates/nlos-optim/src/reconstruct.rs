@@ -582,7 +582,10 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     let start = Instant::now();
     let t_base = st.elapsed_s;
     let elapsed = || t_base + start.elapsed().as_secs_f64();
-    let refl_iters = if params.optimise_reflectance { sch.reflectance_iterations } else { 0 };
+    // A Lambertian albedo is a pure scale factor: with the scale solved in closed form its gradient is zero,
+    // and a reflectance block would spend full forward/adjoint renders to leave θ where it is.
+    let scale_only = matches!(st.reflectance, Reflectance::Lambertian { .. }) && params.data.solve_scale;
+    let refl_iters = if params.optimise_reflectance && !scale_only { sch.reflectance_iterations } else { 0 };
     let planned =
         u64::from(sch.max_stages) * u64::from(sch.max_blocks_per_stage) * u64::from(sch.shape_iterations + refl_iters);
     let out_dir: Option<PathBuf> = params.out_dir.clone();
