@@ -88,6 +88,53 @@ fn chamfer_and_hausdorff_match_brute_force() {
 }
 
 #[test]
+fn dense_sampling_matches_brute_force_and_its_bound() {
+    // a coarse sphere against a fine one: the largest gaps are inside the coarse faces, which vertex
+    // sampling misses
+    let coarse = shapes::icosphere(Vec3::ZERO, 1.0, 1);
+    let fine = shapes::icosphere(Vec3::ZERO, 1.0, 3);
+    let s = 0.05;
+    let d = distance::mesh_distance(&coarse, &fine, Sampling::Spacing(s)).expect("non-empty");
+    let brute_max = |a: &SurfaceMesh, b: &SurfaceMesh| {
+        distance::sample_points(a, Sampling::Spacing(s)).iter().map(|&p| brute_distance(p, b)).fold(0.0, f32::max)
+    };
+    let (ab, ba) = (brute_max(&coarse, &fine), brute_max(&fine, &coarse));
+    assert!((d.max_a_to_b - ab).abs() < 1e-5 && (d.max_b_to_a - ba).abs() < 1e-5, "{d:?} vs {ab} {ba}");
+    // the sample count per face follows the spacing
+    let longest = coarse.edges().map(|e| coarse.edge_length(e)).fold(0.0, f32::max);
+    assert!(distance::sample_points(&coarse, Sampling::Spacing(s)).len() > coarse.n_faces() * 10);
+    assert!(longest / s > 10.0);
+    // vertices only: the coarse vertices are vertices of the fine sphere too, so coarse-to-fine measured at
+    // vertices is zero while the dense one finds the gaps inside the coarse faces; a much finer lattice
+    // moves the dense value by at most s/√3
+    let v = distance::mesh_distance(&coarse, &fine, Sampling::Vertices).expect("non-empty");
+    let finer = distance::mesh_distance(&coarse, &fine, Sampling::Lattice(64)).expect("non-empty");
+    assert!(v.max_a_to_b < 1e-5 && d.max_a_to_b > 0.03, "vertices {} vs dense {}", v.max_a_to_b, d.max_a_to_b);
+    assert!((finer.hausdorff - d.hausdorff).abs() <= s / 3f32.sqrt(), "{} vs {}", finer.hausdorff, d.hausdorff);
+    // the deepest face centroid of the coarse sphere (below the unit sphere) bounds the answer
+    let depth = coarse.faces().map(|f| 1.0 - (coarse.face_points(f).iter().sum::<Vec3>() / 3.0).length());
+    let deepest = depth.fold(0.0, f32::max);
+    assert!(d.max_a_to_b <= deepest + 1e-3 && d.max_a_to_b >= deepest - 0.02, "{} vs {deepest}", d.max_a_to_b);
+    // non-positive spacing: vertices only
+    assert_eq!(distance::sample_points(&coarse, Sampling::Spacing(0.0)).len(), coarse.n_vertices());
+}
+
+#[test]
+fn any_within_agrees_with_closest_point() {
+    let m = shapes::icosphere(Vec3::new(0.1, 0.2, 0.3), 1.0, 2);
+    let bvh = TriangleBvh::from_mesh(&m).expect("bvh");
+    let mut rng = Rng(9);
+    for _ in 0..2000 {
+        let p = rng.v(3.0);
+        let r = rng.f() * 0.5;
+        let d = brute_distance(p, &m);
+        if (d - r).abs() > 1e-5 {
+            assert_eq!(bvh.any_within(p, r), d <= r, "{p} r {r} d {d}");
+        }
+    }
+}
+
+#[test]
 fn normal_error_of_identical_and_flipped_meshes() {
     let s = shapes::icosphere(Vec3::ZERO, 1.0, 3);
     let e = distance::normal_angular_error(&s, &s).expect("ok");
