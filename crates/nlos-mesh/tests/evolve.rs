@@ -310,6 +310,16 @@ fn two_sheets_driven_into_each_other_stop_about_epsilon_apart() {
     eprintln!("{r:?}\nseparation {sep} (eps {eps})");
     // they moved most of the way and stopped about ε apart: within [ε/2, 2ε]
     assert!(sep >= 0.5 * eps && sep <= 2.0 * eps, "separation {sep}, eps {eps}");
+    // the report: resolution stages handled pairs; the impulses (equal masses) held the upper sheet back and
+    // pushed the lower one down, so every vertex ends off `x₀ + d`; the applied share of the requested
+    // motion is the upper sheet's mean descent over 3·gap (the lower sheet was asked for none)
+    assert!(r.proximity_pairs + r.collision_impulses > 0, "{r:?}");
+    assert_eq!(r.vertices_adjusted, nv, "{r:?}");
+    let descent: f64 = m.positions()[nv / 2..].iter().map(|p| f64::from(gap - p.z)).sum::<f64>() / (nv / 2) as f64;
+    let want = descent / f64::from(3.0 * gap);
+    assert!(want > 0.3 && want < 1.0, "{want}");
+    assert!((r.motion_fraction - want).abs() < 1e-4, "motion fraction {} vs {want}", r.motion_fraction);
+    assert!(r.min_vertex_fraction <= r.motion_fraction + 1e-9, "{r:?}");
 }
 
 /// Runs `calls` evolve steps with displacement fields from `field`, checking after every call.

@@ -30,7 +30,7 @@ use crate::intersect::faces_intersect;
 use crate::quality::triangle_angles;
 use crate::surface_mesh::SurfaceMesh;
 
-/// What [`improve`] did.
+/// What [`improve()`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ImproveReport {
     /// Edge splits.

@@ -3,7 +3,7 @@
 //!
 //! [`evolve`] moves every vertex from its position `x₀` toward `x₀ + d` so that the surface is free of
 //! self-intersections at the end of the step *and along the straight-line motion*, then optionally
-//! improves the mesh ([`improve`]) with operations that are each rejected if they would create an
+//! improves the mesh ([`improve()`]) with operations that are each rejected if they would create an
 //! intersection.
 //!
 //! | stage | where | what |
@@ -61,7 +61,7 @@ use crate::surface_mesh::SurfaceMesh;
 
 pub use improve::{ImproveReport, improve};
 
-/// Parameters of [`evolve`] and [`improve`]. `Default` matches the seed's use of El Topo (Tsai et al. 2019
+/// Parameters of [`evolve`] and [`improve()`]. `Default` matches the seed's use of El Topo (Tsai et al. 2019
 /// code): edge lengths within `[0.99·L, 1.01·L]` for the mesh's current mean edge length `L`, angles
 /// 30–90°, proximity ε = 10⁻⁴ m, no merging.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,7 +78,7 @@ pub struct EvolveParams {
     pub impact_zone_passes: u32,
     /// Reject inputs that already self-intersect (one exact static check per call). Default true.
     pub check_input: bool,
-    /// Run [`improve`] after the motion. Default true. Set it to false to keep the connectivity (the
+    /// Run [`improve()`] after the motion. Default true. Set it to false to keep the connectivity (the
     /// optimiser's `Evolve` hook returns positions only).
     pub improve: bool,
     /// Target edge length `L` (metres); `None`: the mesh's mean edge length at the start of the call.
@@ -104,7 +104,7 @@ pub struct EvolveParams {
     /// Largest volume a collapse or flip may change, in units of `L³` (El Topo's `max_volume_change`,
     /// relative). Default 0.1.
     pub max_volume_change: f32,
-    /// Sweeps of split / collapse / flip / smoothing per [`improve`] call. Default 1.
+    /// Sweeps of split / collapse / flip / smoothing per [`improve()`] call. Default 1.
     pub improve_sweeps: u32,
     /// Null-space smoothing (Jiao 2007, as in El Topo) during improvement. Default true.
     pub smoothing: bool,
@@ -179,7 +179,7 @@ impl EvolveParams {
     }
 }
 
-/// Errors of [`evolve`] and [`improve`].
+/// Errors of [`evolve`] and [`improve()`].
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum EvolveError {
@@ -237,7 +237,7 @@ pub struct EvolveTimings {
     pub narrow_phase: Duration,
     /// Exact static self-intersection checks (input and output).
     pub static_check: Duration,
-    /// [`improve`].
+    /// [`improve()`].
     pub improvement: Duration,
     /// The whole call.
     pub total: Duration,
@@ -263,7 +263,7 @@ pub struct EvolveReport {
     pub motion_fraction: f64,
     /// Smallest per-vertex `(x₁ − x₀)·d / |d|²` over moving vertices (1 if none).
     pub min_vertex_fraction: f64,
-    /// What [`improve`] did (all zero when not run).
+    /// What [`improve()`] did (all zero when not run).
     pub improvement: ImproveReport,
     /// Time per part.
     pub timings: EvolveTimings,
