@@ -559,3 +559,27 @@ fn tight_band_settles_for_a_fixed_target() {
     assert!(*faces.last().expect("calls") <= 3 * faces[0], "faces {faces:?}");
     assert!(ops[ops.len() - 2..].iter().all(|&n| 10 * n <= ops[0]), "operations {ops:?}");
 }
+
+/// The optimiser's case: an open surface (with a boundary) evolved and improved repeatedly with a fixed `L`.
+#[test]
+fn evolve_then_improve_open_surface() {
+    let mut m = shapes::height_field(1.0, 1.0, 12, 12, |x, y| 0.1 * (4.0 * x).sin() * (3.0 * y).cos()).expect("ok");
+    let l = m.mean_edge_length();
+    let params = EvolveParams::with_edge_length(l);
+    let mut rng = Rng(31);
+    let (lo0, hi0) = m.bounds().expect("non-empty");
+    let mut ops = 0;
+    for k in 0..15 {
+        let d: Vec<Vec3> = (0..m.vertices_size()).map(|_| rng.vec(0.3 * l)).collect();
+        let r = evolve(&mut m, &d, &params).unwrap_or_else(|e| panic!("call {k}: {e}"));
+        assert!(!m.has_garbage());
+        assert_clean(&m, &format!("open surface call {k}"));
+        let i = r.improvement;
+        ops += i.splits + i.collapses + i.flips + i.smoothed;
+    }
+    assert!(ops > 0);
+    // still open, and its extent changed only by the motion (boundary vertices are never collapsed inward)
+    assert!(m.vertices().any(|v| m.is_boundary_vertex(v)));
+    let (lo, hi) = m.bounds().expect("non-empty");
+    assert!((lo - lo0).abs().max_element() < 3.0 * l && (hi - hi0).abs().max_element() < 3.0 * l, "{lo} {hi}");
+}
