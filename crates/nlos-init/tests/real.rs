@@ -77,17 +77,35 @@ fn lct_params() -> LctParams {
     LctParams { bin_merge: 4, max_depth: Some(1.2), ..LctParams::default() }
 }
 
-/// The issue asks for the chart at 0.425 ± 0.005 m, which is where the summed histogram peaks
-/// (`Transient::summed_peak_depth`). Both volumetric methods put the chart nearer, at 0.404–0.409 m, and
-/// so does the data itself: the histograms of the columns facing the chart rise at 0.80 m of path
-/// (0.400 m) and plateau until ~0.86 m, so their peak (0.42–0.43 m) lies inside a ~3 cm wide response
-/// (SPAD jitter and the chart's extent), not at the surface. Both methods find a synthetic plane within
-/// one bin (`tests/synthetic.rs`). We therefore test the nominal 40 cm: 0.395–0.415 m for both methods,
-/// and agreement between them within 7 mm.
+/// The issue asked for the chart plane at 0.425 ± 0.005 m, the depth of the summed histogram's peak
+/// (`Transient::summed_peak_depth`: 0.4257 m; 0.4245 m after a 5-bin box). The evidence puts the plane
+/// at 0.410 ± 0.005 m instead, and the summed peak ~15 mm behind it (`docs/chart-depth.md`,
+/// `examples/chart_depth.rs`, whose numbers these are):
+/// - the data: over the 912 chart columns the median 50 % onset of the histograms is at 0.4093 m of depth
+///   (the summed histogram's at 0.4085 m), their median peak at 0.4203 m;
+/// - the sensor: the shared SPAD response (`sensor/spad_jitter.mat`, FWHM 36.9 ps = 11.1 mm of path)
+///   reaches half its maximum 3.8 mm of path before its mode, so it moves an onset by ~2 mm of depth at
+///   most; the capture's own direct return (bins 0–23) falls off more slowly (45 % after 10 bins, 33 %
+///   after 23) than that response, which shifts peaks, not onsets, later;
+/// - self-consistency: a flat square over the chart's extent rendered with `nlos-render` at 0.402–0.420 m,
+///   blurred by the SPAD response and fitted to every chart histogram (free scale and background) fits
+///   best at 0.4108 m (retroreflective fall-off; 0.4115 m diffuse); with the capture's own response from
+///   its direct return the residual halves (0.13 vs 0.28) and the best depth is 0.406–0.408 m; per column
+///   the best depths have median 0.4106 m, quartiles 0.4088–0.4118 m (a tilt of ≤ 2 mm over the chart).
+///   A plane at 0.425 m would start 15 mm of depth after the measured onset;
+/// - the methods, which find rendered planes within one bin without offset (`tests/rendered.rs`): LCT
+///   0.4092 m (0.4101 m without bin merging), f-k 0.4068 m, FBP 0.4092 m (median argmax over the LCT's chart columns).
+///
+/// So the test asks 0.410 ± 0.005 m of LCT and FBP (measured 0.4092 and 0.4116 m over their own masks),
+/// 0.410 ± 0.007 m of f-k (0.4044 m over its own mask), agreement of LCT and f-k within 7 mm, carving at
+/// the onset (0.385–0.415 m), and checks that the summed-histogram peak is indeed at 0.425 ± 0.005 m.
 #[test]
-fn resolution_chart_plane_near_40_cm() {
+fn resolution_chart_plane_at_41_cm_summed_peak_at_42_5() {
     let Some(t) = load("data_resolution_chart_40cm.mat") else { return };
     eprintln!("direct light ends at {:.3} m of path", t.direct_light_end());
+    let summed_peak = t.summed_peak_depth(None).expect("summed peak");
+    eprintln!("summed-histogram peak at {summed_peak:.4} m of depth");
+    assert!((0.420..=0.430).contains(&summed_peak), "summed peak {summed_peak}");
     let start = Instant::now();
     let vol = lct(&t, &lct_params()).expect("lct");
     eprintln!("LCT {}×{}×{} in {:.2} s", vol.nx, vol.ny, vol.nz, start.elapsed().as_secs_f64());
@@ -110,7 +128,7 @@ fn resolution_chart_plane_near_40_cm() {
     let fbp_median = s.median_depth().expect("kept columns");
     eprintln!("FBP chart: median depth {fbp_median:.4} m");
     figure(&vol, &s.depth, &s.mask, "chart_fbp");
-    assert!((0.395..=0.415).contains(&fbp_median), "FBP median depth {fbp_median}");
+    assert!((0.405..=0.415).contains(&fbp_median), "FBP median depth {fbp_median}");
     let start = Instant::now();
     let vol = carve(&t, &CarveParams { bin_merge: 4, ..CarveParams::default() }).expect("carve");
     let s = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
@@ -119,8 +137,10 @@ fn resolution_chart_plane_near_40_cm() {
     figure(&vol, &s.depth, &s.mask, "chart_carve");
     // First returns mark the nearest surface point, so carving sits at the onset (~0.40 m) or before.
     assert!((0.385..=0.415).contains(&carve_median), "carving median depth {carve_median}");
-    assert!((0.395..=0.415).contains(&lct_median), "LCT median depth {lct_median}");
-    assert!((0.395..=0.415).contains(&median), "f-k median depth {median}");
+    assert!((0.405..=0.415).contains(&lct_median), "LCT median depth {lct_median}");
+    // f-k sits 4–6 mm in front of the others on this capture (0.4044 m over its own mask, 0.4068 m over
+    // the LCT's chart columns), though not on rendered planes: ±7 mm.
+    assert!((0.403..=0.417).contains(&median), "f-k median depth {median}");
     assert!((lct_median - median).abs() <= 0.007, "LCT {lct_median} vs f-k {median}");
 }
 
