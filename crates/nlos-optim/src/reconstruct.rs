@@ -459,17 +459,28 @@ fn prepare_topology(
             })
             .collect();
         // Guard: never delete everything (a mesh entirely out of view keeps its faces and its zero signal).
-        if dark.len() < mesh.n_faces() {
+        if !dark.is_empty() && dark.len() < mesh.n_faces() {
+            let mut pruned = mesh.clone();
             for f in dark {
-                mesh.delete_face(f);
+                pruned.delete_face(f);
             }
-            mesh.garbage_collect();
+            pruned.garbage_collect();
+            // Deleting faces can pinch a vertex between two boundary loops (a non-manifold "bow tie" that
+            // the half-edge builder rejects): keep the faces for this block rather than fail the run.
+            if is_manifold(&pruned) {
+                mesh = pruned;
+            }
         }
     }
     if mesh.n_faces() == 0 {
         return Err(OptimError::EmptyMesh { context: "after removing unlit faces" });
     }
-    uniform_remeshing(&mut mesh, target, &params.remesh)?;
+    let mut remeshed = mesh.clone();
+    uniform_remeshing(&mut remeshed, target, &params.remesh)?;
+    // Guard against a remeshing result that is not a valid manifold mesh: keep the unremeshed mesh.
+    if is_manifold(&remeshed) {
+        mesh = remeshed;
+    }
     let (pos, tris) = mesh.to_triangles();
     if tris.is_empty() {
         return Err(OptimError::EmptyMesh { context: "after remeshing" });
@@ -489,6 +500,12 @@ fn prepare_topology(
     st.positions = pos;
     st.triangles = tris;
     Ok(boundary)
+}
+
+/// Whether the mesh's triangles rebuild into a valid half-edge mesh (no non-manifold vertex or edge).
+fn is_manifold(mesh: &SurfaceMesh) -> bool {
+    let (p, t) = mesh.to_triangles();
+    !t.is_empty() && SurfaceMesh::from_triangles(&p, &t).is_ok()
 }
 
 fn surface_area(p: &[Vec3], t: &[[u32; 3]]) -> f64 {
