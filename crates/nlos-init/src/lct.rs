@@ -266,18 +266,19 @@ fn psf_spectrum(d: &Dims, dx: f64, dy: f64, m: usize, delta: f64) -> Vec<Complex
             Complex32::new((a * phase.cos()) as f32, (a * phase.sin()) as f32)
         })
         .collect();
-    let mut lanes = vec![Complex32::new(0.0, 0.0); px * py * d.nf];
-    lanes.par_chunks_mut(d.nf).enumerate().for_each(|(c, lane)| {
-        if let Some(q) = shift(c % px, c / px) {
-            let mut k = 0;
-            for v in lane.iter_mut() {
-                *v = twiddle[k];
-                k = (k + q) % d.pz;
+    // Written straight into the planes layout (one py × px plane per frequency f), which saves a
+    // lanes-sized buffer and its transpose. Columns whose cone leaves the range stay zero.
+    let shifts: Vec<Option<usize>> = (0..px * py).map(|c| shift(c % px, c / px)).collect();
+    let plane = px * py;
+    let mut planes = vec![Complex32::new(0.0, 0.0); d.nf * plane];
+    planes.par_chunks_mut(plane).enumerate().for_each(|(f, pl)| {
+        for (v, q) in pl.iter_mut().zip(&shifts) {
+            if let Some(q) = q {
+                // (q·f) mod pz in integers: exact phase, no sin/cos per voxel.
+                *v = twiddle[(q * f) % d.pz];
             }
         }
     });
-    let mut planes = fft::lanes_to_planes(d, &lanes, py, px);
-    drop(lanes);
     fft::forward_xy(d, &mut planes, py);
     planes
 }
