@@ -240,11 +240,12 @@ fn quantile(values: &[f32], q: f64) -> Option<f64> {
     Some(f64::from(v[i]))
 }
 
-/// The colour range of the depth maps: the 1st to 99th percentile of the hit depths (metres), so that a
-/// stray far triangle does not compress the object's relief into one colour; widened to 1 mm when
-/// flatter. `None` when nothing is hit.
+/// The colour range of the depth maps: the 2nd to 95th percentile of the hit depths (metres), so that
+/// steep rims and stray far triangles (which take few pixels but many millimetres) do not compress the
+/// object's front, and its relief, into a few colours; widened to 1 mm when flatter. `None` when nothing
+/// is hit.
 pub fn depth_range(depth: &[f32]) -> Option<(f64, f64)> {
-    let (lo, hi) = (quantile(depth, 0.01)?, quantile(depth, 0.99)?);
+    let (lo, hi) = (quantile(depth, 0.02)?, quantile(depth, 0.95)?);
     let mid = 0.5 * (lo + hi);
     Some(if hi - lo < 1e-3 { (mid - 5e-4, mid + 5e-4) } else { (lo, hi) })
 }
@@ -332,7 +333,8 @@ pub fn relief_figure(maps: &[(&str, &[f32])], view: &DepthView, box_m: f64) -> R
     }
     let mm: Vec<Vec<f32>> = maps.iter().map(|(_, m)| m.iter().map(|z| z * 1e3).collect()).collect();
     let abs: Vec<f32> = mm.iter().flatten().map(|v| v.abs()).collect();
-    let a = quantile(&abs, 0.99).unwrap_or(1.0).max(0.05);
+    // The 90th percentile of |relief|: the lettering's millimetres, not the rims' centimetres, set the scale.
+    let a = quantile(&abs, 0.9).unwrap_or(1.0).max(0.05);
     let norm = Norm::linear(-a, a)?;
     let ex = Extent::new(f64::from(view.x_range[0]), f64::from(view.x_range[1]))?;
     let ey = Extent::new(f64::from(view.y_range[0]), f64::from(view.y_range[1]))?;
@@ -389,6 +391,9 @@ mod tests {
         d[1] = f32::NAN;
         let (lo, hi) = depth_range(&d).expect("range");
         assert!((hi - lo - 1e-3).abs() < 1e-9 && (lo - 0.3995).abs() < 1e-6);
+        let ramp: Vec<f32> = (0..=100).map(|i| i as f32 * 1e-3).collect();
+        let (lo, hi) = depth_range(&ramp).expect("range");
+        assert!((lo - 0.002).abs() < 1e-6 && (hi - 0.095).abs() < 1e-6, "{lo} {hi}");
         assert!(depth_range(&[f32::NAN]).is_none());
     }
 }

@@ -23,7 +23,7 @@
 //! direct-light gate — the bins the figures show.
 //!
 //! **Depth maps.** +z rays from a grid over the scan's bounding rectangle, first hits through
-//! `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one colour range, the 1st–99th
+//! `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one colour range, the 2nd–95th
 //! percentile of the ground truth's depths (else the final mesh's), so millimetre relief stays visible.
 //!
 //! **Metrics** (with a ground truth): `nlos_mesh::metrics::evaluate` of the initial and final meshes,
