@@ -276,6 +276,7 @@ pub fn depth_figure(depth: &[f32], view: &DepthView, range: (f64, f64), title: &
         range.0 * 1e3,
         range.1 * 1e3
     ));
+    fig.notes.push("x to the right as in wall coordinates: text facing the wall reads mirrored".into());
     fig.panels = vec![
         Panel::image(g, Norm::linear(range.0 * 1e3, range.1 * 1e3)?)
             .with_labels("x (m)", "y (m)")
