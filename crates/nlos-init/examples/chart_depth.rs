@@ -71,7 +71,7 @@ fn main() {
     let bin = ax.bin_width;
     println!("time axis: t0 {} m, bin {} m, {} bins", ax.t0, bin, ax.bins);
     let gate = t.direct_light_end();
-    let g0 = (0..ax.bins).find(|&k| ax.bin_start(k) >= gate).unwrap();
+    let g0 = (0..ax.bins).find(|&k| ax.bin_start(k) >= gate).expect("chart_depth");
     println!("direct light ends at {gate:.4} m of path (bin {g0})");
     let (lo, hi) = ((0.6 / bin) as usize, (1.1 / bin) as usize);
 
@@ -84,7 +84,7 @@ fn main() {
         "summed histogram (5-bin box): peak bin {kp} → depth {:.4} m (raw-bin peak depth {:.4}); onset 10 % {:.4} m, \
          50 % {:.4} m",
         ax.bin_center(kp) / 2.0,
-        t.summed_peak_depth(None).unwrap(),
+        t.summed_peak_depth(None).expect("chart_depth"),
         ax.t0 + (on10 + 0.5) * bin / 2.0,
         ax.t0 + (on50 + 0.5) * bin / 2.0,
     );
@@ -126,7 +126,7 @@ fn main() {
     let jitter = JitterResponse::load(PathBuf::from(DATA).join("sensor/spad_jitter.mat")).expect("jitter");
     let w = jitter.weights();
     let peak = w.iter().enumerate().fold(0, |b, (i, &v)| if v > w[b] { i } else { b });
-    let left = (0..peak).rev().find(|&i| w[i] < 0.5 * w[peak]).unwrap();
+    let left = (0..peak).rev().find(|&i| w[i] < 0.5 * w[peak]).expect("chart_depth");
     let left_delay = jitter.origin() + (left as f64 + 1.0) * jitter.spacing();
     println!(
         "SPAD response: FWHM {:.1} ps = {:.4} m of path, mean delay {:.4} m of path (mode = 0), rising half-maximum at \
@@ -139,12 +139,15 @@ fn main() {
 
     // 3. Volumetric methods.
     let l = column_depths(&vol, &cols);
-    let f = column_depths(&fk(&t, &FkParams { bin_merge: 4, max_depth: Some(1.2), gate: Gate::Auto }).unwrap(), &cols);
-    let b = column_depths(
-        &fbp(&t, &FbpParams { bin_merge: 4, max_depth: Some(1.2), ..FbpParams::default() }).unwrap(),
+    let f = column_depths(
+        &fk(&t, &FkParams { bin_merge: 4, max_depth: Some(1.2), gate: Gate::Auto }).expect("chart_depth"),
         &cols,
     );
-    let l1 = column_depths(&lct(&t, &LctParams { bin_merge: 1, ..lp }).unwrap(), &cols);
+    let b = column_depths(
+        &fbp(&t, &FbpParams { bin_merge: 4, max_depth: Some(1.2), ..FbpParams::default() }).expect("chart_depth"),
+        &cols,
+    );
+    let l1 = column_depths(&lct(&t, &LctParams { bin_merge: 1, ..lp }).expect("chart_depth"), &cols);
     println!("argmax along depth, median over chart pixels: LCT {l:.4} m (1-bin: {l1:.4}), f-k {f:.4}, FBP {b:.4}");
 
     // The direct reflection off the wall (path 0) is the system's own impulse response, as far as it is
@@ -156,7 +159,7 @@ fn main() {
     //    histogram's direct return (bins 0–99, relative to bin 0, where its maximum lies), its rising side,
     //    cut off by the axis, the SPAD's.
     let bins = (1.2 / bin) as usize;
-    let time = TimeAxis::new(0.0, bin, bins).unwrap();
+    let time = TimeAxis::new(0.0, bin, bins).expect("chart_depth");
     let (w0, w1) = ((0.70 / bin) as usize, (1.05 / bin) as usize);
     let measured: Vec<Vec<f64>> =
         cols.iter().map(|&c| t.histogram(c)[w0..w1].iter().map(|&v| v as f64).collect()).collect();
@@ -165,7 +168,8 @@ fn main() {
         let mut w: Vec<f64> = kernel.weights()[..(-kernel.first()) as usize].to_vec();
         w.extend((0..100).map(|d| k0 * summed[d] / summed[0]));
         let total: f64 = w.iter().sum();
-        nlos_transient::sensor::BinKernel::new(kernel.first(), w.iter().map(|v| v / total).collect()).unwrap()
+        nlos_transient::sensor::BinKernel::new(kernel.first(), w.iter().map(|v| v / total).collect())
+            .expect("chart_depth")
     };
     let mean_delay: f64 = own.weights().iter().enumerate().map(|(i, w)| w * (own.first() + i as i64) as f64).sum();
     println!("own response: mean delay {:.4} m of path", mean_delay * bin);
@@ -175,7 +179,7 @@ fn main() {
     let own_depths = depths.clone();
     let mut own_res = vec![vec![0.0f64; own_depths.len()]; 2];
     for (di, &d) in own_depths.iter().enumerate() {
-        let b = own.apply(&renders[di], bins).unwrap();
+        let b = own.apply(&renders[di], bins).expect("chart_depth");
         for (model, row) in own_res.iter_mut().enumerate() {
             let (mut num, mut den) = (0.0, 0.0);
             for (&c, y) in cols.iter().zip(&measured) {
@@ -212,20 +216,26 @@ fn main() {
     let extras = [0.0, 0.008, 0.016];
     let extra_kernels: Vec<_> = extras
         .iter()
-        .map(|&f| if f > 0.0 { Some(JitterResponse::gaussian(f).unwrap().to_bins(bin).unwrap()) } else { None })
+        .map(|&f| {
+            if f > 0.0 {
+                Some(JitterResponse::gaussian(f).expect("chart_depth").to_bins(bin).expect("chart_depth"))
+            } else {
+                None
+            }
+        })
         .collect();
     // residual[model][extra][depth], per-pixel residual[depth][pixel] (retro, no extra blur).
     let mut residual = vec![vec![vec![0.0f64; depths.len()]; extras.len()]; 2];
     let mut pixel_res = vec![vec![0.0f64; cols.len()]; depths.len()];
     println!("depth | model summed peak | per-pixel peak | per-pixel 50 % onset (diffuse, measured response only)");
     for (di, &d) in depths.iter().enumerate() {
-        let blurred = kernel.apply(&renders[di], bins).unwrap();
+        let blurred = kernel.apply(&renders[di], bins).expect("chart_depth");
         for (ei, ek) in extra_kernels.iter().enumerate() {
             let b = match ek {
-                Some(k) => k.apply(&blurred, bins).unwrap(),
+                Some(k) => k.apply(&blurred, bins).expect("chart_depth"),
                 None => blurred.clone(),
             };
-            for model in 0..2 {
+            for (model, per_model) in residual.iter_mut().enumerate() {
                 let (mut num, mut den) = (0.0, 0.0);
                 for (pi, (&c, y)) in cols.iter().zip(&measured).enumerate() {
                     let m: Vec<f64> = (w0..w1)
@@ -241,7 +251,7 @@ fn main() {
                         pixel_res[di][pi] = rr / tot.max(1e-30);
                     }
                 }
-                residual[model][ei][di] = num / den;
+                per_model[ei][di] = num / den;
             }
         }
         let sum: Vec<f64> =
@@ -370,5 +380,5 @@ fn render_plane(t: &Transient, time: &TimeAxis, bbox: (f64, f64, f64, f64), d: f
         ..RenderParams::default()
     };
     let r = Renderer::new(&p, &tri, t.scan(), time, params).expect("renderer");
-    r.forward(&Lambertian::new(1.0f32).unwrap())
+    r.forward(&Lambertian::new(1.0f32).expect("chart_depth"))
 }

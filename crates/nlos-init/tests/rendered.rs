@@ -46,9 +46,18 @@ fn rendered_planes_within_one_bin_without_offset() {
     for &d in &depths {
         let d = d as f32 as f64;
         let t = rendered_plane(32, 0.25, d as f32, 0.3, bin, 256);
-        let l = median_depth_inside(&lct(&t, &LctParams { gate: Gate::None, ..LctParams::default() }).unwrap(), 0.1);
-        let f = median_depth_inside(&fk(&t, &FkParams { gate: Gate::None, ..FkParams::default() }).unwrap(), 0.1);
-        let b = median_depth_inside(&fbp(&t, &FbpParams { gate: Gate::None, ..FbpParams::default() }).unwrap(), 0.1);
+        let l = median_depth_inside(
+            &lct(&t, &LctParams { gate: Gate::None, ..LctParams::default() }).expect("reconstruction"),
+            0.1,
+        );
+        let f = median_depth_inside(
+            &fk(&t, &FkParams { gate: Gate::None, ..FkParams::default() }).expect("reconstruction"),
+            0.1,
+        );
+        let b = median_depth_inside(
+            &fbp(&t, &FbpParams { gate: Gate::None, ..FbpParams::default() }).expect("reconstruction"),
+            0.1,
+        );
         eprintln!(
             "plane at {d:.5} m (onset bin {:.2}): LCT {l:.5} ({:+.2} bins), f-k {f:.5} ({:+.2}), FBP {b:.5} ({:+.2})",
             2.0 * d / bin,
