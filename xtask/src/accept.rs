@@ -476,7 +476,8 @@ fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     let model = SpadModel {
         jitter: Some(jitter.clone()),
         // Ambient + dark counts of 0.01 per bin over the exposure (≈ 5 per 512-bin histogram).
-        background_rate: 0.01 * nlos_transient::SPEED_OF_LIGHT / (t.time().bin_width * SpadModel::default().exposure),
+        background_rate: 0.01 * nlos_transient::SPEED_OF_LIGHT
+            / (t.time().bin_width * SpadModel::default().rep_rate * SpadModel::default().exposure),
         afterpulse_probability: 0.0,
         dead_time: 0.0,
         pile_up: false,
