@@ -169,14 +169,14 @@ fn jitter_widens_the_summed_histogram_by_its_variance() {
 fn background_raises_the_early_bins_to_its_mean_and_info_reports_it() {
     let dir = scratch("background");
     let (mesh, setup) = spad_inputs(&dir);
-    // `SpadModel::background_per_bin` = R·(Δ/c)·T_exp; a rate giving ≈ 3 counts per 4 mm bin in 0.1 s.
+    // `SpadModel::background_per_bin` = R·(Δ/c)·f_rep·T_exp; a rate giving ≈ 3 counts per 4 mm bin (10 MHz, 0.1 s).
     let model = nlos_transient::sensor::SpadModel {
-        background_rate: 2.25e12,
+        background_rate: 2.25e5,
         ..nlos_transient::sensor::SpadModel::ideal(nlos_transient::sensor::PhotonBudget::PerMeasurement(1.0))
     };
     let b = model.background_per_bin(0.004);
     assert!(b > 2.0 && b < 4.0, "{b}");
-    let t = render_with(&dir, &mesh, &setup, "bg", &["--photons", "2000", "--seed", "5", "--background", "2.25e12"]);
+    let t = render_with(&dir, &mesh, &setup, "bg", &["--photons", "2000", "--seed", "5", "--background", "2.25e5"]);
     // Before the first return (path 0.6 m: the square at 0.3 m) only background is counted.
     let early: Vec<f64> = t.histograms().flat_map(|h| h[..140].iter().map(|&v| f64::from(v))).collect();
     let mean = early.iter().sum::<f64>() / early.len() as f64;
@@ -199,11 +199,10 @@ fn background_raises_the_early_bins_to_its_mean_and_info_reports_it() {
 }
 
 /// Physical units: a background of `R` counts per second puts `R·Δt` counts per bin into every laser period,
-/// i.e. `R·Δt·f_rep·T_exp` per bin over the exposure (`Δt = Δ/c`). `SpadModel::background_per_bin` computes
-/// `R·Δt·T_exp`, without the `f_rep` factor (10⁷ at the default 10 MHz), so a realistic rate (1000 /s) adds
-/// ~1e-9 counts per bin instead of ~0.013. Owned by `nlos-transient`; ignored until it is fixed there.
+/// i.e. `R·Δt·f_rep·T_exp` per bin over the exposure (`Δt = Δ/c`). Regression test for
+/// `SpadModel::background_per_bin` once computing `R·Δt·T_exp` (no `f_rep`), which made a realistic rate add
+/// ~1e-9 counts per bin instead of ~0.013.
 #[test]
-#[ignore = "nlos-transient: SpadModel::background_per_bin omits the repetition rate (R·Δt·T_exp, should be R·Δt·f_rep·T_exp)"]
 fn background_rate_is_counts_per_second() {
     let dir = scratch("background-units");
     let (mesh, setup) = spad_inputs(&dir);

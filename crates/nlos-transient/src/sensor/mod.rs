@@ -13,8 +13,10 @@
 //!    and electronics; it is applied to the flux, before detection, as in Hernández et al. 2017. (Strictly,
 //!    SPAD and electronics jitter act after the first-photon competition; the difference is second order
 //!    in the pile-up and vanishes at low flux.)
-//! 3. **Background** — dark counts and ambient light add `b = R_bg·Δt·T_exp` expected counts to every bin
-//!    (`R_bg` in detected counts per second, `T_exp` the exposure per measurement).
+//! 3. **Background** — dark counts and ambient light arrive uniformly in time; each laser period puts
+//!    `R_bg·Δt` of them into every bin, so over the exposure's `f_rep·T_exp` periods every bin gains
+//!    `b = R_bg·Δt·f_rep·T_exp` expected counts (`R_bg` in detected counts per second, `Δt` the bin width
+//!    in seconds, `f_rep` the laser repetition rate, `T_exp` the exposure per measurement).
 //! 4. **Detection with dead time and pile-up** (synchronous, first-photon model; Coates 1968, Heide et
 //!    al. 2018, Rapp et al. 2019). Over `N = round(f_rep·T_exp)` laser cycles, cycle-wise expected
 //!    photons are `λ_k = (μ_k + b)/N`, photon arrivals in a cycle are Poisson, and the detector registers
@@ -213,6 +215,14 @@ impl SpadModel {
         if !(self.exposure.is_finite() && self.exposure > 0.0) {
             return Err(bad("exposure", format!("{} must be finite and > 0 (seconds)", self.exposure)));
         }
+        if self.background_rate > 0.0 && self.rep_rate <= 0.0 {
+            return Err(bad(
+                "rep_rate",
+                "must be > 0 with a background rate: background counts per bin scale with the number of laser \
+                 periods"
+                    .into(),
+            ));
+        }
         if (self.pile_up || self.dead_time > 0.0) && self.rep_rate <= 0.0 {
             return Err(bad(
                 "rep_rate",
@@ -243,10 +253,11 @@ impl SpadModel {
         (self.rep_rate * self.exposure).round()
     }
 
-    /// Expected background counts per bin over one exposure, `b = R_bg·(Δ/c)·T_exp`, for bins of
-    /// `bin_width` metres of path.
+    /// Expected background counts per bin over one exposure, `b = R_bg·(Δ/c)·f_rep·T_exp`, for bins of
+    /// `bin_width` metres of path: the histogram folds time modulo the laser period, so each of the
+    /// `f_rep·T_exp` periods adds `R_bg·Δ/c` counts to every bin.
     pub fn background_per_bin(&self, bin_width: f64) -> f64 {
-        self.background_rate * bin_width / SPEED_OF_LIGHT * self.exposure
+        self.background_rate * bin_width / SPEED_OF_LIGHT * self.rep_rate * self.exposure
     }
 
     /// The sensor's temporal response on bins of `bin_width` metres: the jitter kernel, or the identity.

@@ -116,8 +116,9 @@ fn simulated_counts_are_poisson_over_many_seeds() {
     let t = pulses(2, 48, 20.0, 3.0);
     let model = SpadModel {
         jitter: Some(JitterResponse::gaussian(0.009).unwrap()),
-        // 5e11 /s × 4.0 ps × 1 s = 2.0 counts per bin: every bin's mean is ≥ 2, so the variance test is sharp.
-        background_rate: 5.0e11,
+        // 5e4 /s × 4.0 ps × 1e7 Hz × 1 s = 2.0 counts per bin: every bin's mean is ≥ 2, so the variance test
+        // is sharp.
+        background_rate: 5.0e4,
         exposure: 1.0,
         ..SpadModel::ideal(PhotonBudget::PerMeasurement(300.0))
     };
@@ -153,9 +154,9 @@ fn simulated_counts_are_poisson_over_many_seeds() {
     );
     assert!(chi2 < chi2_upper(k, Z_1E4));
     assert!((disp - 1.0).abs() < 4.5 * disp_se);
-    // Background per bin: R·Δt·T = 5e11 /s · 4.003 ps · 1 s.
+    // Background per bin: R·Δt·f_rep·T = 5e4 /s · 4.003 ps · 1e7 Hz · 1 s.
     let b = model.background_per_bin(0.0012);
-    assert!((b - 5.0e11 * 0.0012 / crate::SPEED_OF_LIGHT).abs() < 1e-12);
+    assert!((b - 5.0e4 * 0.0012 / crate::SPEED_OF_LIGHT * 1.0e7).abs() < 1e-12);
 }
 
 #[test]
@@ -168,7 +169,7 @@ fn pile_up_counts_match_expected_counts() {
         exposure: 0.01,
         ..SpadModel::ideal(PhotonBudget::PerMeasurement(8000.0))
     };
-    let model = SpadModel { pile_up: true, dead_time: 50e-9, background_rate: 1e5, ..model };
+    let model = SpadModel { pile_up: true, dead_time: 50e-9, background_rate: 10.0, ..model };
     let mean = model.expected_counts(&t).unwrap();
     let seeds = 2000u64;
     let mut s1 = vec![0.0f64; 64];
@@ -408,7 +409,7 @@ fn nll_gradient_matches_central_differences() {
 fn background_is_estimated_before_the_first_return() {
     let t = pulses(16, 300, 200.0, 5.0);
     let model =
-        SpadModel { background_rate: 1.0e11, exposure: 1.0, ..SpadModel::ideal(PhotonBudget::PerMeasurement(5e4)) };
+        SpadModel { background_rate: 1.0e4, exposure: 1.0, ..SpadModel::ideal(PhotonBudget::PerMeasurement(5e4)) };
     let b_true = model.background_per_bin(0.0012);
     let c = model.simulate(&t, 1).unwrap();
     let est = estimate_background(&c, BackgroundWindow::BeforeFirstReturn).unwrap();
