@@ -41,6 +41,18 @@ pub(crate) struct Args {
     /// per measurement).
     #[arg(long, default_value = "exact", value_name = "exact|mc")]
     mode: String,
+    /// Largest subdivision level of the `exact` quadrature (each sub-triangle spans at most half a bin of
+    /// path length, up to level² sub-triangles per triangle and measurement).
+    #[arg(long, default_value_t = 64, value_name = "N")]
+    max_level: u32,
+    /// Visibility: `cached` (one visible fraction per triangle and measurement from --vis-level²
+    /// shadow rays: fast, and exact away from shadow boundaries), `live` (a shadow ray per sample: exact,
+    /// slow on large meshes), `off` (no occlusion).
+    #[arg(long, default_value = "cached", value_name = "cached|live|off")]
+    visibility: String,
+    /// Sub-triangle level of the cached visibility rays (level² rays per triangle and measurement).
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    vis_level: u32,
     /// Samples per measurement in `--mode mc`.
     #[arg(long, default_value_t = 20_000)]
     spp: u32,
@@ -132,7 +144,10 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         ),
     };
     let sampling = match args.mode.as_str() {
-        "exact" => Sampling::Deterministic(DeterministicRule::default()),
+        "exact" if args.max_level >= 1 => {
+            Sampling::Deterministic(DeterministicRule { max_level: args.max_level, ..DeterministicRule::default() })
+        }
+        "exact" => return Err(bad("--max-level must be at least 1")),
         "mc" if args.spp > 0 => Sampling::Stratified { samples_per_measurement: args.spp, seed: args.seed },
         "mc" => return Err(bad("--spp must be at least 1")),
         other => return Err(bad(format!("--mode `{other}`: expected `exact` or `mc`"))),
@@ -147,8 +162,14 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let bytes = std::fs::read(&args.mesh).map_err(|e| bad(format!("{}: {e}", args.mesh.display())))?;
     let soup = nlos_mesh::io::read_any(&bytes, &args.mesh.display().to_string()).map_err(bad)?;
     let (positions, triangles) = (soup.positions, soup.triangles);
-    let params =
-        RenderParams { kernel: Kernel::Box, sampling, visibility: Visibility::Live, two_sided: args.two_sided };
+    let visibility = match args.visibility.as_str() {
+        "cached" if (1..=16).contains(&args.vis_level) => Visibility::Cached { level: args.vis_level },
+        "cached" => return Err(bad(format!("--vis-level {}: must be in 1..=16", args.vis_level))),
+        "live" => Visibility::Live,
+        "off" => Visibility::Off,
+        other => return Err(bad(format!("--visibility `{other}`: expected `cached`, `live` or `off`"))),
+    };
+    let params = RenderParams { kernel: Kernel::Box, sampling, visibility, two_sided: args.two_sided };
     let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
     let rendered: Transient = match args.brdf.as_str() {
         "lambert" | "lambertian" => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
