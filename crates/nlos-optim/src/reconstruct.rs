@@ -843,6 +843,17 @@ fn report(
     })
 }
 
+/// Counts a rollback (failing with [`OptimError::Diverged`] past `max_rollbacks`) and halves the learning
+/// rates: the part shared by the shape and reflectance rollbacks.
+fn count_rollback(st: &mut State, params: &ReconstructParams, what: &'static str) -> Result<()> {
+    st.log.rollbacks += 1;
+    if st.log.rollbacks > params.max_rollbacks {
+        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
+    }
+    st.lr_scale *= 0.5;
+    Ok(())
+}
+
 /// Restores the vertex state before the last step and halves the learning rates.
 fn rollback(
     st: &mut State,
@@ -851,11 +862,7 @@ fn rollback(
     params: &ReconstructParams,
     what: &'static str,
 ) -> Result<()> {
-    st.log.rollbacks += 1;
-    if st.log.rollbacks > params.max_rollbacks {
-        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
-    }
-    st.lr_scale *= 0.5;
+    count_rollback(st, params, what)?;
     if let Some((p, a)) = good.take() {
         st.positions = p;
         st.shape_adam = a;
@@ -871,11 +878,7 @@ fn rollback_refl(
     params: &ReconstructParams,
     what: &'static str,
 ) -> Result<()> {
-    st.log.rollbacks += 1;
-    if st.log.rollbacks > params.max_rollbacks {
-        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
-    }
-    st.lr_scale *= 0.5;
+    count_rollback(st, params, what)?;
     if let Some((r, a)) = good.take() {
         st.reflectance = r;
         st.reflectance_adam = a;
