@@ -58,9 +58,12 @@ pub(crate) struct Args {
     /// Radiometric weighting for retroreflective instead of diffuse surfaces (LCT, FBP).
     #[arg(long)]
     retroreflective: bool,
-    /// Mask threshold: `otsu`, a fraction of the maximum (`0.3`) or an absolute value (`abs:1e-6`).
-    #[arg(long, default_value = "otsu", value_parser = parse_threshold)]
-    threshold: Threshold,
+    /// Mask threshold: `otsu`, a fraction of the maximum (`0.3`) or an absolute value (`abs:1e-6`). Given,
+    /// the plain extraction is used (this threshold, largest region, arg-max depth); left out, LCT uses
+    /// the settings for compact objects (`SurfaceParams::object`: Otsu seed grown to 10 %, receding
+    /// rim) and the other methods Otsu's threshold.
+    #[arg(long, value_parser = parse_threshold)]
+    threshold: Option<Threshold>,
     /// Keep every region above the threshold, not only the largest.
     #[arg(long)]
     all_regions: bool,
@@ -126,14 +129,18 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         }
     }
     .map_err(init_error)?;
+    let base = match (args.method, args.threshold) {
+        (Method::Lct, None) => SurfaceParams::object(),
+        _ => SurfaceParams::default(),
+    };
     let params = SurfaceParams {
-        threshold: args.threshold,
+        threshold: args.threshold.unwrap_or(base.threshold),
         min_depth: args.min_depth,
         max_depth: args.max_depth,
         largest_component: !args.all_regions,
         smoothing_iterations: args.smooth,
         target_edge_length: args.edge,
-        ..SurfaceParams::default()
+        ..base
     };
     let surface = volume_to_surface(&vol, &params).map_err(init_error)?;
     nlos_mesh::io::save(&surface.mesh, &args.out).map_err(|e| CliError::Failure(e.to_string()))?;

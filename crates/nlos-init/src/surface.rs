@@ -27,20 +27,56 @@ pub enum Threshold {
 }
 
 /// Parameters of [`volume_to_surface`].
+///
+/// The defaults are the plain extraction (Otsu's threshold, largest region, arg-max voxel depth); see
+/// [`SurfaceParams::object`] for the settings tuned for compact objects.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfaceParams {
-    /// Mask threshold. Default [`Threshold::Otsu`].
+    /// Mask threshold: the seed of the mask. Default [`Threshold::Otsu`].
     pub threshold: Threshold,
+    /// Hysteresis (Canny 1986): columns whose maximum reaches this fraction (0–1) of the largest column
+    /// maximum join the mask when they connect (4-neighbours, within [`Self::max_depth_jump`]) to a column
+    /// that passes [`Self::threshold`]. The LCT albedo of grazing or distant parts of an object (a rabbit's
+    /// ears, the flanks) falls well below Otsu's threshold while a bright halo surrounds the object, so one
+    /// threshold either loses the parts or keeps the halo. `None` or a value above the threshold's own
+    /// fraction grows nothing. Default `None` ([`SurfaceParams::object`]: `Some(0.1)`).
+    pub grow_threshold: Option<f32>,
     /// Only voxels at least this deep are considered (metres; default `None`).
     pub min_depth: Option<f64>,
     /// Only voxels at most this deep are considered (metres; default `None`).
     pub max_depth: Option<f64>,
-    /// Keep only the largest 4-connected region of the mask. Default `true`.
+    /// Keep only the largest 4-connected region of the mask and those of at least
+    /// [`Self::min_region_fraction`] of its size. Default `true`.
     pub largest_component: bool,
+    /// With [`Self::largest_component`], also keep every region with at least this fraction (0–1) of the
+    /// largest region's columns (parts that the depth-jump rule separates from the body, e.g. ears behind
+    /// a head). Default 1: only the largest ([`SurfaceParams::object`]: 0.05).
+    pub min_region_fraction: f64,
     /// Neighbouring columns whose depths differ by more than this (metres) are not connected, neither
     /// for the connected regions nor in the triangulation, so that objects at different depths that
     /// overlap in the front view stay apart. Default `Some(0.05)`; `None` connects by the mask only.
     pub max_depth_jump: Option<f64>,
+    /// Refine each column's depth to the vertex of the parabola through the maximum voxel and its two
+    /// neighbours (a sub-voxel peak; the LCT blurs a surface over several voxels in depth). Default `false`
+    /// ([`SurfaceParams::object`]: `true`).
+    pub subvoxel: bool,
+    /// Rings of columns added around the mask (4-neighbours of the mask, then of the first ring, …) where
+    /// the column maximum is still positive; the mesh otherwise ends at the centres of the outermost kept
+    /// columns, half a column inside the silhouette. Default 0.
+    pub rim_rings: usize,
+    /// How fast the columns outside the core ([`Self::core_fraction`]) and the rim rings recede, as a
+    /// multiple of the column spacing: a column `k` columns from the nearest core column lies
+    /// `rim_recession · k² · spacing` behind it, like the silhouette of a smooth closed object (where the
+    /// surface turns parallel to the line of sight). The LCT depth of the dim outer columns is itself too
+    /// shallow there: the lateral blur mixes in the brighter, nearer interior. Default 1; 0 extrapolates
+    /// flat.
+    pub rim_recession: f64,
+    /// The core of the mask: kept columns whose maximum reaches this fraction (0–1) of the largest column
+    /// maximum (or the seed threshold, when lower). Every other kept column (the dim rim the lateral blur
+    /// spreads around an object, and the rim rings) takes the depth of the nearest core column plus
+    /// `rim_recession · spacing · k²`, `k` its distance to that column in columns. Default `None`: every
+    /// kept column is core (only the rim rings recede) ([`SurfaceParams::object`]: `Some(0.2)`).
+    pub core_fraction: Option<f32>,
     /// Jacobi passes averaging each kept depth with its kept 4-neighbours. Default 0.
     pub smoothing_iterations: usize,
     /// Remesh isotropically to this target edge length (metres) with `nlos-mesh`'s uniform remeshing
@@ -52,12 +88,40 @@ impl Default for SurfaceParams {
     fn default() -> Self {
         Self {
             threshold: Threshold::Otsu,
+            grow_threshold: None,
             min_depth: None,
             max_depth: None,
             largest_component: true,
+            min_region_fraction: 1.0,
             max_depth_jump: Some(0.05),
+            subvoxel: false,
+            rim_rings: 0,
+            rim_recession: 1.0,
+            core_fraction: None,
             smoothing_iterations: 0,
             target_edge_length: None,
+        }
+    }
+}
+
+impl SurfaceParams {
+    /// Settings for a compact object seen through the LCT (`nlos init --method lct` without
+    /// `--threshold`): seeded at Otsu's threshold and grown (hysteresis) down to 10 % of the largest
+    /// column maximum, every region of at least 5 % of the largest's size kept, sub-voxel peaks, and the
+    /// columns below 20 % of the maximum receding from the core (`rim_recession` 1). Tuned on two
+    /// renderings of the Stanford bunny 0.4 m behind the wall (the seed setup at 1,000 photons per
+    /// measurement and the independent path tracer's `reference/bunny_mc.hdf5`, 64 × 64 confocal over
+    /// 0.5 m), where against Otsu's threshold alone it doubles the coverage, and against a plain 10 %
+    /// threshold (the same coverage) it lowers the mean depth error by 6–13 %, the Chamfer distance by
+    /// a third and the normal error by a quarter (`tests/reference_bunny.rs`). Not for flat, letter-like
+    /// scenes: growing reaches into the noise of the measured Stanford captures.
+    pub fn object() -> Self {
+        Self {
+            grow_threshold: Some(0.1),
+            min_region_fraction: 0.05,
+            subvoxel: true,
+            core_fraction: Some(0.2),
+            ..Self::default()
         }
     }
 }
@@ -185,13 +249,17 @@ pub fn connected_components(
 ///
 /// # Errors
 /// [`InitError::BadVolume`] / [`InitError::NonFinite`] for an invalid volume,
-/// [`InitError::InvalidParameter`] for a bad threshold or edge length, [`InitError::Empty`] when no
-/// column passes the threshold or no grid cell has four kept corners, [`InitError::Mesh`] when
-/// remeshing fails.
+/// [`InitError::InvalidParameter`] for a bad threshold, grow threshold, region fraction, rim recession,
+/// depth jump or edge length, [`InitError::Empty`] when no column passes the threshold or no grid cell
+/// has four kept corners, [`InitError::Mesh`] when remeshing fails.
 pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface> {
     vol.validate()?;
+    validate(params)?;
     let (nx, ny) = (vol.nx, vol.ny);
     let (mut depth, albedo) = vol.depth_map(params.min_depth, params.max_depth)?;
+    if params.subvoxel {
+        refine_peaks(vol, &mut depth);
+    }
     let max = albedo.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let threshold = match params.threshold {
         Threshold::Otsu => otsu_threshold(&albedo, 256).unwrap_or(max),
@@ -210,16 +278,36 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
             what: "the volume is zero everywhere: nothing to extract (check the gate and the data)".into(),
         });
     }
+    let max_jump = params.max_depth_jump.unwrap_or(f64::INFINITY) as f32;
     let mut mask: Vec<bool> = albedo.iter().map(|&a| a >= threshold && a > 0.0).collect();
+    if let Some(g) = params.grow_threshold {
+        let low = (g * max).min(threshold);
+        grow(&mut mask, nx, ny, |c| albedo[c] >= low && albedo[c] > 0.0, &depth, max_jump);
+    }
     if params.largest_component {
         let jump = params.max_depth_jump.map(|j| (depth.as_slice(), j as f32));
         let (label, sizes) = connected_components(&mask, nx, ny, jump);
         if let Some(best) = (0..sizes.len()).max_by_key(|&i| sizes[i]) {
-            for (m, l) in mask.iter_mut().zip(&label) {
-                *m = *l == best as u32;
+            // A fraction of 1 keeps exactly one region, as before, even when two tie.
+            let min_size = (params.min_region_fraction * sizes[best] as f64).ceil() as usize;
+            let keep = |l: u32| l as usize == best || params.min_region_fraction < 1.0 && sizes[l as usize] >= min_size;
+            for (m, &l) in mask.iter_mut().zip(&label) {
+                *m = l != u32::MAX && keep(l);
             }
         }
     }
+    let spacing = vol.x.step.abs().min(vol.y.step.abs());
+    let core: Vec<bool> = match params.core_fraction {
+        Some(f) => {
+            let t = (f * max).min(threshold);
+            mask.iter().zip(&albedo).map(|(&m, &a)| m && a >= t).collect()
+        }
+        None => mask.clone(),
+    };
+    for _ in 0..params.rim_rings {
+        add_rim_ring(&mut mask, &albedo, nx, ny);
+    }
+    recede_rim(&mask, &core, &mut depth, nx, params.rim_recession * spacing);
     for _ in 0..params.smoothing_iterations {
         let prev = depth.clone();
         for iy in 0..ny {
@@ -229,13 +317,7 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
                     continue;
                 }
                 let (mut s, mut n) = (prev[c] as f64, 1.0);
-                let nbs = [
-                    (ix > 0).then(|| c - 1),
-                    (ix + 1 < nx).then(|| c + 1),
-                    (iy > 0).then(|| c - nx),
-                    (iy + 1 < ny).then(|| c + nx),
-                ];
-                for nb in nbs.into_iter().flatten() {
+                for nb in neighbours(c, nx, ny).into_iter().flatten() {
                     if mask[nb] {
                         s += prev[nb] as f64;
                         n += 1.0;
@@ -245,17 +327,7 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
             }
         }
     }
-    if let Some(j) = params.max_depth_jump
-        && !(j.is_finite() && j > 0.0)
-    {
-        return Err(InitError::InvalidParameter {
-            name: "max_depth_jump",
-            value: j,
-            reason: "must be a positive length (m)",
-        });
-    }
-    let max_jump = params.max_depth_jump.unwrap_or(f64::INFINITY) as f32;
-    let (positions, triangles) = grid_triangles(vol, &depth, &mask, max_jump);
+    let (positions, triangles) = grid_triangles(vol, &depth, &mask, &core, max_jump);
     if triangles.is_empty() {
         return Err(InitError::Empty {
             what: format!(
@@ -268,13 +340,6 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
     let mut mesh =
         SurfaceMesh::from_triangles_with(&positions, &triangles, BuildOptions { split_non_manifold_vertices: true })?;
     let (positions, triangles) = if let Some(l) = params.target_edge_length {
-        if !(l.is_finite() && l > 0.0) {
-            return Err(InitError::InvalidParameter {
-                name: "target_edge_length",
-                value: l,
-                reason: "must be a positive length in metres",
-            });
-        }
         uniform_remeshing(&mut mesh, l as f32, &RemeshParams::pmp())?;
         mesh.to_triangles()
     } else {
@@ -283,9 +348,121 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
     Ok(Surface { nx, ny, depth, albedo, threshold, mask, positions, triangles, mesh })
 }
 
-/// One vertex per kept column that belongs to a complete cell; two triangles per cell whose corner
+fn validate(params: &SurfaceParams) -> Result<()> {
+    let bad = |name, value: f64, reason| Err(InitError::InvalidParameter { name, value, reason });
+    if let Some(j) = params.max_depth_jump
+        && !(j.is_finite() && j > 0.0)
+    {
+        return bad("max_depth_jump", j, "must be a positive length (m)");
+    }
+    if let Some(g) = params.grow_threshold
+        && !(0.0..=1.0).contains(&g)
+    {
+        return bad("grow_threshold", g as f64, "a fraction of the largest column maximum lies in [0, 1]");
+    }
+    if !(0.0..=1.0).contains(&params.min_region_fraction) {
+        return bad(
+            "min_region_fraction",
+            params.min_region_fraction,
+            "a fraction of the largest region lies in [0, 1]",
+        );
+    }
+    if !(params.rim_recession.is_finite() && params.rim_recession >= 0.0) {
+        return bad("rim_recession", params.rim_recession, "a multiple of the column spacing, finite and ≥ 0");
+    }
+    if let Some(l) = params.target_edge_length
+        && !(l.is_finite() && l > 0.0)
+    {
+        return bad("target_edge_length", l, "must be a positive length in metres");
+    }
+    Ok(())
+}
+
+/// The 4-neighbours of column `c` on an `nx × ny` grid.
+fn neighbours(c: usize, nx: usize, ny: usize) -> [Option<usize>; 4] {
+    let (ix, iy) = (c % nx, c / nx);
+    [(ix > 0).then(|| c - 1), (ix + 1 < nx).then(|| c + 1), (iy > 0).then(|| c - nx), (iy + 1 < ny).then(|| c + nx)]
+}
+
+/// Moves each column's depth from its maximum voxel to the vertex of the parabola through that voxel and
+/// its two neighbours (at most half a voxel; unchanged at the ends of the column or without a strict
+/// maximum).
+fn refine_peaks(vol: &Volume, depth: &mut [f32]) {
+    let nz = vol.nz;
+    for (c, d) in depth.iter_mut().enumerate() {
+        let iz = ((*d as f64 - vol.z.start) / vol.z.step).round();
+        if !(iz >= 1.0 && iz + 1.0 < nz as f64) {
+            continue;
+        }
+        let iz = iz as usize;
+        let col = &vol.data[c * nz..(c + 1) * nz];
+        let (a, b, e) = (col[iz - 1] as f64, col[iz] as f64, col[iz + 1] as f64);
+        let curvature = a - 2.0 * b + e;
+        if curvature < 0.0 && b >= a && b >= e {
+            let shift = (0.5 * (a - e) / curvature).clamp(-0.5, 0.5);
+            *d = vol.z.at(iz) as f32 + (shift * vol.z.step) as f32;
+        }
+    }
+}
+
+/// Hysteresis: adds to `mask` every column for which `candidate` holds and which connects to the mask
+/// through such columns, neighbours within `max_jump` in depth.
+fn grow(mask: &mut [bool], nx: usize, ny: usize, candidate: impl Fn(usize) -> bool, depth: &[f32], max_jump: f32) {
+    let mut stack: Vec<usize> = (0..mask.len()).filter(|&c| mask[c]).collect();
+    while let Some(c) = stack.pop() {
+        for n in neighbours(c, nx, ny).into_iter().flatten() {
+            if !mask[n] && candidate(n) && (depth[n] - depth[c]).abs() <= max_jump {
+                mask[n] = true;
+                stack.push(n);
+            }
+        }
+    }
+}
+
+/// Adds one ring of columns around `mask`: every column outside it with a positive maximum and a kept
+/// 4-neighbour.
+fn add_rim_ring(mask: &mut [bool], albedo: &[f32], nx: usize, ny: usize) {
+    let ring: Vec<usize> = (0..mask.len())
+        .filter(|&c| !mask[c] && albedo[c] > 0.0 && neighbours(c, nx, ny).into_iter().flatten().any(|n| mask[n]))
+        .collect();
+    for c in ring {
+        mask[c] = true;
+    }
+}
+
+/// Every kept column outside `core` takes the depth of the nearest core column (grid distance `k`
+/// columns, Euclidean) plus `step · k²`; of equally near core columns the nearest to the wall counts.
+fn recede_rim(mask: &[bool], core: &[bool], depth: &mut [f32], nx: usize, step: f64) {
+    let cores: Vec<(i64, i64, f32)> =
+        (0..core.len()).filter(|&c| core[c]).map(|c| ((c % nx) as i64, (c / nx) as i64, depth[c])).collect();
+    if cores.is_empty() {
+        return;
+    }
+    for c in 0..mask.len() {
+        if !mask[c] || core[c] {
+            continue;
+        }
+        let (x, y) = ((c % nx) as i64, (c / nx) as i64);
+        let mut best = (i64::MAX, f32::INFINITY);
+        for &(cx, cy, d) in &cores {
+            let k2 = (cx - x).pow(2) + (cy - y).pow(2);
+            if k2 < best.0 || k2 == best.0 && d < best.1 {
+                best = (k2, d);
+            }
+        }
+        depth[c] = best.1 + (step * best.0 as f64) as f32;
+    }
+}
+
+/// One vertex per kept column that belongs to a complete cell; two triangles per cell whose core corner
 /// depths span at most `max_jump`, facing −z.
-fn grid_triangles(vol: &Volume, depth: &[f32], mask: &[bool], max_jump: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+fn grid_triangles(
+    vol: &Volume,
+    depth: &[f32],
+    mask: &[bool],
+    core: &[bool],
+    max_jump: f32,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (nx, ny) = (vol.nx, vol.ny);
     let mut vertex_of = vec![u32::MAX; nx * ny];
     let mut positions = Vec::new();
@@ -305,7 +482,8 @@ fn grid_triangles(vol: &Volume, depth: &[f32], mask: &[bool], max_jump: f32) -> 
             if !(mask[c00] && mask[c10] && mask[c01] && mask[c11]) {
                 continue;
             }
-            let ds = [c00, c10, c01, c11].map(|c| depth[c]);
+            // Receded rim columns take their depth from the core, so only core corners can be torn apart.
+            let ds: Vec<f32> = [c00, c10, c01, c11].into_iter().filter(|&c| core[c]).map(|c| depth[c]).collect();
             let spread =
                 ds.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) - ds.iter().fold(f32::INFINITY, |a, &b| a.min(b));
             if spread > max_jump {

@@ -100,7 +100,8 @@ fn surface_faces_the_wall_and_keeps_the_largest_region() {
         |x, y| (2..8).contains(&x) && (3..9).contains(&y) || (12..14).contains(&x) && (12..14).contains(&y),
         30,
     );
-    let s = volume_to_surface(&vol, &SurfaceParams::default()).expect("surface");
+    let largest = SurfaceParams { min_region_fraction: 1.0, ..SurfaceParams::default() };
+    let s = volume_to_surface(&vol, &largest).expect("surface");
     assert_eq!(s.mask.iter().filter(|&&k| k).count(), 36);
     assert_eq!(s.triangles.len(), 2 * 25);
     assert!((s.median_depth().expect("kept") - 0.305).abs() < 1e-6);
@@ -109,6 +110,12 @@ fn surface_faces_the_wall_and_keeps_the_largest_region() {
         assert!((b - a).cross(c - a).z < 0.0, "triangle {t:?} faces away from the wall");
     }
     assert_eq!(s.mesh.n_faces(), 50);
+    // The object settings keep regions of at least 5 % of the largest too: the speck has 4 / 36.
+    let s = volume_to_surface(&vol, &SurfaceParams::object()).expect("surface");
+    assert_eq!(s.triangles.len(), 2 * 25 + 2);
+    let s = volume_to_surface(&vol, &SurfaceParams { min_region_fraction: 0.2, ..SurfaceParams::object() })
+        .expect("surface");
+    assert_eq!(s.triangles.len(), 2 * 25);
     // Without the largest-region filter both squares are kept.
     let s =
         volume_to_surface(&vol, &SurfaceParams { largest_component: false, ..SurfaceParams::default() }).expect("s");
