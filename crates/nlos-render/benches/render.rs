@@ -5,6 +5,9 @@
 //! tent kernel. Visibility: cached (level 1) on the 10k mesh; `Off` on the full bunny, whose cache build
 //! (2.9e8 shadow rays) is a one-off outside the loop — the per-sample cost of the cached mode is one byte
 //! lookup, which `Off` skips. Throughput = (triangle × measurement) pairs per second.
+//!
+//! The `bunny10k_stratified20k_live` group times the seed's own scheme for comparison with the original renderer:
+//! stratified area sampling at 20,000 samples per measurement, a live shadow ray per sample (throughput there: samples per second).
 #![allow(missing_docs)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -48,6 +51,25 @@ fn bench(c: &mut Criterion) {
         let mut g = c.benchmark_group(name);
         g.sample_size(10).measurement_time(std::time::Duration::from_secs(8));
         g.throughput(Throughput::Elements((faces.len() * scan.measurements()) as u64));
+        g.bench_function("forward", |b| b.iter(|| r.forward(&brdf)));
+        g.bench_function("forward+adjoint", |b| {
+            b.iter(|| r.loss_and_gradient(&brdf, &measured, nlos_render::Loss::L2, None).expect("ok"))
+        });
+        g.finish();
+    }
+    {
+        let (name, faces) = ("bunny10k_stratified20k_live", &small);
+        let params = RenderParams {
+            kernel: Kernel::Tent,
+            sampling: Sampling::Stratified { samples_per_measurement: 20_000, seed: 1 },
+            visibility: Visibility::Live,
+            two_sided: false,
+        };
+        let r = Renderer::new(&v, faces, &scan, &time, params).expect("valid");
+        let measured: Vec<f32> = r.forward(&brdf).iter().map(|x| 0.8 * x).collect();
+        let mut g = c.benchmark_group(name);
+        g.sample_size(10).measurement_time(std::time::Duration::from_secs(8));
+        g.throughput(Throughput::Elements(20_000 * scan.measurements() as u64));
         g.bench_function("forward", |b| b.iter(|| r.forward(&brdf)));
         g.bench_function("forward+adjoint", |b| {
             b.iter(|| r.loss_and_gradient(&brdf, &measured, nlos_render::Loss::L2, None).expect("ok"))

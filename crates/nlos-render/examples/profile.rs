@@ -1,5 +1,6 @@
 //! Manual timing at the seed's setup (the criterion benchmark's scenes), for profiling:
-//! `cargo run --release -p nlos-render --example profile -- [10k|70k|both] [reps]`.
+//! `cargo run --release -p nlos-render --example profile -- [10k|70k|both|strat10k|strat70k] [reps]`
+//! (`strat*`: the seed's stratified sampling at 20,000 samples per measurement with live shadow rays).
 #![allow(missing_docs)]
 
 use std::time::Instant;
@@ -43,20 +44,23 @@ fn main() {
     let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
     let brdf = Lambertian::new(1.0f32).expect("valid");
     let small: Vec<[u32; 3]> = f.iter().step_by(7).copied().collect();
+    let fixed = Sampling::Deterministic(DeterministicRule::fixed(1));
+    let strat = Sampling::Stratified { samples_per_measurement: 20_000, seed: 1 };
     let mut cases = Vec::new();
-    if which != "70k" {
-        cases.push(("bunny10k", &small, Visibility::Cached { level: 1 }));
+    match which {
+        "strat10k" => cases.push(("bunny10k stratified 20k, live", &small, Visibility::Live, strat)),
+        "strat70k" => cases.push(("bunny70k stratified 20k, live", &f, Visibility::Live, strat)),
+        _ => {
+            if which != "70k" {
+                cases.push(("bunny10k", &small, Visibility::Cached { level: 1 }, fixed));
+            }
+            if which != "10k" {
+                cases.push(("bunny70k", &f, Visibility::Off, fixed));
+            }
+        }
     }
-    if which != "10k" {
-        cases.push(("bunny70k", &f, Visibility::Off));
-    }
-    for (name, faces, vis) in cases {
-        let params = RenderParams {
-            kernel: Kernel::Tent,
-            sampling: Sampling::Deterministic(DeterministicRule::fixed(1)),
-            visibility: vis,
-            two_sided: false,
-        };
+    for (name, faces, vis, sampling) in cases {
+        let params = RenderParams { kernel: Kernel::Tent, sampling, visibility: vis, two_sided: false };
         let t = Instant::now();
         let r = Renderer::new(&v, faces, &scan, &time, params).expect("valid");
         println!("{name}: {} faces, setup {:.2} s", faces.len(), t.elapsed().as_secs_f64());

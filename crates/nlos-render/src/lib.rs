@@ -94,6 +94,13 @@
 //! The adjoint's stage 3 uses one division per pair and, for confocal scans, one expression for
 //! `dE/da + dE/db`. The visibility cache is stored in block order (read contiguously).
 //!
+//! Fixed rules also pack: for a group of nearby measurements (a forward tile of 8; an adjoint flush group
+//! of 16) the triangles of a block that may face some spot of the group (a bound over the group's box of
+//! spots, with the same 1 mm margin) are gathered contiguously once, and the vector kernels sweep only them
+//! for each measurement of the group. On the bunny about half of a block's triangles face away from any
+//! one spot although the block as a whole does not; without packing the kernels, the orientation test and
+//! the scatter/gather did that work for nothing. Packing changes no bits (sums run in the same order).
+//!
 //! Parallel with rayon and lock-free: the forward pass over tiles of 8 measurements (each task owns its
 //! histograms) × blocks of triangles; the adjoint over about 32 ranges of triangles (each task owns their
 //! accumulators: f32 over at most 16 measurements, then f64; the ranges depend on the mesh only, so the
@@ -102,25 +109,27 @@
 //! compares pools of 1, 2 and 3 threads).
 //!
 //! Measured at the seed's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel,
-//! `fixed(1)`; `examples/profile.rs`, `benches/render.rs`) on this project's machine: 2 cores of an AMD EPYC
-//! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, shared with other builds (load average 7–9 during the
-//! measurement, so wall times are inflated; CPU seconds are the better figure):
+//! `fixed(1)`; `benches/render.rs`, `examples/profile.rs`) on this project's machine: 2 cores of an AMD EPYC
+//! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, idle (load average below 2), criterion medians:
 //!
-//! | mesh (faces), visibility | forward CPU-s | forward + adjoint CPU-s | wall under load 7 | pairs / CPU-s (f + a) |
+//! | mesh (faces), visibility | forward | forward + adjoint | pairs / s (f + a) | CPU-s (f + a) |
 //! |---|---|---|---|---|
-//! | 10k bunny (9,948), cached | 0.23–0.26 | 0.62–0.66 | 0.35 s / 0.94 s | 63 M |
-//! | full bunny (69,630), off | 1.27–1.31 | 3.28–3.35 | 1.95 s / 5.0 s | 86 M |
+//! | 10k bunny (9,948), cached | 70 ms | 213 ms (target 0.3 s) | 191 M | 0.41 |
+//! | full bunny (69,630), off | 385 ms | 970 ms (target 2 s) | 294 M | 1.87 |
 //!
-//! (pairs = triangles × measurements: 4.07e7 and 2.85e8). The criterion benchmark at load 7–10: 10k forward
-//! 426 ms, forward + adjoint 1.04 s; full bunny 2.01 s and 5.40 s (wall). Before this round the same runs took 1.1 and
-//! 6.9 CPU-s for forward + adjoint (a quiet-machine wall time of 0.63 s and 3.9 s); with both cores free the
-//! wall time is about half the CPU time, i.e. about 0.32 s (10k; target 0.3 s, not quite) and 1.7 s (full
-//! bunny; target 2 s). Arithmetic peak of the machine: 2 cores × 2.45 GHz × 2 FMA pipes × 8 lanes × 2 flops
-//! = 157 GFLOP/s (78 per core). The forward kernel spends about 65 flops per active pair and forward +
-//! adjoint about 190; at 86 M pairs per CPU-second (every pair counted, culled ones included) that is at
-//! most 16 GFLOP/s per core, about 20 % of peak: the rest goes to the scalar kernel scatter/gather (random
-//! access into the histograms), square roots and divisions (one each per pair and pass, 8–14 cycles per
-//! 8 lanes), orientation/visibility bookkeeping per block, and masked-out lanes.
+//! (pairs = triangles × measurements: 4.07e7 and 2.85e8; forward + adjoint is `loss_and_gradient`, which
+//! renders too). Before packing the same runs took 0.32 s and 1.65 s. The original renderer (C++, Embree,
+//! TBB, one thread, stratified at 20,000 samples per measurement) took 68 s and about 165 s: 320× and 170×
+//! slower, at a larger transient error (below). The seed's own scheme in this renderer (stratified 20,000
+//! samples per measurement, a live shadow ray per sample; the `bunny10k_stratified20k_live` group) runs at
+//! 4.73 s forward and 9.69 s forward + adjoint on the 10k bunny (17 M samples per second, forward), against
+//! the original's 27 s and 68 s: 5.7× and 7× faster, the shadow rays dominating.
+//! Arithmetic peak of the machine: 2 cores × 2.45 GHz × 2 FMA pipes × 8 lanes × 2 flops = 157 GFLOP/s (78
+//! per core). The forward kernel spends about 65 flops per active pair and forward + adjoint about 190;
+//! at 294 M pairs per second (every pair counted, culled ones included) that is at most 56 GFLOP/s, about
+//! a third of peak: the rest goes to the scalar kernel scatter/gather (random access into the histograms),
+//! square roots and divisions (one each per pair and pass, 8–14 cycles per 8 lanes), orientation and
+//! visibility bookkeeping per block, and masked-out lanes.
 //!
 //! Memory at the seed's scale (100k vertices / 200k faces, 4096 measurements × 1200 bins;
 //! `examples/memory.rs`): peak RSS 128 MiB for construction + forward + loss + adjoint without visibility

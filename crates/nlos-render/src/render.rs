@@ -10,7 +10,7 @@ use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::rng::SplitMix64;
-use crate::soa::{self, Acc, BLOCK, Block, Frame, Isa, Scratch, Soa, TentAxis};
+use crate::soa::{self, Acc, BLOCK, Block, Frame, Isa, Packed, Scratch, Soa, SpotBox, TentAxis};
 use crate::visibility::Bvh;
 
 /// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
@@ -405,13 +405,24 @@ impl Renderer {
         let pad = usize::from(self.tent_path(k).is_some());
         // Tiles of M_CHUNK measurements × BLOCK triangles: each task owns its histograms (no lock, no
         // reduction) and sweeps every block of triangles over them while the block is in cache.
+        let fixed = self.fixed_level();
         data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, out)| {
-            let mut sc = Scratch::new();
+            let (mut sc, mut pk) = (Scratch::new(), Packed::new());
             let rows = out.len() / bins;
             let mut local = vec![0.0f32; if pad == 1 { rows * (bins + 2) } else { 0 }];
+            let ms: Vec<usize> = (c * M_CHUNK..c * M_CHUNK + rows).collect();
             for t0 in (0..nt).step_by(BLOCK) {
                 let t1 = (t0 + BLOCK).min(nt);
-                if pad == 1 {
+                if let Some(n) = fixed {
+                    // The fixed rule: the tile's potentially active triangles of the block packed once, then
+                    // swept over its measurements.
+                    let (hists, row_len) = if pad == 1 { (&mut local[..], bins + 2) } else { (&mut out[..], bins) };
+                    if self.pack(&ms, t0, t1, &mut pk) {
+                        for (&m, hist) in ms.iter().zip(hists.chunks_mut(row_len)) {
+                            self.forward_packed(brdf, k, n, m, t0, &pk, hist, &mut sc);
+                        }
+                    }
+                } else if pad == 1 {
                     for (j, hist) in local.chunks_mut(bins + 2).enumerate() {
                         self.forward_block(brdf, k, c * M_CHUNK + j, t0, t1, hist, &mut sc);
                     }
@@ -481,25 +492,30 @@ impl Renderer {
                 let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
                 let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
                 let rows = || d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]);
-                let rows_fixed = || padded.chunks(row_len).enumerate().filter(|(m, _)| nonzero[*m]);
                 match self.fixed_level() {
                     Some(n) => {
                         // Sample points outermost: the f32 accumulators then hold plain sums of dE/dx, and
                         // the barycentric weights are applied once per flush.
-                        let mut acc = Acc::new(out.len());
+                        // Groups of FLUSH measurements × blocks: the group's potentially active triangles of
+                        // the block are packed once and swept over the group's measurements, accumulating in
+                        // f32 (packed order), then flushed into f64. Per triangle the additions come in the
+                        // same order whatever the packing: measurements ascending, flushed every FLUSH rows.
+                        let (mut acc, mut pk) = (Acc::new(BLOCK), Packed::new());
+                        let ms: Vec<usize> = (0..nonzero.len()).filter(|m| nonzero[*m]).collect();
                         self.centroids(n, |u, v, w| {
-                            let mut pending = 0;
-                            for (m, adj) in rows_fixed() {
+                            for group in ms.chunks(FLUSH) {
                                 for (b0, b1) in blocks() {
-                                    self.adjoint_block(brdf, k, m, b0, b1, adj, (u, v, w), &mut acc, b0 - r0, &mut sc);
-                                }
-                                pending += 1;
-                                if pending == FLUSH {
-                                    acc.flush((u, v), out, &mut params);
-                                    pending = 0;
+                                    if !self.pack(group, b0, b1, &mut pk) {
+                                        continue;
+                                    }
+                                    for &m in group {
+                                        let adj = &padded[m * row_len..(m + 1) * row_len];
+                                        self.adjoint_packed(brdf, k, m, b0, &pk, adj, (u, v, w), &mut acc, &mut sc);
+                                    }
+                                    let o = &mut out[b0 - r0..b1 - r0];
+                                    acc.flush_packed((u, v), &pk.slots[..pk.len], o, &mut params);
                                 }
                             }
-                            acc.flush((u, v), out, &mut params);
                         });
                     }
                     None => {
@@ -789,7 +805,8 @@ impl Renderer {
         }
     }
 
-    /// Forward pass of measurement m over the triangles `t0..t1` into its histogram.
+    /// Forward pass of measurement m over the triangles `t0..t1` into its histogram, pair by pair (any
+    /// sampling but the fixed rule, which runs [`Renderer::forward_packed`]).
     #[allow(clippy::too_many_arguments)]
     fn forward_block<B: RenderBrdf>(
         &self,
@@ -803,18 +820,76 @@ impl Renderer {
     ) {
         let fr = self.frame(m);
         let blk = self.tris.soa.block(t0, t1);
-        let len = blk.len;
         if !self.pair_factors(m, t0, &blk, &fr, sc) {
             return;
         }
-        let Some(n) = self.fixed_level() else {
-            for i in 0..len {
-                if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                    self.forward_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
+        for i in 0..blk.len {
+            if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
+                self.forward_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
+            }
+        }
+    }
+
+    /// Packs into `pk` the triangles of the block `t0..t1` that may reflect for some measurement of `ms`
+    /// (see [`Packed::pack`]; measurements for which the whole block faces away are left out of the spot
+    /// boxes). False when none may.
+    fn pack(&self, ms: &[usize], t0: usize, t1: usize, pk: &mut Packed) -> bool {
+        pk.len = 0;
+        let mut boxes: Option<(SpotBox, SpotBox)> = None;
+        for &m in ms {
+            let fr = self.frame(m);
+            if !self.params.two_sided && self.tris.soa.culled(t0, &fr) {
+                continue;
+            }
+            let ((ll, lh), (sl, sh)) = boxes.unwrap_or(((fr.l, fr.l), (fr.s, fr.s)));
+            boxes = Some(((ll.min(fr.l), lh.max(fr.l)), (sl.min(fr.s), sh.max(fr.s))));
+        }
+        let Some((l, s)) = boxes else { return false };
+        pk.pack(&self.tris.soa.block(t0, t1), l, s, self.params.two_sided) > 0
+    }
+
+    /// Orientation sign and cached visible fraction of every packed triangle of `pk` (block starting at slot
+    /// `t0`) for measurement m; false when none of them needs work.
+    #[inline(always)]
+    fn packed_factors(&self, m: usize, t0: usize, pk: &Packed, fr: &Frame, sc: &mut Scratch) -> bool {
+        if !self.params.two_sided && self.tris.soa.culled(t0, fr) {
+            return false;
+        }
+        let len = pk.len;
+        soa::orientation_dispatch(self.isa, &pk.block(), fr, self.params.two_sided, &mut sc.sign);
+        match (&self.params.visibility, &self.cache) {
+            (Visibility::Cached { .. }, Some(c)) => {
+                let row = &c[m * self.tris.v0.len() + t0..];
+                for (o, &t) in sc.vis[..len].iter_mut().zip(&pk.slots[..len]) {
+                    *o = f32::from(row[t as usize]) * (1.0 / 255.0);
                 }
             }
+            _ => sc.vis[..len].fill(1.0),
+        }
+        sc.sign[..len].iter().zip(&sc.vis[..len]).fold(false, |any, (s, v)| any | ((*s != 0.0) & (*v != 0.0)))
+    }
+
+    /// Forward pass of measurement m over the packed triangles `pk` of the block starting at slot `t0` into
+    /// its histogram (padded by one bin at each end on the tent fast path), fixed rule of level n.
+    #[allow(clippy::too_many_arguments)]
+    fn forward_packed<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        k: &KernelEval,
+        n: u32,
+        m: usize,
+        t0: usize,
+        pk: &Packed,
+        hist: &mut [f32],
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
-        };
+        }
+        let blk = pk.block();
+        let len = blk.len;
+        let slots = &pk.slots[..len];
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let tent = self.tent_path(k);
         let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
@@ -827,8 +902,9 @@ impl Renderer {
                 (false, false) => soa::forward_samples::<B, false, false>(isa, brdf, &blk, &fr, (u, v, w), &axis, sc),
             }
             if live {
-                for i in 0..len {
-                    if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr) {
+                for (i, &slot) in slots.iter().enumerate() {
+                    let t = self.mesh_triangle(t0 + slot as usize);
+                    if sc.g[i] != 0.0 && !self.visible_live(blk.point(i, u, v), t, &fr) {
                         sc.g[i] = 0.0;
                         sc.w0[i] = 0.0;
                         sc.w1[i] = 0.0;
@@ -858,27 +934,27 @@ impl Renderer {
     }
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
-    /// the triangles `t0..t1` into `acc` (triangle `t0` at index `acc_offset`).
+    /// the packed triangles `pk` of the block starting at slot `t0`, into `acc` (packed order).
     #[allow(clippy::too_many_arguments)]
-    fn adjoint_block<B: RenderBrdf>(
+    fn adjoint_packed<B: RenderBrdf>(
         &self,
         brdf: &B,
         k: &KernelEval,
         m: usize,
         t0: usize,
-        t1: usize,
+        pk: &Packed,
         adj: &[f32],
         (u, v, w): (f32, f32, f32),
         acc: &mut Acc,
-        acc_offset: usize,
         sc: &mut Scratch,
     ) {
         let fr = self.frame(m);
-        let blk = self.tris.soa.block(t0, t1);
-        let len = blk.len;
-        if !self.pair_factors(m, t0, &blk, &fr, sc) {
+        if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
         }
+        let blk = pk.block();
+        let len = blk.len;
+        let acc_offset = 0;
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let confocal = self.wall.confocal;
         let isa = self.isa;
@@ -905,7 +981,7 @@ impl Renderer {
         if live {
             for i in 0..len {
                 if (sc.a_val[i] != 0.0 || sc.a_der[i] != 0.0)
-                    && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + i), &fr)
+                    && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr)
                 {
                     (sc.a_val[i], sc.a_der[i]) = (0.0, 0.0);
                 }

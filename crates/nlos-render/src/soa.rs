@@ -193,6 +193,113 @@ impl Block<'_> {
     }
 }
 
+/// The triangles of one block that may reflect for some measurement of a group, gathered contiguously (in
+/// slot order) so that the block kernels run over them only. On the bunny at the seed's setup about half of
+/// a block's triangles face away from any given spot although the block as a whole does not
+/// ([`Soa::culled`] fails); the vector loops, the orientation test and the kernel scatter/gather then did
+/// twice the necessary work. A group is a few consecutive measurements (a forward tile, an adjoint flush
+/// group) whose spots are close together, so the union of their front-facing sets is barely larger than one.
+pub(crate) struct Packed {
+    v0: [Vec<f32>; 3],
+    e1: [Vec<f32>; 3],
+    e2: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    inv_2n: Vec<f32>,
+    inv_n2: Vec<f32>,
+    /// All true (only valid triangles are packed); the kernels' `Block` needs the slice.
+    valid: Vec<bool>,
+    /// `slots[c]`: the block-local slot of packed triangle c (ascending).
+    pub(crate) slots: Vec<u32>,
+    /// Number of packed triangles.
+    pub(crate) len: usize,
+    /// Per slot of the block: whether it is packed (1) or not (0).
+    keep: Vec<u8>,
+}
+
+/// Componentwise bounding box `(lo, hi)` of a set of wall spots.
+pub(crate) type SpotBox = (Vec3, Vec3);
+
+impl Packed {
+    pub(crate) fn new() -> Self {
+        let z = || vec![0.0f32; BLOCK];
+        Self {
+            v0: [z(), z(), z()],
+            e1: [z(), z(), z()],
+            e2: [z(), z(), z()],
+            n: [z(), z(), z()],
+            inv_2n: z(),
+            inv_n2: z(),
+            valid: vec![true; BLOCK],
+            slots: vec![0; BLOCK],
+            len: 0,
+            keep: vec![0; BLOCK],
+        }
+    }
+
+    /// Packs the valid triangles of `b` that may face a laser spot of the box `l` and a sensor spot of the
+    /// box `s` (all valid triangles when `two_sided`). A superset of the triangles that
+    /// [`orientation`] gives a non-zero sign for any spot pair of the group: `N·(p − v0)` is linear in p,
+    /// so its maximum over the box is `N·(c − v0) + |N|·h` (centre c, half extent h, |N| componentwise).
+    /// Returns the number of packed triangles.
+    pub(crate) fn pack(&mut self, b: &Block<'_>, l: SpotBox, s: SpotBox, two_sided: bool) -> usize {
+        let len = b.len;
+        let (cl, hl) = ((l.0 + l.1) * 0.5, (l.1 - l.0) * 0.5);
+        let (cs, hs) = ((s.0 + s.1) * 0.5, (s.1 - s.0) * 0.5);
+        let keep = &mut self.keep[..len];
+        for (i, k) in keep.iter_mut().enumerate() {
+            let (nv, p) = (at(&b.n, i), at(&b.v0, i));
+            let na = nv.abs();
+            let dl = nv.dot(cl - p) + na.dot(hl);
+            let ds = nv.dot(cs - p) + na.dot(hs);
+            // Guard: a margin of 1 mm (times |N|₁ ≥ |N|, since N is unnormalised) absorbs the f32 rounding of
+            // the bound (~1e-7 relative), so a triangle the exact per-measurement test keeps is never dropped.
+            let margin = 1e-3 * na.element_sum();
+            let front = (dl > -margin) & (ds > -margin);
+            *k = u8::from(b.valid[i] & (two_sided | front));
+        }
+        // Branch-free compaction: every slot is written, the count advances only for kept ones.
+        let mut c = 0usize;
+        for (i, k) in self.keep[..len].iter().enumerate() {
+            self.slots[c] = i as u32;
+            c += usize::from(*k);
+        }
+        self.len = c;
+        let slots = &self.slots[..c];
+        let copy = |dst: &mut Vec<f32>, src: &[f32]| {
+            for (d, &t) in dst[..c].iter_mut().zip(slots) {
+                *d = src[t as usize];
+            }
+        };
+        for k in 0..3 {
+            copy(&mut self.v0[k], b.v0[k]);
+            copy(&mut self.e1[k], b.e1[k]);
+            copy(&mut self.e2[k], b.e2[k]);
+            copy(&mut self.n[k], b.n[k]);
+        }
+        copy(&mut self.inv_2n, b.inv_2n);
+        copy(&mut self.inv_n2, b.inv_n2);
+        c
+    }
+
+    /// The packed triangles as a block (`len` of them).
+    pub(crate) fn block(&self) -> Block<'_> {
+        let c = self.len;
+        fn s3(a: &[Vec<f32>; 3], c: usize) -> [&[f32]; 3] {
+            [&a[0][..c], &a[1][..c], &a[2][..c]]
+        }
+        Block {
+            len: c,
+            v0: s3(&self.v0, c),
+            e1: s3(&self.e1, c),
+            e2: s3(&self.e2, c),
+            n: s3(&self.n, c),
+            inv_2n: &self.inv_2n[..c],
+            inv_n2: &self.inv_n2[..c],
+            valid: &self.valid[..c],
+        }
+    }
+}
+
 /// One measurement's wall geometry.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Frame {
@@ -325,6 +432,12 @@ macro_rules! dispatch {
             $body
         }
     }};
+}
+
+/// [`orientation`] compiled for AVX2 + FMA when the CPU has them (the same bits).
+#[inline(never)]
+pub(crate) fn orientation_dispatch(isa: Isa, b: &Block<'_>, fr: &Frame, two_sided: bool, sign: &mut [f32]) {
+    dispatch!(isa, orientation(b, fr, two_sided, sign))
 }
 
 /// The tent kernel's bin arithmetic in the block kernels (the same expressions as `KernelEval::weights`):
@@ -521,25 +634,35 @@ impl Acc {
         Self { gx: [z(), z(), z()], gn: [z(), z(), z()], p: [z(), z(), z(), z()] }
     }
 
-    /// Adds the accumulators of sample point (u, v) into `out` (per triangle: Σ (1−u−v) dE/dx, Σ u dE/dx,
-    /// Σ v dE/dx, Σ sign·dE/dN, 12 values) and `params`, in f64, and zeroes them.
-    pub(crate) fn flush(&mut self, (u, v): (f32, f32), out: &mut [[f64; 12]], params: &mut [f64; 4]) {
+    /// Adds the packed accumulators of sample point (u, v) into `out` and `params`, in f64, and zeroes them:
+    /// entry `c` (of `slots.len()`) belongs to triangle `slots[c]` of `out`, which receives Σ (1−u−v) dE/dx,
+    /// Σ u dE/dx, Σ v dE/dx and Σ sign·dE/dN (12 values). Triangles left out of the packing would add zeros,
+    /// so the result has the same bits as a flush over the whole block.
+    pub(crate) fn flush_packed(
+        &mut self,
+        (u, v): (f32, f32),
+        slots: &[u32],
+        out: &mut [[f64; 12]],
+        params: &mut [f64; 4],
+    ) {
         let bu = f64::from(1.0 - u - v);
         let (u, v) = (f64::from(u), f64::from(v));
-        for (i, o) in out.iter_mut().enumerate() {
+        for (c, &t) in slots.iter().enumerate() {
+            let o = &mut out[t as usize];
             for k in 0..3 {
-                let gx = f64::from(self.gx[k][i]);
+                let gx = f64::from(self.gx[k][c]);
                 o[k] += bu * gx;
                 o[3 + k] += u * gx;
                 o[6 + k] += v * gx;
-                o[9 + k] += f64::from(self.gn[k][i]);
+                o[9 + k] += f64::from(self.gn[k][c]);
             }
             for (k, p) in params.iter_mut().enumerate() {
-                *p += f64::from(self.p[k][i]);
+                *p += f64::from(self.p[k][c]);
             }
         }
+        let n = slots.len();
         for g in self.gx.iter_mut().chain(&mut self.gn).chain(&mut self.p) {
-            g.fill(0.0);
+            g[..n].fill(0.0);
         }
     }
 }

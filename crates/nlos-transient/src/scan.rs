@@ -101,15 +101,15 @@ impl PointSet {
                 found: format!("{}", self.normals.len()),
             });
         }
-        if let Layout::Grid { nx, ny } = self.layout {
-            if nx.checked_mul(ny) != Some(self.points.len()) {
-                return Err(TransientError::WrongShape {
-                    file: MEMORY.into(),
-                    field: field.into(),
-                    expected: format!("{nx} × {ny} grid points"),
-                    found: format!("{}", self.points.len()),
-                });
-            }
+        if let Layout::Grid { nx, ny } = self.layout
+            && nx.checked_mul(ny) != Some(self.points.len())
+        {
+            return Err(TransientError::WrongShape {
+                file: MEMORY.into(),
+                field: field.into(),
+                expected: format!("{nx} × {ny} grid points"),
+                found: format!("{}", self.points.len()),
+            });
         }
         if let Some(i) = self.points.iter().position(|p| !p.is_finite()) {
             return Err(TransientError::NonFinite { file: MEMORY.into(), field: format!("{field}.points"), index: i });
