@@ -55,7 +55,7 @@ fn main() {
                 cases.push(("bunny10k", &small, Visibility::Cached { level: 1 }, fixed));
             }
             if which != "10k" {
-                cases.push(("bunny70k", &f, Visibility::Off, fixed));
+                cases.push(("bunny70k", &f, Visibility::Cached { level: 1 }, fixed));
             }
         }
     }

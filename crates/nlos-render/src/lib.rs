@@ -116,6 +116,9 @@
 //! |---|---|---|---|---|
 //! | 10k bunny (9,948), cached | 70 ms | 213 ms (target 0.3 s) | 191 M | 0.41 |
 //! | full bunny (69,630), off | 385 ms | 970 ms (target 2 s) | 294 M | 1.87 |
+//! | full bunny (69,630), cached | 424 ms | 1.09–1.13 s (target 2 s) | 256 M | 2.14 |
+//!
+//! (the cached full bunny from `examples/profile.rs`, 3 runs; its cache build took 34 s.)
 //!
 //! (pairs = triangles × measurements: 4.07e7 and 2.85e8; forward + adjoint is `loss_and_gradient`, which
 //! renders too). Before packing the same runs took 0.32 s and 1.65 s. The original renderer (C++, Embree,
