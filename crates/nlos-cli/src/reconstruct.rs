@@ -33,8 +33,9 @@ pub(crate) struct Args {
     /// `run_log.json`, `checkpoint.json`, `command.json`, and the report `report.html` with its PNGs.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Initial surface: `lct`, `fk`, `carve` (space carving from first returns), or a mesh file
-    /// (OBJ/PLY/GLB) whose faces face the wall.
+    /// Initial surface: `lct` (extracted as by `nlos init --method lct`: the settings for compact objects),
+    /// `fk`, `carve` (space carving from first returns), or a mesh file (OBJ/PLY/GLB) whose faces face the
+    /// wall.
     #[arg(long, default_value = "lct", value_name = "lct|fk|carve|MESH")]
     init: String,
     /// Reflectance model to fit: `lambert` or `ggx` (α starts at --alpha).
@@ -92,6 +93,25 @@ pub(crate) struct Args {
     /// before the first return (the default). Needs --sensor.
     #[arg(long, value_name = "COUNTS_PER_BIN|auto", requires = "sensor")]
     background: Option<String>,
+    /// Learning rate of interior vertices, as a fraction of the stage's target edge length per Adam step
+    /// (default 0.05).
+    #[arg(long, value_name = "F")]
+    lr: Option<f64>,
+    /// Learning rate of boundary vertices, same unit (default 0.02).
+    #[arg(long, value_name = "F")]
+    lr_boundary: Option<f64>,
+    /// Learning rate of the reflectance parameters θ (default 0.05).
+    #[arg(long, value_name = "F")]
+    lr_reflectance: Option<f64>,
+    /// β of the automatic normal-smoothing weight λ = β·E_data/R at the start of each block (default 0.1).
+    #[arg(long, value_name = "BETA")]
+    smoothing: Option<f64>,
+    /// Boundary vertices move only in depth, keeping the initial silhouette (by default they move freely).
+    #[arg(long)]
+    depth_only_boundary: bool,
+    /// Keep boundary faces that no measurement can see (by default they are deleted before each remeshing).
+    #[arg(long)]
+    keep_unlit: bool,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -348,6 +368,20 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     if let Some(i) = args.iterations {
         p.schedule.shape_iterations = i;
     }
+    if let Some(x) = args.lr {
+        p.lr_interior = x;
+    }
+    if let Some(x) = args.lr_boundary {
+        p.lr_boundary = x;
+    }
+    if let Some(x) = args.lr_reflectance {
+        p.lr_reflectance = x;
+    }
+    if let Some(x) = args.smoothing {
+        p.regulariser_ratio = x;
+    }
+    p.remove_unlit_boundary_faces = !args.keep_unlit;
+    p.boundary_depth_only = args.depth_only_boundary;
     p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;
     Ok(p)
@@ -361,7 +395,10 @@ fn initial_surface(args: &Args, measured: &nlos_transient::Transient) -> Result<
         "carve" => carve(measured, &CarveParams::default()).map_err(bad)?,
         file => return nlos_mesh::io::load(file).map_err(bad),
     };
-    let surface = volume_to_surface(&volume, &SurfaceParams::default()).map_err(bad)?;
+    // LCT's volume gets the settings for compact objects, as `nlos init --method lct` without a threshold:
+    // Otsu's threshold alone keeps only the brightest columns (about half the bunny's silhouette).
+    let surface_params = if args.init == "lct" { SurfaceParams::object() } else { SurfaceParams::default() };
+    let surface = volume_to_surface(&volume, &surface_params).map_err(bad)?;
     Ok(surface.mesh)
 }
 
