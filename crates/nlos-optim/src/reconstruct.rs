@@ -665,7 +665,12 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 time_s: elapsed(),
             });
             let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
-            let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
+            let mut grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
+            if params.boundary_depth_only {
+                for (g, _) in grad.iter_mut().zip(&boundary).filter(|(_, b)| **b) {
+                    *g = Vec3::new(0.0, 0.0, g.z);
+                }
+            }
             good = Some((st.positions.clone(), st.shape_adam.clone()));
             let (li, lb) = (params.lr_interior * target * st.lr_scale, params.lr_boundary * target * st.lr_scale);
             let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });

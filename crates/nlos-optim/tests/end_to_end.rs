@@ -256,6 +256,70 @@ fn non_finite_step_is_rolled_back_with_a_halved_step() {
     assert!(out.mesh.positions().iter().all(|p| p.is_finite()));
 }
 
+/// Records every displacement the optimiser asks for (with the triangles it applies to), then applies it.
+#[derive(Debug, Default)]
+struct RecordingEvolve {
+    steps: Vec<(Vec<[u32; 3]>, Vec<Vec3>)>,
+}
+
+impl Evolve for RecordingEvolve {
+    fn evolve(&mut self, p: &[Vec3], t: &[[u32; 3]], d: &[Vec3]) -> nlos_optim::Result<Vec<Vec3>> {
+        self.steps.push((t.to_vec(), d.to_vec()));
+        Ok(p.iter().zip(d).map(|(a, b)| *a + *b).collect())
+    }
+}
+
+/// Vertices on an edge used by one triangle only.
+fn boundary_vertices(n: usize, t: &[[u32; 3]]) -> Vec<bool> {
+    let mut count = std::collections::HashMap::new();
+    for f in t {
+        for k in 0..3 {
+            let (a, b) = (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]));
+            *count.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    let mut on = vec![false; n];
+    for ((a, b), c) in count {
+        if c == 1 {
+            on[a as usize] = true;
+            on[b as usize] = true;
+        }
+    }
+    on
+}
+
+#[test]
+fn boundary_moves_only_in_depth_unless_freed() {
+    // The start is offset in x, so the data pull the rim sideways as well as in depth.
+    let measured = measurement(8);
+    let mut init = facing_wall(6, |_, _| 0.42);
+    for p in init.positions_mut() {
+        p.x += 0.03;
+    }
+    let mut moved = [0.0f32; 2];
+    for (i, free) in [false, true].into_iter().enumerate() {
+        let mut params = small_params(out_dir("boundary"));
+        params.out_dir = None;
+        params.boundary_depth_only = !free;
+        params.schedule.max_stages = 1;
+        params.schedule.max_blocks_per_stage = 1;
+        let mut evolve = RecordingEvolve::default();
+        reconstruct_with(&measured, &init, &params, Hooks { progress: None, evolve: Some(&mut evolve) }).unwrap();
+        assert!(!evolve.steps.is_empty());
+        let (mut lateral, mut depth) = (0.0f32, 0.0f32);
+        for (t, d) in &evolve.steps {
+            for (dv, _) in d.iter().zip(boundary_vertices(d.len(), t)).filter(|(_, b)| *b) {
+                lateral = lateral.max(dv.x.abs().max(dv.y.abs()));
+                depth = depth.max(dv.z.abs());
+            }
+        }
+        assert!(depth > 0.0, "free {free}: the boundary must still move in depth");
+        moved[i] = lateral;
+    }
+    assert_eq!(moved[0], 0.0, "boundary_depth_only: no lateral boundary motion");
+    assert!(moved[1] > 0.0, "free boundary: lateral motion expected");
+}
+
 #[test]
 fn bad_input_is_an_error_not_a_panic() {
     let mut measured = measurement(4);
