@@ -41,6 +41,14 @@ pub struct SurfaceParams {
     /// threshold either loses the parts or keeps the halo. `None` or a value above the threshold's own
     /// fraction grows nothing. Default `None` ([`SurfaceParams::object`]: `Some(0.1)`).
     pub grow_threshold: Option<f32>,
+    /// Noise floor of the growth: a column joins the mask by hysteresis only when its maximum is also at
+    /// least `median + k · 1.4826 · MAD` of all column maxima (a robust noise level: the empty columns are
+    /// the majority for a compact object; never above the seed threshold). With a background in the
+    /// capture (ambient light, dark counts) every column's maximum rises, and growing down to
+    /// [`Self::grow_threshold`] alone took half the wall (measured: 8,667 of 16,384 evaluation pixels for
+    /// the bunny at 100 photons per measurement with 0.01 background counts per bin, against 4,088 without
+    /// background). Default `None` ([`SurfaceParams::object`]: `Some(2.0)`).
+    pub grow_noise_sigmas: Option<f32>,
     /// Only voxels at least this deep are considered (metres; default `None`).
     pub min_depth: Option<f64>,
     /// Only voxels at most this deep are considered (metres; default `None`).
@@ -89,6 +97,7 @@ impl Default for SurfaceParams {
         Self {
             threshold: Threshold::Otsu,
             grow_threshold: None,
+            grow_noise_sigmas: None,
             min_depth: None,
             max_depth: None,
             largest_component: true,
@@ -118,6 +127,7 @@ impl SurfaceParams {
     pub fn object() -> Self {
         Self {
             grow_threshold: Some(0.1),
+            grow_noise_sigmas: Some(2.0),
             min_region_fraction: 0.05,
             subvoxel: true,
             core_fraction: Some(0.2),
@@ -281,7 +291,8 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
     let max_jump = params.max_depth_jump.unwrap_or(f64::INFINITY) as f32;
     let mut mask: Vec<bool> = albedo.iter().map(|&a| a >= threshold && a > 0.0).collect();
     if let Some(g) = params.grow_threshold {
-        let low = (g * max).min(threshold);
+        let floor = params.grow_noise_sigmas.map_or(0.0, |k| noise_floor(&albedo, k));
+        let low = (g * max).max(floor).min(threshold);
         grow(&mut mask, nx, ny, |c| albedo[c] >= low && albedo[c] > 0.0, &depth, max_jump);
     }
     if params.largest_component {
@@ -360,6 +371,11 @@ fn validate(params: &SurfaceParams) -> Result<()> {
     {
         return bad("grow_threshold", g as f64, "a fraction of the largest column maximum lies in [0, 1]");
     }
+    if let Some(k) = params.grow_noise_sigmas
+        && !(k.is_finite() && k >= 0.0)
+    {
+        return bad("grow_noise_sigmas", k as f64, "a number of robust standard deviations: finite and >= 0");
+    }
     if !(0.0..=1.0).contains(&params.min_region_fraction) {
         return bad(
             "min_region_fraction",
@@ -403,6 +419,21 @@ fn refine_peaks(vol: &Volume, depth: &mut [f32]) {
             *d = vol.z.at(iz) as f32 + (shift * vol.z.step) as f32;
         }
     }
+}
+
+/// `median + k · 1.4826 · MAD` of the finite values of `a` (0 when there are none).
+fn noise_floor(a: &[f32], k: f32) -> f32 {
+    let mut v: Vec<f32> = a.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let median = |v: &mut Vec<f32>| {
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let m = median(&mut v);
+    let mut dev: Vec<f32> = v.iter().map(|x| (x - m).abs()).collect();
+    m + k * 1.4826 * median(&mut dev)
 }
 
 /// Hysteresis: adds to `mask` every column for which `candidate` holds and which connects to the mask

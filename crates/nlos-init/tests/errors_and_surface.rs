@@ -201,3 +201,51 @@ fn carving_handles_exhaustive_scans_and_refuses_lists() {
         Err(InitError::Empty { .. })
     ));
 }
+
+/// Regression (sensor acceptance run, 100 photons per measurement with a background): the object settings
+/// grew the mask by hysteresis into the background-lifted columns and took half the wall. The noise floor
+/// of the growth (`grow_noise_sigmas`) stops it at the noise; without a background it changes nothing.
+#[test]
+fn object_growth_stops_at_the_background_noise_floor() {
+    // A 6 × 6 bright square (1.0) with a 2-column dim rim (0.3, above the 10 % growth threshold) at
+    // 0.305 m, on a 24 × 24 grid whose other columns carry a pseudo-random background of 0.12–0.2 at
+    // random depths near the object (0.275–0.325 m, so the depth-jump rule does not separate them).
+    let (nx, ny, nz) = (24usize, 24usize, 40usize);
+    let square = |x: usize, y: usize| (9..15).contains(&x) && (9..15).contains(&y);
+    let rim = |x: usize, y: usize| (7..17).contains(&x) && (7..17).contains(&y) && !square(x, y);
+    let with_background = |background: bool| {
+        let mut vol = flat_volume(nx, ny, nz, square, 30);
+        let mut state = 12345u64;
+        for iy in 0..ny {
+            for ix in 0..nx {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let r = (state >> 33) as f32 / (1u64 << 31) as f32;
+                if rim(ix, iy) {
+                    vol.data[(ix + nx * iy) * nz + 30] = 0.3;
+                } else if background && !square(ix, iy) {
+                    vol.data[(ix + nx * iy) * nz + 27 + (r * 6.0) as usize] = 0.12 + 0.08 * r;
+                }
+            }
+        }
+        vol
+    };
+    let kept = |vol: &Volume, p: &SurfaceParams| {
+        volume_to_surface(vol, p).expect("surface").mask.iter().filter(|&&k| k).count()
+    };
+    let object = SurfaceParams::object();
+    let no_floor = SurfaceParams { grow_noise_sigmas: None, ..object };
+    // Clean: square and rim, with or without the floor.
+    let clean = with_background(false);
+    assert_eq!(kept(&clean, &object), 100);
+    assert_eq!(kept(&clean, &no_floor), 100);
+    // Background: without the floor the mask grows over most of the wall; with it, square and rim only.
+    let noisy = with_background(true);
+    assert!(kept(&noisy, &no_floor) > 400, "{}", kept(&noisy, &no_floor));
+    assert_eq!(kept(&noisy, &object), 100);
+    // An invalid floor is a typed error.
+    let bad = SurfaceParams { grow_noise_sigmas: Some(f32::NAN), ..object };
+    assert!(matches!(
+        volume_to_surface(&noisy, &bad),
+        Err(InitError::InvalidParameter { name: "grow_noise_sigmas", .. })
+    ));
+}
