@@ -1,0 +1,129 @@
+//! Where a reconstruction's depth error comes from: `cargo run --release -p nlos-mesh --example
+//! depth_errors -- REC.obj GT.obj [more REC.obj …]`.
+//!
+//! For each reconstruction, on `nlos eval`'s 128 × 128 ray grid: the mean depth error split by the
+//! pixel's distance (in pixels) to the ground truth's silhouette, the share of the mean that pixels with an
+//! error above 5 / 20 mm carry, and how many of those lie in front of or behind the truth. Prints an ASCII
+//! map of the error (` ` miss, `.` < 1 mm, `-` < 5 mm, `o` < 20 mm, `#` ≥ 20 mm; `x` ground truth only,
+//! `+` reconstruction only).
+#![allow(missing_docs)]
+
+use nlos_mesh::metrics::{EvalParams, depth_map};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 2 {
+        eprintln!("usage: depth_errors REC.obj GT.obj [REC.obj …]");
+        std::process::exit(2);
+    }
+    let params = EvalParams::default();
+    let n = params.grid;
+    let load = |p: &str| match nlos_mesh::io::load(p) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("{p}: {e}");
+            std::process::exit(1);
+        }
+    };
+    let gt = depth_map(&load(&args[1]), &params).expect("ground-truth depth map");
+    // Distance (in pixels, chessboard) of every ground-truth pixel to the nearest pixel the truth misses.
+    let mut dist = vec![u32::MAX; n * n];
+    for (i, d) in dist.iter_mut().enumerate() {
+        if gt[i].is_nan() {
+            *d = 0;
+        }
+    }
+    for _ in 0..n {
+        let mut changed = false;
+        for iy in 0..n {
+            for ix in 0..n {
+                let i = ix + n * iy;
+                if dist[i] == 0 {
+                    continue;
+                }
+                let mut best = dist[i];
+                for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1), (-1, -1), (1, 1), (-1, 1), (1, -1)] {
+                    let (x, y) = (ix as i64 + dx, iy as i64 + dy);
+                    let nb = if x < 0 || y < 0 || x >= n as i64 || y >= n as i64 {
+                        0
+                    } else {
+                        dist[x as usize + n * y as usize]
+                    };
+                    best = best.min(nb.saturating_add(1));
+                }
+                if best < dist[i] {
+                    dist[i] = best;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    for rec_path in &args[0..1].iter().chain(&args[2..]).cloned().collect::<Vec<_>>() {
+        let rec = depth_map(&load(rec_path), &params).expect("depth map");
+        let (mut both, mut sum) = (0usize, 0.0f64);
+        let mut rings = [(0usize, 0.0f64); 5];
+        let (mut big5, mut big20, mut front, mut behind) = (0.0f64, 0.0f64, 0usize, 0usize);
+        let mut map = String::new();
+        for iy in (0..n).rev().step_by(2) {
+            for ix in (0..n).step_by(2) {
+                let i = ix + n * iy;
+                let c = match (gt[i].is_nan(), rec[i].is_nan()) {
+                    (true, true) => ' ',
+                    (false, true) => 'x',
+                    (true, false) => '+',
+                    (false, false) => {
+                        let e = (rec[i] - gt[i]).abs();
+                        if e < 1e-3 {
+                            '.'
+                        } else if e < 5e-3 {
+                            '-'
+                        } else if e < 2e-2 {
+                            'o'
+                        } else {
+                            '#'
+                        }
+                    }
+                };
+                map.push(c);
+            }
+            map.push('\n');
+        }
+        for i in 0..n * n {
+            if gt[i].is_nan() || rec[i].is_nan() {
+                continue;
+            }
+            let e = f64::from((rec[i] - gt[i]).abs());
+            both += 1;
+            sum += e;
+            let ring = (dist[i] as usize).saturating_sub(1).min(4);
+            rings[ring].0 += 1;
+            rings[ring].1 += e;
+            if e > 5e-3 {
+                big5 += e;
+                if rec[i] < gt[i] { front += 1 } else { behind += 1 }
+            }
+            if e > 2e-2 {
+                big20 += e;
+            }
+        }
+        let mean = sum / both.max(1) as f64;
+        println!("{rec_path}: {both} pixels on both, mean depth error {:.2} mm", mean * 1e3);
+        for (k, (c, s)) in rings.iter().enumerate() {
+            let label = if k == 4 { "≥ 5".to_string() } else { format!("{}", k + 1) };
+            println!(
+                "  {label:>3} px from the silhouette: {c:5} pixels, mean {:6.2} mm, share of the total error {:5.1} %",
+                s / (*c).max(1) as f64 * 1e3,
+                100.0 * s / sum.max(1e-30)
+            );
+        }
+        println!(
+            "  errors > 5 mm carry {:.1} % of the total ({front} in front of the truth, {behind} behind); > 20 mm {:.1} %",
+            100.0 * big5 / sum.max(1e-30),
+            100.0 * big20 / sum.max(1e-30)
+        );
+        println!("{map}");
+    }
+}
