@@ -45,9 +45,11 @@ pub struct SurfaceParams {
     /// least `median + k · 1.4826 · MAD` of all column maxima (a robust noise level: the empty columns are
     /// the majority for a compact object; never above the seed threshold). With a background in the
     /// capture (ambient light, dark counts) every column's maximum rises, and growing down to
-    /// [`Self::grow_threshold`] alone took half the wall (measured: 8,667 of 16,384 evaluation pixels for
-    /// the bunny at 100 photons per measurement with 0.01 background counts per bin, against 4,088 without
-    /// background). Default `None` ([`SurfaceParams::object`]: `Some(2.0)`).
+    /// [`Self::grow_threshold`] alone took half the wall (the bunny at 100 photons per measurement with
+    /// 0.01 background counts per bin: 8,667 of 16,384 evaluation pixels, Chamfer 156 mm; with k = 1: 4,177
+    /// pixels, coverage 95 %). k = 1 leaves the clean 1,000-photon bunny capture unchanged; k = 2 trimmed
+    /// it too (initial coverage 94.6 → 91.2 %, final 85.7 %). Default `None` ([`SurfaceParams::object`]:
+    /// `Some(1.0)`).
     pub grow_noise_sigmas: Option<f32>,
     /// Only voxels at least this deep are considered (metres; default `None`).
     pub min_depth: Option<f64>,
@@ -127,7 +129,7 @@ impl SurfaceParams {
     pub fn object() -> Self {
         Self {
             grow_threshold: Some(0.1),
-            grow_noise_sigmas: Some(2.0),
+            grow_noise_sigmas: Some(1.0),
             min_region_fraction: 0.05,
             subvoxel: true,
             core_fraction: Some(0.2),
