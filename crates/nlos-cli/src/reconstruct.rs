@@ -133,14 +133,22 @@ fn bad<E: std::fmt::Display>(e: E) -> CliError {
 
 /// The capture, after the requested rebinning and subsampling.
 fn load_measured(args: &Args) -> Result<Transient, CliError> {
-    let mut measured = nlos_transient::read(&args.data).map_err(CliError::input)?;
-    if let Some(k) = args.rebin {
-        measured = measured.rebin(k).map_err(CliError::input)?;
-    }
-    if let Some(k) = args.subsample {
-        measured = measured.subsample(k, k).map_err(CliError::input)?;
-    }
+    let (_, measured) = load_capture(args)?;
     Ok(measured)
+}
+
+/// The capture as read (rebinned when asked: the volumetric initialisers work on any bins) and after the
+/// requested subsampling too (what the optimiser fits).
+fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
+    let mut full = nlos_transient::read(&args.data).map_err(CliError::input)?;
+    if let Some(k) = args.rebin {
+        full = full.rebin(k).map_err(CliError::input)?;
+    }
+    let measured = match args.subsample {
+        Some(k) => full.subsample(k, k).map_err(CliError::input)?,
+        None => full.clone(),
+    };
+    Ok((full, measured))
 }
 
 /// The ground truth of `--gt` (non-manifold meshes accepted, as by `nlos eval`).
@@ -153,7 +161,7 @@ fn load_gt(args: &Args) -> Result<Option<SurfaceMesh>, CliError> {
 
 /// Runs `nlos reconstruct`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
-    let measured = load_measured(args)?;
+    let (full, measured) = load_capture(args)?;
     let params = params(args, &measured)?;
     let gt = load_gt(args)?;
     std::fs::create_dir_all(&args.out).map_err(|e| fail(format!("{}: {e}", args.out.display())))?;
@@ -183,7 +191,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let outcome = if args.resume {
         nlos_optim::resume(&measured, &params, hooks).map_err(bad)?
     } else {
-        let init = initial_surface(args, &measured)?;
+        // The initial surface from the whole scan grid: --subsample trades the optimiser's lateral
+        // sampling for speed, but a volumetric reconstruction from the subsampled grid is blurred twice as
+        // wide (on the seed-setup bunny at --subsample 2: mean depth error 8.3 mm and 4,088 evaluation
+        // pixels, against 5.2 mm and 2,866 from the full grid).
+        let init = initial_surface(args, &full)?;
         save(&init, &args.out.join("init.obj"))?;
         nlos_optim::reconstruct_with(&measured, &init, &params, hooks).map_err(bad)?
     };
