@@ -845,7 +845,8 @@ impl Renderer {
             boxes = Some(((ll.min(fr.l), lh.max(fr.l)), (sl.min(fr.s), sh.max(fr.s))));
         }
         let Some((l, s)) = boxes else { return false };
-        pk.pack(&self.tris.soa.block(t0, t1), l, s, self.params.two_sided) > 0
+        let keep_all = self.params.two_sided || self.tris.soa.no_cull;
+        pk.pack(&self.tris.soa.block(t0, t1), l, s, keep_all) > 0
     }
 
     /// Orientation sign and cached visible fraction of every packed triangle of `pk` (block starting at slot
@@ -954,7 +955,6 @@ impl Renderer {
         }
         let blk = pk.block();
         let len = blk.len;
-        let acc_offset = 0;
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let confocal = self.wall.confocal;
         let isa = self.isa;
@@ -989,9 +989,9 @@ impl Renderer {
         }
         // Stage 3 (vector): the gradient terms, accumulated per triangle.
         if confocal {
-            soa::adjoint_samples::<B, true>(isa, brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
+            soa::adjoint_samples::<B, true>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
         } else {
-            soa::adjoint_samples::<B, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc, acc_offset);
+            soa::adjoint_samples::<B, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
         }
     }
 
@@ -1332,8 +1332,9 @@ mod tests {
         assert!(den > 0.0 && (num / den).sqrt() < 1e-3, "rel-L2 {}", (num / den).sqrt());
     }
 
-    /// Culling whole blocks that face away changes no bit: a closed, bumpy sphere (every orientation)
-    /// seen from spots all around it, one-sided faces, fixed and adaptive rules, with and without the cache.
+    /// Culling whole blocks that face away, and packing a block's front-facing triangles (fixed rule), change
+    /// no bit: a closed, bumpy sphere (every orientation) seen from spots all around it, one-sided faces,
+    /// fixed and adaptive rules, with and without the cache.
     #[test]
     fn block_culling_is_exact() {
         let (nu, nv) = (96u32, 48u32);
@@ -1383,6 +1384,19 @@ mod tests {
                     .count();
                 let total = scan.measurements() * f.len().div_ceil(BLOCK);
                 assert!(active < total && active > 0, "some blocks culled, not all: {active} of {total}");
+                // Packing leaves out part of the blocks that culling keeps.
+                let mut pk = Packed::new();
+                let (mut packed, mut kept) = (0, 0);
+                for m in 0..scan.measurements() {
+                    for t0 in (0..f.len()).step_by(BLOCK) {
+                        let t1 = (t0 + BLOCK).min(f.len());
+                        if r.pack(&[m], t0, t1, &mut pk) {
+                            packed += pk.len;
+                            kept += t1 - t0;
+                        }
+                    }
+                }
+                assert!(packed > 0 && packed < kept, "packing must leave some triangles out: {packed} of {kept}");
                 r.tris.soa.disable_culling();
                 assert_eq!(culled, r.forward(&brdf), "forward ({sampling:?}, {visibility:?})");
                 assert_eq!(g, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({sampling:?}, {visibility:?})");

@@ -30,6 +30,8 @@ pub(crate) struct Soa {
     pub(crate) order: Vec<u32>,
     /// Per block of `BLOCK` slots: bounds for culling whole blocks that face away from a wall spot.
     bounds: Vec<BlockBound>,
+    /// Culling and packing off (tests that they change no bit): every valid triangle is packed.
+    pub(crate) no_cull: bool,
 }
 
 /// Conservative bounds of a block of triangles: componentwise range `[lo, hi]` of the unit normals and the
@@ -130,6 +132,7 @@ impl Soa {
             inv_n2: n.iter().zip(valid).map(|(n, ok)| if *ok { 1.0 / n.length_squared() } else { 0.0 }).collect(),
             valid: valid.to_vec(),
             order,
+            no_cull: false,
         }
     }
 
@@ -141,9 +144,11 @@ impl Soa {
         b.max_front(fr.l) < -CULL_MARGIN || b.max_front(fr.s) < -CULL_MARGIN
     }
 
-    /// Turns the block culling off (bounds that never cull), for tests that it changes nothing.
+    /// Turns the block culling off (bounds that never cull) and the packing of front-facing triangles (every
+    /// valid triangle packed), for tests that they change nothing.
     #[cfg(test)]
     pub(crate) fn disable_culling(&mut self) {
+        self.no_cull = true;
         for b in &mut self.bounds {
             *b = BlockBound { lo: Vec3::splat(-1e30), hi: Vec3::splat(1e30), d_min: -1e30 };
         }
@@ -668,8 +673,8 @@ impl Acc {
 }
 
 /// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
-/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` from index `offset` on where `a_val[i]` or
-/// `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
+/// `(A_val, A_der)` (see the crate docs), accumulated into `acc` (index i for triangle i of `b`) where
+/// `a_val[i]` or `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
@@ -680,14 +685,12 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
     uvw: (f32, f32, f32),
     sc: &Scratch,
     acc: &mut Acc,
-    offset: usize,
 ) {
     let [gx0, gx1, gx2] = &mut acc.gx;
     let [gn0, gn1, gn2] = &mut acc.gn;
     let [p0, p1, p2, p3] = &mut acc.p;
-    let o = offset;
-    let g = [&mut gx0[o..], &mut gx1[o..], &mut gx2[o..], &mut gn0[o..], &mut gn1[o..], &mut gn2[o..]];
-    let p = [&mut p0[o..], &mut p1[o..], &mut p2[o..], &mut p3[o..]];
+    let g = [&mut gx0[..], &mut gx1[..], &mut gx2[..], &mut gn0[..], &mut gn1[..], &mut gn2[..]];
+    let p = [&mut p0[..], &mut p1[..], &mut p2[..], &mut p3[..]];
     adjoint_samples_acc::<B, CONFOCAL>(isa, brdf, b, fr, uvw, sc, g, p);
 }
 
