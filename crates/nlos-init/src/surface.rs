@@ -423,7 +423,9 @@ fn refine_peaks(vol: &Volume, depth: &mut [f32]) {
     }
 }
 
-/// `median + k · 1.4826 · MAD` of the finite values of `a` (0 when there are none).
+/// `median + k · 1.4826 · MAD` of the finite values of `a` (0 when there are none): the median absolute
+/// deviation scaled to estimate a Gaussian's standard deviation (Hampel 1974; Rousseeuw & Croux 1993), so
+/// `k` counts robust sigmas and the floor ignores the bright minority of object columns.
 fn noise_floor(a: &[f32], k: f32) -> f32 {
     let mut v: Vec<f32> = a.iter().copied().filter(|x| x.is_finite()).collect();
     if v.is_empty() {
