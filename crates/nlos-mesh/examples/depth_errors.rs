@@ -66,6 +66,7 @@ fn main() {
         let (mut both, mut sum) = (0usize, 0.0f64);
         let mut rings = [(0usize, 0.0f64); 5];
         let (mut big5, mut big20, mut front, mut behind) = (0.0f64, 0.0f64, 0usize, 0usize);
+        let mut interior_signed: Vec<f32> = Vec::new();
         let mut map = String::new();
         for iy in (0..n).rev().step_by(2) {
             for ix in (0..n).step_by(2) {
@@ -101,6 +102,9 @@ fn main() {
             let ring = (dist[i] as usize).saturating_sub(1).min(4);
             rings[ring].0 += 1;
             rings[ring].1 += e;
+            if ring == 4 {
+                interior_signed.push(rec[i] - gt[i]);
+            }
             if e > 5e-3 {
                 big5 += e;
                 if rec[i] < gt[i] { front += 1 } else { behind += 1 }
@@ -123,6 +127,14 @@ fn main() {
             "  errors > 5 mm carry {:.1} % of the total ({front} in front of the truth, {behind} behind); > 20 mm {:.1} %",
             100.0 * big5 / sum.max(1e-30),
             100.0 * big20 / sum.max(1e-30)
+        );
+        interior_signed.sort_by(f32::total_cmp);
+        let q = |f: f64| interior_signed.get((f * interior_signed.len() as f64) as usize).copied().unwrap_or(f32::NAN);
+        println!(
+            "  interior (≥ 5 px in), signed z_rec − z_gt: quartiles {:+.2} / {:+.2} / {:+.2} mm (negative: in front)",
+            q(0.25) * 1e3,
+            q(0.5) * 1e3,
+            q(0.75) * 1e3
         );
         println!("{map}");
     }

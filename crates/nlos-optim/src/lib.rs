@@ -49,4 +49,4 @@ pub use reconstruct::{
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
-pub use sensor::{SensorBackground, SensorFit};
+pub use sensor::{SensorBackground, SensorFit, expected_half_deviance};

@@ -7,7 +7,8 @@
 //!    [`Renderer`] is built. (This is "remesh after every shape block", plus once on the initial mesh.)
 //! 2. **Shape block.** Each step: forward render, data term with the closed-form scale ([`crate::loss`]),
 //!    adjoint (Proposition 1, `nlos_render`), plus `λ ·` the normal-smoothing regulariser
-//!    ([`crate::regularizer`]; λ set automatically at the first step of the block), per-vertex isotropic
+//!    ([`crate::regularizer`]; λ set automatically at the first step of the block, against the data term
+//!    above its noise floor for a sensor fit, [`crate::sensor`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
 //! 4. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
@@ -176,6 +177,11 @@ pub struct IterationRecord {
     /// Wall-clock seconds since the start of the run (summed over resumes; the only non-deterministic
     /// field).
     pub time_s: f64,
+    /// Shape steps of a sensor fit: the normalised noise floor of the data term
+    /// ([`crate::SensorFit::noise_floor`] / the normaliser), what `data` would be if the expected counts
+    /// were exact. `data − noise_floor` is the misfit left; the regulariser weight is set against it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_floor: Option<f64>,
 }
 
 /// The JSON run log (`run_log.json`).
@@ -520,6 +526,9 @@ fn surface_area(p: &[Vec3], t: &[[u32; 3]]) -> f64 {
 /// Loss pieces at the current state.
 struct Eval {
     data: f64,
+    /// The normalised noise floor of the sensor fit's data term ([`crate::SensorFit::noise_floor`]) when
+    /// asked for; 0 otherwise.
+    floor: f64,
     scale: f64,
     grad_vertices: Vec<Vec3>,
     grad_theta: Vec<f64>,
@@ -536,13 +545,21 @@ struct Fit<'a> {
     norm: f64,
 }
 
-fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>) -> Result<Eval> {
+/// The data term, its scale and gradients at the current state; with `want_floor`, also the sensor fit's
+/// noise floor (for the automatic regulariser weight).
+fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
     let rendered = brdf.forward(r);
+    let mut floor = 0.0;
     let ev = match &params.sensor {
         Some(sensor) => {
-            sensor.evaluate(&rendered, measured, fit.bins, fit.background, params.data.solve_scale, st.scale)?
+            let ev =
+                sensor.evaluate(&rendered, measured, fit.bins, fit.background, params.data.solve_scale, st.scale)?;
+            if want_floor {
+                floor = sensor.noise_floor(&rendered, fit.bins, fit.background, ev.scale)? / norm;
+            }
+            ev
         }
         None => params.data.evaluate(&rendered, measured, st.scale)?,
     };
@@ -551,6 +568,7 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>) -> Result<Eval> {
     let g = brdf.adjoint(r, &d)?;
     Ok(Eval {
         data: ev.value / norm,
+        floor,
         scale: ev.scale,
         grad_theta: st.reflectance.chain(&g.brdf),
         grad_vertices: g.vertices,
@@ -626,7 +644,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let mut it = 0;
         while it < sch.shape_iterations {
             let attempt = (|| -> Result<Option<(Eval, f64, Vec<Vec3>)>> {
-                let ev = evaluate(&st, &renderer, &fit)?;
+                let ev = evaluate(&st, &renderer, &fit, params.sensor.is_some())?;
                 let (r, rg) = reg.evaluate(&st.positions, &st.triangles)?;
                 let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
                 Ok(ok.then_some((ev, r, rg)))
@@ -637,9 +655,12 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             };
             if it == 0 {
                 let area = surface_area(&st.positions, &st.triangles);
-                st.reg_weight = params
-                    .regulariser_weight
-                    .unwrap_or_else(|| auto_weight(params.regulariser_ratio, ev.data, r, area));
+                // With counts, the regulariser is weighed against the part of the data term above its noise
+                // floor (crate::sensor, "Noise floor"); at least 1 % of the data term, so a fit that has
+                // reached the floor keeps some smoothing.
+                let excess = if params.sensor.is_some() { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
+                st.reg_weight =
+                    params.regulariser_weight.unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r, area));
             }
             let lam = st.reg_weight;
             let loss = ev.data + lam * r;
@@ -663,6 +684,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 faces: st.triangles.len(),
                 vertices: st.positions.len(),
                 time_s: elapsed(),
+                noise_floor: params.sensor.is_some().then_some(ev.floor),
             });
             let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
             let mut grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
@@ -698,7 +720,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             let mut good_refl: Option<(Reflectance, VectorAdam)> = None;
             let mut it = 0;
             while it < refl_iters {
-                let ev = evaluate(&st, &renderer, &fit);
+                let ev = evaluate(&st, &renderer, &fit, false);
                 let ev = match ev {
                     Ok(ev) if ev.data.is_finite() && ev.grad_theta.iter().all(|g| g.is_finite()) => ev,
                     Ok(_) | Err(OptimError::Brdf(_)) => {
@@ -725,6 +747,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     faces: st.triangles.len(),
                     vertices: st.positions.len(),
                     time_s: elapsed(),
+                    noise_floor: None,
                 });
                 let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
                 good_refl = Some((st.reflectance.clone(), st.reflectance_adam.clone()));

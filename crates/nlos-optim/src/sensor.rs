@@ -30,6 +30,19 @@
 //! ## Background
 //! Fixed (known from a dark measurement or the sensor model) or estimated once per run from the bins
 //! before the first return of the measured counts ([`nlos_transient::sensor::estimate_background`]).
+//!
+//! ## Noise floor (for the automatic regulariser weight)
+//! The seed sets the smoothing weight from the ratio of the data term to the regulariser at the start of
+//! a block (`λ = β·E/R`). With photon counts, `E` is mostly the deviance that Poisson noise leaves even
+//! at the true surface: at 100 photons per histogram the reducible part is a few percent of `E`, so the
+//! ratio rule smooths about 15× harder than the misfit warrants (measured on the sensor scenario:
+//! started from the true bunny, the data term rose while the regulariser fell). [`SensorFit::noise_floor`]
+//! is the expectation of the data term if the current expected counts were exact,
+//! ```text
+//! E_floor = Σ_k d(μ_k),   d(μ) = E_{n~Poisson(μ)}[μ − n + n ln(n/μ)] = E[n ln n] − μ ln μ
+//! ```
+//! ([`expected_half_deviance`]: the series for μ ≤ 50, `½ + 1/(12μ) + 1/(12μ²)` above; McCullagh &
+//! Nelder 1989, §6.2), and the optimiser weighs the regulariser against `E − E_floor` instead of `E`.
 
 use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse, SpadModel, estimate_background};
@@ -45,6 +58,38 @@ const MU_FLOOR: f64 = 1e-12;
 /// clamped, with a gradient `n/1e-12`); every real SPAD has some background, and a floor this small changes
 /// the fit of bins with signal negligibly.
 pub const MIN_BACKGROUND_FRACTION: f64 = 1e-3;
+
+/// Above this mean the expected half-deviance uses its asymptotic expansion (the series and the expansion
+/// agree to 1e-5 there).
+const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
+
+/// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
+/// (module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
+/// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
+pub fn expected_half_deviance(mu: f64) -> f64 {
+    if !(mu.is_finite() && mu > 0.0) {
+        return 0.0;
+    }
+    if mu > DEVIANCE_SERIES_MAX_MU {
+        return 0.5 + 1.0 / (12.0 * mu) + 1.0 / (12.0 * mu * mu);
+    }
+    // E[n ln n] = Σ_{n≥2} p(n)·n ln n with p(n) = p(n−1)·μ/n; the terms n = 0, 1 vanish. Summed until
+    // past the mode and the terms are negligible (at most μ + 12√μ + 30 terms for μ ≤ 50).
+    let mut p = (-mu).exp() * mu; // p(1)
+    let mut sum = 0.0;
+    let n_max = (mu + 12.0 * mu.sqrt() + 30.0) as u32;
+    for n in 2..=n_max {
+        let nf = f64::from(n);
+        p *= mu / nf;
+        let term = p * nf * nf.ln();
+        sum += term;
+        if nf > mu && term < 1e-17 * sum.max(1e-300) {
+            break;
+        }
+    }
+    // Guard: the difference of two nearly equal terms can round below zero for tiny μ.
+    (sum - mu * mu.ln()).max(0.0)
+}
 
 /// Where the background level `b` (expected counts per bin) comes from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -225,6 +270,17 @@ impl SensorFit {
         Ok(DataEval { value, scale, d_rendered })
     }
 
+    /// The expected value of the data term if the expected counts `μ = scale·J I + b` of `rendered` were
+    /// exact, `Σ_k d(μ_k)` ([`expected_half_deviance`]): the part of the data term that no surface can
+    /// remove (module docs, "Noise floor").
+    ///
+    /// # Errors
+    /// [`OptimError::Sensor`] when `rendered` does not split into histograms of `bins`.
+    pub fn noise_floor(&self, rendered: &[f32], bins: usize, background: f64, scale: f64) -> Result<f64> {
+        let a = self.jitter(rendered, bins)?;
+        Ok(a.iter().map(|&ak| expected_half_deviance((scale * ak + background).max(0.0))).sum())
+    }
+
     /// The normaliser of the data term, `Σ n` (as [`crate::DataTerm::normaliser`] for Poisson): `None` for
     /// an all-zero capture.
     pub fn normaliser(counts: &[f32]) -> Option<f64> {
@@ -296,6 +352,71 @@ mod tests {
                 assert!((fd - an).abs() <= 1e-3 * (1.0 + an.abs()), "b {b} solve {solve} bin {i}: fd {fd} vs {an}");
             }
         }
+    }
+
+    /// Analytic special cases: `d(μ) ≈ μ ln(1/μ) + μ² ln 2` for small μ, → ½ for large μ, continuous at
+    /// the switch to the expansion.
+    #[test]
+    fn expected_half_deviance_special_cases() {
+        for mu in [1e-4f64, 1e-3] {
+            let want = mu * (1.0 / mu).ln() + mu * mu * 2f64.ln();
+            let got = expected_half_deviance(mu);
+            assert!((got - want).abs() < 1e-2 * want, "μ {mu}: {got} vs {want}");
+        }
+        let below = expected_half_deviance(DEVIANCE_SERIES_MAX_MU);
+        let above = expected_half_deviance(DEVIANCE_SERIES_MAX_MU * (1.0 + 1e-12));
+        assert!((below - above).abs() < 1e-5, "{below} vs {above}");
+        assert!((expected_half_deviance(1e6) - 0.5).abs() < 1e-6);
+        assert_eq!(expected_half_deviance(0.0), 0.0);
+        assert_eq!(expected_half_deviance(f64::NAN), 0.0);
+    }
+
+    /// Statistical test: the mean half-deviance of Poisson draws matches `d(μ)` (20,000 draws per μ,
+    /// tolerance 5 standard errors of the sample mean).
+    #[test]
+    fn expected_half_deviance_matches_poisson_draws() {
+        let mut state = 0x1234_5678_9abc_def0u64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        for mu in [0.05f64, 0.7, 3.0, 20.0] {
+            let draws = 20_000;
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..draws {
+                // Inversion of the Poisson CDF.
+                let u = uniform();
+                let (mut n, mut p) = (0u32, (-mu).exp());
+                let mut cdf = p;
+                while u > cdf && n < 1000 {
+                    n += 1;
+                    p *= mu / f64::from(n);
+                    cdf += p;
+                }
+                let nf = f64::from(n);
+                let d = mu - nf + if n > 0 { nf * (nf / mu).ln() } else { 0.0 };
+                sum += d;
+                sum2 += d * d;
+            }
+            let mean = sum / f64::from(draws);
+            let se = ((sum2 / f64::from(draws) - mean * mean) / f64::from(draws)).sqrt();
+            let want = expected_half_deviance(mu);
+            assert!((mean - want).abs() < 5.0 * se, "μ {mu}: sample mean {mean} ± {se} vs {want}");
+        }
+    }
+
+    #[test]
+    fn noise_floor_is_the_expected_value_at_the_model() {
+        let (fit, r, _) = setup();
+        let a = fit.jitter(&r, BINS).expect("a");
+        let want: f64 = a.iter().map(|&ak| expected_half_deviance(2.0 * ak + 0.7)).sum();
+        let got = fit.noise_floor(&r, BINS, 0.7, 2.0).expect("floor");
+        assert!((got - want).abs() < 1e-12 * want);
+        // Bright bins add about ½ each.
+        let bright = vec![1e4f32; 2 * BINS];
+        let f = fit.noise_floor(&bright, BINS, 0.0, 1.0).expect("floor");
+        assert!((f / (2 * BINS) as f64 - 0.5).abs() < 0.05, "{f}");
+        assert!(matches!(fit.noise_floor(&r, 7, 0.7, 2.0), Err(OptimError::Sensor(_))));
     }
 
     #[test]

@@ -378,6 +378,15 @@ fn sensor_fit_recovers_shape_from_jittered_counts_with_background() {
     );
     assert!(e1 < 0.5 * e0, "depth error {e0} -> {e1}");
     assert!(log.last().unwrap().data < 0.5 * log[0].data);
+    // Shape steps log the noise floor the regulariser weight is set against; reflectance steps do not.
+    for r in log {
+        match (r.kind, r.noise_floor) {
+            (nlos_optim::StepKind::Shape, Some(f)) => assert!(f > 0.0 && f.is_finite(), "{r:?}"),
+            (nlos_optim::StepKind::Reflectance, None) => {}
+            _ => panic!("noise floor logged wrongly: {r:?}"),
+        }
+    }
+    assert!(log[0].noise_floor.is_some_and(|f| f < log[0].data), "the misfit of the flat start is above the floor");
     // Weights are refused with the sensor fit.
     params.data.weights = Some(vec![1.0; measured.data().len()]);
     assert!(matches!(

@@ -69,6 +69,7 @@ fn record(iteration: u64, stage: u32, loss: f64) -> IterationRecord {
         faces: 72,
         vertices: 49,
         time_s: iteration as f64 * 0.1,
+        noise_floor: None,
     }
 }
 
