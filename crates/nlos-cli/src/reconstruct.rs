@@ -106,6 +106,11 @@ pub(crate) struct Args {
     /// β of the automatic normal-smoothing weight λ = β·E_data/R at the start of each block (default 0.1).
     #[arg(long, value_name = "BETA")]
     smoothing: Option<f64>,
+    /// Noise of the capture, for the smoothing weight: `counts` (Poisson photon counts: λ is set against
+    /// the misfit above the noise floor), `none` (λ against the whole data term, the seed's rule), or
+    /// `auto` (the default): `counts` when every value is a non-negative integer. --sensor implies counts.
+    #[arg(long, default_value = "auto", value_name = "auto|counts|none")]
+    noise: String,
     /// Boundary vertices move only in depth, keeping the initial silhouette (by default they move freely).
     #[arg(long)]
     depth_only_boundary: bool,
@@ -392,11 +397,22 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     if let Some(x) = args.smoothing {
         p.regulariser_ratio = x;
     }
+    p.data.counts = match args.noise.as_str() {
+        "auto" => is_counts(measured.data()),
+        "counts" => true,
+        "none" => false,
+        other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
+    };
     p.remove_unlit_boundary_faces = !args.keep_unlit;
     p.boundary_depth_only = args.depth_only_boundary;
     p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;
     Ok(p)
+}
+
+/// Whether a capture looks like photon counts: every value a non-negative integer (and not all zero).
+fn is_counts(data: &[f32]) -> bool {
+    data.iter().all(|&v| v >= 0.0 && v.fract() == 0.0) && data.iter().any(|&v| v > 0.0)
 }
 
 /// The initial surface: a volumetric reconstruction turned into a mesh, or a mesh file.

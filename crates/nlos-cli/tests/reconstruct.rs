@@ -116,6 +116,7 @@ fn bad_arguments_are_input_errors() {
         vec!["--background", "auto"],
         vec!["--sensor", "ideal", "--background=-3"],
         vec!["--sensor", "ideal", "--background", "lots"],
+        vec!["--noise", "gaussian"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
@@ -128,6 +129,34 @@ fn bad_arguments_are_input_errors() {
     let missing = nlos(&["reconstruct", "nope.hdf5", "--out", &o]);
     assert_eq!(missing.status.code(), Some(2));
     assert!(text(&missing).contains("nope.hdf5"));
+}
+
+/// `--noise`: a rendered (non-integer) capture is not taken for counts by `auto`, so its run log has no
+/// noise floor; `--noise counts` logs one per shape step (here meaningless in size: the capture's values are
+/// not counts, which is why `auto` does not pick it).
+#[test]
+fn noise_counts_logs_the_noise_floor_and_auto_detects_non_counts() {
+    let dir = scratch("noise");
+    let data = capture(&dir);
+    let d = data.to_string_lossy().into_owned();
+    for (mode, want_floor) in [("auto", false), ("counts", true)] {
+        let o = dir.join(mode).to_string_lossy().into_owned();
+        let args = ["reconstruct", &d, "--out", &o, "--quiet", "--no-report", "--stages", "1", "--resolution", "10"];
+        let mut args = args.to_vec();
+        args.extend(["--blocks", "1", "--iterations", "2", "--noise", mode]);
+        let r = nlos(&args);
+        assert!(r.status.success(), "{mode}: {}", text(&r));
+        let log: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join(mode).join("run_log.json")).expect("log")).expect("json");
+        let its = log["iterations"].as_array().expect("iterations");
+        assert!(!its.is_empty());
+        for it in its {
+            assert_eq!(it.get("noise_floor").is_some(), want_floor, "{mode}: {it}");
+            if let Some(f) = it["noise_floor"].as_f64() {
+                assert!(f > 0.0 && f.is_finite(), "{mode}: {it}");
+            }
+        }
+    }
 }
 
 #[test]

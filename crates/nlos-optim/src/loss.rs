@@ -32,11 +32,16 @@ pub struct DataTerm {
     pub weights: Option<Vec<f32>>,
     /// Solve the global intensity scale in closed form (default true); if false, `s = 1`.
     pub solve_scale: bool,
+    /// The measurement holds photon counts (Poisson noise, e.g. a raw SPAD histogram or a simulated
+    /// capture): the automatic regulariser weight is then set against the data term above its noise floor
+    /// ([`DataTerm::noise_floor`]) rather than the whole data term. Default false (`nlos reconstruct` sets
+    /// it when every value of the capture is a non-negative integer).
+    pub counts: bool,
 }
 
 impl Default for DataTerm {
     fn default() -> Self {
-        Self { loss: Loss::L2, weights: None, solve_scale: true }
+        Self { loss: Loss::L2, weights: None, solve_scale: true, counts: false }
     }
 }
 
@@ -128,6 +133,31 @@ impl DataTerm {
         Ok(DataEval { value, scale, d_rendered: d })
     }
 
+    /// The expected data term if the measurement were Poisson counts with means `μ = scale·rendered`
+    /// (the part of the data term no surface can remove when the model is exact):
+    /// ```text
+    /// L2:       E[½ Σ w (μ − n)²]            = ½ Σ w μ                     (Var n = μ)
+    /// Poisson:  E[Σ w (μ − n ln μ)] − (E − D) = Σ w (d(μ) + n − n ln n)
+    /// ```
+    /// with `D` the half-deviance and `d` its expectation ([`crate::sensor::expected_half_deviance`]): for
+    /// the Poisson loss, whose value is not zero at a perfect fit, `E − floor = D − Σ w d(μ)` is the misfit
+    /// above the noise.
+    pub fn noise_floor(&self, rendered: &[f32], measured: &[f32], scale: f64) -> f64 {
+        let w = |i: usize| self.weights.as_ref().map_or(1.0, |w| f64::from(w[i]));
+        let n = rendered.len().min(measured.len());
+        match self.loss {
+            Loss::L2 => (0..n).map(|i| 0.5 * w(i) * (scale * f64::from(rendered[i])).max(0.0)).sum(),
+            Loss::PoissonNll { .. } => (0..n)
+                .map(|i| {
+                    let mu = (scale * f64::from(rendered[i])).max(0.0);
+                    let c = f64::from(measured[i]).max(0.0);
+                    let c_ln_c = if c > 0.0 { c * c.ln() } else { 0.0 };
+                    w(i) * (crate::sensor::expected_half_deviance(mu) + c - c_ln_c)
+                })
+                .sum(),
+        }
+    }
+
     /// A positive normaliser for the data term: `½ Σ w Ĩ²` for L2, `Σ w Ĩ` for Poisson — the loss of a zero
     /// rendering (up to constants), so the normalised data term is ≈ 1 at a blank start and ≪ 1 at a fit. It
     /// makes loss values and Adam's ε independent of the capture's arbitrary units. `None` for an all-zero
@@ -168,7 +198,7 @@ mod tests {
     #[test]
     fn poisson_scale_is_the_nll_minimiser() {
         let (r, m, w) = data();
-        let t = DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w), solve_scale: true };
+        let t = DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w), solve_scale: true, counts: false };
         let s = t.optimal_scale(&r, &m).expect("defined");
         let e = |s: f64| {
             let sc: Vec<f32> = r.iter().map(|x| s as f32 * x).collect();
@@ -182,8 +212,8 @@ mod tests {
         let (r, m, w) = data();
         for term in [
             DataTerm::default(),
-            DataTerm { loss: Loss::L2, weights: Some(w.clone()), solve_scale: true },
-            DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w.clone()), solve_scale: true },
+            DataTerm { loss: Loss::L2, weights: Some(w.clone()), solve_scale: true, counts: false },
+            DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w.clone()), solve_scale: true, counts: false },
         ] {
             let g = term.evaluate(&r, &m, 1.0).expect("ok");
             // E*(I) = min_s E(s I), re-solving s at every perturbed I.
@@ -210,5 +240,54 @@ mod tests {
         assert!(matches!(bad.evaluate(&[1.0; 2], &[1.0; 2], 1.0), Err(OptimError::InvalidParameter { .. })));
         assert!(matches!(t.evaluate(&[1.0; 2], &[1.0; 3], 1.0), Err(OptimError::LengthMismatch { .. })));
         assert_eq!(t.normaliser(&[0.0; 3]), None);
+    }
+
+    /// Statistical test: over Poisson draws from the model, the mean data term (scale fixed at the model's)
+    /// equals the noise floor, for both losses (2,000 draws, 5 standard errors).
+    #[test]
+    fn noise_floor_is_the_mean_data_term_of_poisson_counts() {
+        let (r, _, w) = data();
+        let scale = 2.5;
+        let mut state = 0x0dd_ba11_cafe_f00du64;
+        let mut uniform = || {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        for loss in [Loss::L2, Loss::PoissonNll { floor: 1e-12 }] {
+            let t = DataTerm { loss, weights: Some(w.clone()), solve_scale: false, counts: true };
+            let scaled: Vec<f32> = r.iter().map(|x| scale as f32 * x).collect();
+            let (mut sum, mut sum2, mut floor_sum) = (0.0, 0.0, 0.0);
+            let draws = 2000;
+            for _ in 0..draws {
+                let counts: Vec<f32> = scaled
+                    .iter()
+                    .map(|&mu| {
+                        let u = uniform();
+                        let (mut n, mut p) = (0u32, (-f64::from(mu)).exp());
+                        let mut cdf = p;
+                        while u > cdf && n < 1000 {
+                            n += 1;
+                            p *= f64::from(mu) / f64::from(n);
+                            cdf += p;
+                        }
+                        n as f32
+                    })
+                    .collect();
+                let (e, _) = t.loss.evaluate(&scaled, &counts, t.weights.as_deref()).expect("ok");
+                // The Poisson floor depends on the counts (its n − n ln n part): compare E − floor with 0.
+                let f = t.noise_floor(&r, &counts, scale);
+                let x = e - f;
+                sum += x;
+                sum2 += x * x;
+                floor_sum += f;
+            }
+            let mean = sum / f64::from(draws);
+            let se = ((sum2 / f64::from(draws) - mean * mean) / f64::from(draws)).sqrt();
+            assert!(mean.abs() < 5.0 * se + 1e-9 * floor_sum.abs(), "{loss:?}: mean E − floor {mean} ± {se}");
+        }
+        // L2's floor is ½ Σ w μ exactly.
+        let t = DataTerm { weights: Some(w.clone()), ..DataTerm::default() };
+        let want: f64 = r.iter().zip(&w).map(|(&x, &wi)| 0.5 * f64::from(wi) * scale * f64::from(x)).sum();
+        assert!((t.noise_floor(&r, &r, scale) - want).abs() < 1e-9 * want);
     }
 }

@@ -115,8 +115,9 @@ pub struct ReconstructParams {
     /// Learning rate for θ (default 0.05).
     pub lr_reflectance: f64,
     /// β of the automatic regulariser weight `λ = β E_data/R` (default 0.1), see
-    /// [`crate::regularizer::auto_weight`]. With [`ReconstructParams::sensor`], `E_data` is the data term
-    /// above its Poisson noise floor (`crate::sensor`, "Noise floor"), at least 1 % of the data term.
+    /// [`crate::regularizer::auto_weight`]. With [`ReconstructParams::sensor`] or [`DataTerm::counts`],
+    /// `E_data` is the data term above its Poisson noise floor (`crate::sensor`, "Noise floor"), at least
+    /// 1 % of the data term.
     pub regulariser_ratio: f64,
     /// A fixed regulariser weight λ instead of the automatic one (default None).
     pub regulariser_weight: Option<f64>,

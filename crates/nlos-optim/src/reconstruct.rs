@@ -177,9 +177,9 @@ pub struct IterationRecord {
     /// Wall-clock seconds since the start of the run (summed over resumes; the only non-deterministic
     /// field).
     pub time_s: f64,
-    /// Shape steps of a sensor fit: the normalised noise floor of the data term
-    /// ([`crate::SensorFit::noise_floor`] / the normaliser), what `data` would be if the expected counts
-    /// were exact. `data − noise_floor` is the misfit left; the regulariser weight is set against it.
+    /// Shape steps of a fit to photon counts (a sensor fit, or [`crate::DataTerm::counts`]): the normalised
+    /// noise floor of the data term ([`crate::SensorFit::noise_floor`], [`crate::DataTerm::noise_floor`]),
+    /// what `data` would be if the expected counts were exact. `data − noise_floor` is the misfit left; the regulariser weight is set against it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_floor: Option<f64>,
 }
@@ -561,7 +561,13 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
             }
             ev
         }
-        None => params.data.evaluate(&rendered, measured, st.scale)?,
+        None => {
+            let ev = params.data.evaluate(&rendered, measured, st.scale)?;
+            if want_floor && params.data.counts {
+                floor = params.data.noise_floor(&rendered, measured, ev.scale) / norm;
+            }
+            ev
+        }
     };
     let inv = (1.0 / norm) as f32;
     let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
@@ -607,6 +613,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
     })?;
     let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
+    // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
+    let counts = params.sensor.is_some() || params.data.counts;
     let sch = params.schedule;
     st.max_stages_hint = sch.max_stages;
     let mut direct = DirectEvolve;
@@ -644,7 +652,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let mut it = 0;
         while it < sch.shape_iterations {
             let attempt = (|| -> Result<Option<(Eval, f64, Vec<Vec3>)>> {
-                let ev = evaluate(&st, &renderer, &fit, params.sensor.is_some())?;
+                let ev = evaluate(&st, &renderer, &fit, counts)?;
                 let (r, rg) = reg.evaluate(&st.positions, &st.triangles)?;
                 let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
                 Ok(ok.then_some((ev, r, rg)))
@@ -656,9 +664,9 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             if it == 0 {
                 let area = surface_area(&st.positions, &st.triangles);
                 // With counts, the regulariser is weighed against the part of the data term above its noise
-                // floor (crate::sensor, "Noise floor"); at least 1 % of the data term, so a fit that has
-                // reached the floor keeps some smoothing.
-                let excess = if params.sensor.is_some() { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
+                // floor (crate::sensor, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
+                // so a fit that has reached the floor keeps some smoothing.
+                let excess = if counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
                 st.reg_weight =
                     params.regulariser_weight.unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r, area));
             }
@@ -684,7 +692,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 faces: st.triangles.len(),
                 vertices: st.positions.len(),
                 time_s: elapsed(),
-                noise_floor: params.sensor.is_some().then_some(ev.floor),
+                noise_floor: counts.then_some(ev.floor),
             });
             let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
             let mut grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();

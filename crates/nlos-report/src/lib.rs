@@ -221,7 +221,7 @@ pub fn write_report(
         }
         None => {
             let rendered = gated(&Transient::new(measured.scan().clone(), ax, rendered)?)?;
-            let term = DataTerm { loss: opts.loss, weights: None, solve_scale: true };
+            let term = DataTerm { loss: opts.loss, weights: None, solve_scale: true, counts: false };
             let scale = term.optimal_scale(rendered.data(), measured_g.data()).unwrap_or(1.0);
             let mut scaled = rendered;
             scaled.data_mut().iter_mut().for_each(|v| *v = (f64::from(*v) * scale) as f32);
