@@ -198,7 +198,8 @@ mod tests {
     #[test]
     fn poisson_scale_is_the_nll_minimiser() {
         let (r, m, w) = data();
-        let t = DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w), solve_scale: true, counts: false };
+        let t =
+            DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w), solve_scale: true, counts: false };
         let s = t.optimal_scale(&r, &m).expect("defined");
         let e = |s: f64| {
             let sc: Vec<f32> = r.iter().map(|x| s as f32 * x).collect();
@@ -213,7 +214,12 @@ mod tests {
         for term in [
             DataTerm::default(),
             DataTerm { loss: Loss::L2, weights: Some(w.clone()), solve_scale: true, counts: false },
-            DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(w.clone()), solve_scale: true, counts: false },
+            DataTerm {
+                loss: Loss::PoissonNll { floor: 1e-12 },
+                weights: Some(w.clone()),
+                solve_scale: true,
+                counts: false,
+            },
         ] {
             let g = term.evaluate(&r, &m, 1.0).expect("ok");
             // E*(I) = min_s E(s I), re-solving s at every perturbed I.

@@ -8,7 +8,7 @@
 //! 2. **Shape block.** Each step: forward render, data term with the closed-form scale ([`crate::loss`]),
 //!    adjoint (Proposition 1, `nlos_render`), plus `λ ·` the normal-smoothing regulariser
 //!    ([`crate::regularizer`]; λ set automatically at the first step of the block, against the data term
-//!    above its noise floor for a sensor fit, [`crate::sensor`]), per-vertex isotropic
+//!    above its noise floor for photon counts, [`crate::sensor`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
 //! 4. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
@@ -179,7 +179,8 @@ pub struct IterationRecord {
     pub time_s: f64,
     /// Shape steps of a fit to photon counts (a sensor fit, or [`crate::DataTerm::counts`]): the normalised
     /// noise floor of the data term ([`crate::SensorFit::noise_floor`], [`crate::DataTerm::noise_floor`]),
-    /// what `data` would be if the expected counts were exact. `data − noise_floor` is the misfit left; the regulariser weight is set against it.
+    /// what `data` would be if the expected counts were exact. `data − noise_floor` is the misfit left; the
+    /// regulariser weight is set against it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_floor: Option<f64>,
 }
@@ -526,8 +527,8 @@ fn surface_area(p: &[Vec3], t: &[[u32; 3]]) -> f64 {
 /// Loss pieces at the current state.
 struct Eval {
     data: f64,
-    /// The normalised noise floor of the sensor fit's data term ([`crate::SensorFit::noise_floor`]) when
-    /// asked for; 0 otherwise.
+    /// The normalised noise floor of the data term ([`crate::SensorFit::noise_floor`],
+    /// [`crate::DataTerm::noise_floor`]) when asked for and the data are counts; 0 otherwise.
     floor: f64,
     scale: f64,
     grad_vertices: Vec<Vec3>,
@@ -545,7 +546,7 @@ struct Fit<'a> {
     norm: f64,
 }
 
-/// The data term, its scale and gradients at the current state; with `want_floor`, also the sensor fit's
+/// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
 /// noise floor (for the automatic regulariser weight).
 fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
