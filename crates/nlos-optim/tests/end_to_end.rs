@@ -394,3 +394,36 @@ fn sensor_fit_recovers_shape_from_jittered_counts_with_background() {
         Err(OptimError::InvalidParameter { name: "data.weights", .. })
     ));
 }
+
+/// Regression (sensor scenario, 100 photons per histogram): the automatic smoothing weight was set against
+/// the whole data term, ~95 % of which is Poisson noise no surface can remove, and over-smoothed the fit
+/// (started from the true bunny, the data term rose while the regulariser fell). With counts, λ at a
+/// block's first step is `β·(E − E_floor)/R`: the same first evaluation with and without `counts` gives
+/// weights in the ratio `(E − E_floor)/E`, and the floor is most of `E` at a low photon budget.
+#[test]
+fn smoothing_weight_of_photon_counts_discounts_the_noise_floor() {
+    use nlos_transient::sensor::{PhotonBudget, SpadModel};
+    let clean = measurement(10);
+    let counts = SpadModel::ideal(PhotonBudget::PerMeasurement(30.0)).simulate(&clean, 7).unwrap();
+    let init = facing_wall(10, |x, y| truth_z(x, y) + 0.002);
+    let first = |counts_flag: bool| {
+        let mut p = small_params(out_dir("counts"));
+        p.out_dir = None;
+        p.reflectance = nlos_optim::Reflectance::default();
+        p.schedule.max_stages = 1;
+        p.schedule.max_blocks_per_stage = 1;
+        p.schedule.shape_iterations = 1;
+        p.data.counts = counts_flag;
+        let out = reconstruct_with(&counts, &init, &p, Hooks::default()).unwrap();
+        out.log.iterations[0].clone()
+    };
+    let (with, without) = (first(true), first(false));
+    assert_eq!(with.data, without.data, "same first evaluation");
+    assert!(without.noise_floor.is_none());
+    let floor = with.noise_floor.expect("floor logged");
+    println!("data {:.4}, noise floor {floor:.4}, λ {:.4e} vs {:.4e}", with.data, with.reg_weight, without.reg_weight);
+    assert!(floor > 0.5 * with.data && floor < with.data, "a near-true start at 30 photons: E mostly noise");
+    let want = (with.data - floor) / with.data;
+    let got = with.reg_weight / without.reg_weight;
+    assert!((got - want).abs() < 1e-9 * want.max(1.0), "λ ratio {got} vs (E − E_floor)/E = {want}");
+}
