@@ -398,7 +398,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         p.regulariser_ratio = x;
     }
     p.data.counts = match args.noise.as_str() {
-        "auto" => is_counts(measured.data()),
+        "auto" => nlos_transient::sensor::is_integer_counts(measured.data()),
         "counts" => true,
         "none" => false,
         other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
@@ -408,11 +408,6 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;
     Ok(p)
-}
-
-/// Whether a capture looks like photon counts: every value a non-negative integer (and not all zero).
-fn is_counts(data: &[f32]) -> bool {
-    data.iter().all(|&v| v >= 0.0 && v.fract() == 0.0) && data.iter().any(|&v| v > 0.0)
 }
 
 /// The initial surface: a volumetric reconstruction turned into a mesh, or a mesh file.

@@ -142,10 +142,17 @@ impl DataTerm {
     /// with `D` the half-deviance and `d` its expectation ([`crate::sensor::expected_half_deviance`]): for
     /// the Poisson loss, whose value is not zero at a perfect fit, `E − floor = D − Σ w d(μ)` is the misfit
     /// above the noise.
-    pub fn noise_floor(&self, rendered: &[f32], measured: &[f32], scale: f64) -> f64 {
+    ///
+    /// # Errors
+    /// As [`DataTerm::evaluate`]: buffers or weights of different lengths, invalid weights.
+    pub fn noise_floor(&self, rendered: &[f32], measured: &[f32], scale: f64) -> Result<f64> {
+        if measured.len() != rendered.len() {
+            return Err(OptimError::LengthMismatch { what: "measured", expected: rendered.len(), got: measured.len() });
+        }
+        self.validate(rendered.len())?;
         let w = |i: usize| self.weights.as_ref().map_or(1.0, |w| f64::from(w[i]));
-        let n = rendered.len().min(measured.len());
-        match self.loss {
+        let n = rendered.len();
+        Ok(match self.loss {
             Loss::L2 => (0..n).map(|i| 0.5 * w(i) * (scale * f64::from(rendered[i])).max(0.0)).sum(),
             Loss::PoissonNll { .. } => (0..n)
                 .map(|i| {
@@ -155,7 +162,7 @@ impl DataTerm {
                     w(i) * (crate::sensor::expected_half_deviance(mu) + c - c_ln_c)
                 })
                 .sum(),
-        }
+        })
     }
 
     /// A positive normaliser for the data term: `½ Σ w Ĩ²` for L2, `Σ w Ĩ` for Poisson — the loss of a zero
@@ -254,34 +261,17 @@ mod tests {
     fn noise_floor_is_the_mean_data_term_of_poisson_counts() {
         let (r, _, w) = data();
         let scale = 2.5;
-        let mut state = 0x0dd_ba11_cafe_f00du64;
-        let mut uniform = || {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
+        let mut rng = nlos_transient::sensor::Pcg32::new(11, 0);
         for loss in [Loss::L2, Loss::PoissonNll { floor: 1e-12 }] {
             let t = DataTerm { loss, weights: Some(w.clone()), solve_scale: false, counts: true };
             let scaled: Vec<f32> = r.iter().map(|x| scale as f32 * x).collect();
             let (mut sum, mut sum2, mut floor_sum) = (0.0, 0.0, 0.0);
             let draws = 2000;
             for _ in 0..draws {
-                let counts: Vec<f32> = scaled
-                    .iter()
-                    .map(|&mu| {
-                        let u = uniform();
-                        let (mut n, mut p) = (0u32, (-f64::from(mu)).exp());
-                        let mut cdf = p;
-                        while u > cdf && n < 1000 {
-                            n += 1;
-                            p *= f64::from(mu) / f64::from(n);
-                            cdf += p;
-                        }
-                        n as f32
-                    })
-                    .collect();
+                let counts: Vec<f32> = scaled.iter().map(|&mu| rng.poisson(f64::from(mu)) as f32).collect();
                 let (e, _) = t.loss.evaluate(&scaled, &counts, t.weights.as_deref()).expect("ok");
                 // The Poisson floor depends on the counts (its n − n ln n part): compare E − floor with 0.
-                let f = t.noise_floor(&r, &counts, scale);
+                let f = t.noise_floor(&r, &counts, scale).expect("floor");
                 let x = e - f;
                 sum += x;
                 sum2 += x * x;
@@ -294,6 +284,10 @@ mod tests {
         // L2's floor is ½ Σ w μ exactly.
         let t = DataTerm { weights: Some(w.clone()), ..DataTerm::default() };
         let want: f64 = r.iter().zip(&w).map(|(&x, &wi)| 0.5 * f64::from(wi) * scale * f64::from(x)).sum();
-        assert!((t.noise_floor(&r, &r, scale) - want).abs() < 1e-9 * want);
+        assert!((t.noise_floor(&r, &r, scale).expect("floor") - want).abs() < 1e-9 * want);
+        // Bad input is a typed error, not a panic.
+        assert!(matches!(t.noise_floor(&r, &r[1..], scale), Err(OptimError::LengthMismatch { .. })));
+        let short = DataTerm { weights: Some(w[1..].to_vec()), ..DataTerm::default() };
+        assert!(matches!(short.noise_floor(&r, &r, scale), Err(OptimError::LengthMismatch { .. })));
     }
 }

@@ -565,7 +565,7 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
         None => {
             let ev = params.data.evaluate(&rendered, measured, st.scale)?;
             if want_floor && params.data.counts {
-                floor = params.data.noise_floor(&rendered, measured, ev.scale) / norm;
+                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
             }
             ev
         }

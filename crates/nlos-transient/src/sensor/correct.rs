@@ -195,6 +195,12 @@ pub fn estimate_background(t: &Transient, window: BackgroundWindow) -> Result<Ba
     })
 }
 
+/// Whether every value is a non-negative integer: the capture looks like raw photon counts (what
+/// [`CountSummary::integer_counts`] reports and `nlos reconstruct --noise auto` detects).
+pub fn is_integer_counts(data: &[f32]) -> bool {
+    data.iter().all(|&v| v >= 0.0 && v.fract() == 0.0)
+}
+
 /// Photon counts of a capture, split into background and signal.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CountSummary {
@@ -226,7 +232,7 @@ pub fn count_summary(t: &Transient, window: BackgroundWindow) -> Result<CountSum
         background_total,
         signal_total,
         signal_per_measurement: signal_total / t.measurements() as f64,
-        integer_counts: t.data().iter().all(|&v| v >= 0.0 && v.fract() == 0.0),
+        integer_counts: is_integer_counts(t.data()),
         background,
     })
 }

@@ -76,7 +76,7 @@ mod tests;
 
 pub use correct::{
     BackgroundEstimate, BackgroundWindow, CountSummary, coates_correction, coates_histogram, count_summary,
-    estimate_background,
+    estimate_background, is_integer_counts,
 };
 pub use jitter::{BinKernel, JitterResponse};
 pub use likelihood::{PoissonNll, poisson_nll};
