@@ -67,6 +67,11 @@ pub(crate) struct Args {
     /// Keep every region above the threshold, not only the largest.
     #[arg(long)]
     all_regions: bool,
+    /// Hysteresis fraction (0–1) of the largest column maximum down to which the mask grows from its seed
+    /// (the settings for compact objects use 0.1). Lower keeps dim parts (a rabbit's ears) and more of
+    /// the albedo halo around the object; `nlos reconstruct --prune` deletes what the data do not support.
+    #[arg(long, value_name = "FRACTION")]
+    grow: Option<f32>,
     /// Smoothing passes over the depth map.
     #[arg(long, default_value_t = 0)]
     smooth: usize,
@@ -140,6 +145,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         largest_component: !args.all_regions,
         smoothing_iterations: args.smooth,
         target_edge_length: args.edge,
+        grow_threshold: args.grow.or(base.grow_threshold),
         ..base
     };
     let surface = volume_to_surface(&vol, &params).map_err(init_error)?;

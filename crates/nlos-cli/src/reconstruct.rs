@@ -117,6 +117,10 @@ pub(crate) struct Args {
     /// Keep boundary faces that no measurement can see (by default they are deleted before each remeshing).
     #[arg(long)]
     keep_unlit: bool,
+    /// Boundary pruning after every block: `off`, or the number of rounds (each deletes the boundary faces
+    /// whose deletion lowers the data term, then tests the faces it exposed; `nlos_optim::prune`).
+    #[arg(long, value_name = "off|ROUNDS", default_value = "off")]
+    prune: String,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -404,6 +408,13 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
     };
     p.remove_unlit_boundary_faces = !args.keep_unlit;
+    p.prune = match args.prune.as_str() {
+        "off" => None,
+        n => match n.parse::<u32>() {
+            Ok(rounds) if rounds > 0 => Some(nlos_optim::PruneParams { rounds, ..nlos_optim::PruneParams::default() }),
+            _ => return Err(bad(format!("--prune `{n}`: expected `off` or a number of rounds ≥ 1"))),
+        },
+    };
     p.boundary_depth_only = args.depth_only_boundary;
     p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;

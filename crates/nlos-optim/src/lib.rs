@@ -12,6 +12,7 @@
 //!   jitter response with a background level, `scale·J(I) + b` (set [`ReconstructParams::sensor`]);
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;
+//! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -33,6 +34,7 @@ pub mod adam;
 pub mod error;
 pub mod loss;
 pub mod params;
+pub mod prune;
 pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;
@@ -43,6 +45,7 @@ pub use error::{OptimError, Result};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};
+pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IterationRecord, Outcome, Progress, ProgressEvent,
     ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,

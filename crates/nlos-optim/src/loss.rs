@@ -133,6 +133,43 @@ impl DataTerm {
         Ok(DataEval { value, scale, d_rendered: d })
     }
 
+    /// The data term of one histogram at a fixed scale: `E(s·I; Ĩ)` over `rendered_row` and `measured_row`
+    /// (equal lengths), whose first value is value `offset` of the whole transient (for the weights). The
+    /// data term is the sum of these over the histograms; boundary pruning ([`crate::prune`]) compares them
+    /// with and without a face.
+    ///
+    /// # Errors
+    /// [`OptimError::LengthMismatch`] for rows of different lengths or weights that do not cover the row.
+    pub fn row_value(&self, rendered_row: &[f32], measured_row: &[f32], offset: usize, scale: f64) -> Result<f64> {
+        if measured_row.len() != rendered_row.len() {
+            return Err(OptimError::LengthMismatch {
+                what: "measured row",
+                expected: rendered_row.len(),
+                got: measured_row.len(),
+            });
+        }
+        let w: Option<&[f32]> = match &self.weights {
+            Some(w) => Some(w.get(offset..offset + rendered_row.len()).ok_or(OptimError::LengthMismatch {
+                what: "weights",
+                expected: offset + rendered_row.len(),
+                got: w.len(),
+            })?),
+            None => None,
+        };
+        let wt = |k: usize| w.map_or(1.0, |w| f64::from(w[k]));
+        let mut e = 0.0;
+        for (k, (&r, &m)) in rendered_row.iter().zip(measured_row).enumerate() {
+            let (mu, n) = (scale * f64::from(r), f64::from(m));
+            e += wt(k)
+                * match self.loss {
+                    Loss::L2 => 0.5 * (mu - n) * (mu - n),
+                    // The same clamp as `nlos_render::Loss::PoissonNll`, applied to the scaled rate.
+                    Loss::PoissonNll { floor } => mu - n * mu.max(f64::from(floor)).ln(),
+                };
+        }
+        Ok(e)
+    }
+
     /// The expected data term if the measurement were Poisson counts with means `μ = scale·rendered`
     /// (the part of the data term no surface can remove when the model is exact):
     /// ```text

@@ -9,6 +9,7 @@ use nlos_render::{DeterministicRule, RenderParams};
 use crate::adam::AdamParams;
 use crate::error::{OptimError, Result};
 use crate::loss::DataTerm;
+use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
 use crate::sensor::SensorFit;
 
@@ -148,6 +149,9 @@ pub struct ReconstructParams {
     /// Delete boundary faces that no measurement can see (facing away from every laser/sensor spot or
     /// outside the time window) before each remeshing (default true).
     pub remove_unlit_boundary_faces: bool,
+    /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
+    /// lowers the data term are deleted (default `None`: off).
+    pub prune: Option<PruneParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
     pub seed: u64,
     /// Rollbacks (non-finite loss, gradient or positions → restore the last good state, halve the step)
@@ -179,6 +183,7 @@ impl Default for ReconstructParams {
             collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),
             boundary_depth_only: false,
             remove_unlit_boundary_faces: true,
+            prune: None,
             seed: 0,
             max_rollbacks: 10,
             out_dir: None,
@@ -194,6 +199,9 @@ impl ReconstructParams {
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value: f64, reason| Err(OptimError::InvalidParameter { name, value, reason });
         let pos = |x: f64| x.is_finite() && x > 0.0;
+        if let Some(p) = &self.prune {
+            p.validate()?;
+        }
         let s = &self.schedule;
         if !pos(s.initial_resolution) {
             return bad("schedule.initial_resolution", s.initial_resolution, "must be finite and > 0");

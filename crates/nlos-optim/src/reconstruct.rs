@@ -11,7 +11,9 @@
 //!    above its noise floor for photon counts, [`crate::sensor`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
-//! 4. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
+//! 4. **Pruning** (optional, [`crate::ReconstructParams::prune`]): boundary faces whose deletion lowers the
+//!    data term are deleted ([`crate::prune`]).
+//! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
 //! **Collision-aware evolution** (El Topo, issue 7; Tsai et al. 2019, Sec. 5): within a shape block every
@@ -44,6 +46,7 @@ use serde::{Deserialize, Serialize};
 use crate::adam::{VectorAdam, VertexAdam};
 use crate::error::{OptimError, Result};
 use crate::params::{ReconstructParams, SamplingSchedule};
+use crate::prune::{PruneRecord, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
 
@@ -243,6 +246,8 @@ pub struct Outcome {
     /// One record per collision-aware evolution (per shape block; empty when
     /// [`ReconstructParams::collision`] is `None`).
     pub evolve: Vec<EvolveRecord>,
+    /// One record per boundary pruning (per block; empty when [`ReconstructParams::prune`] is `None`).
+    pub prune: Vec<PruneRecord>,
 }
 
 /// Everything needed to continue a run (written as the checkpoint).
@@ -273,6 +278,9 @@ struct State {
     /// Collision-aware evolution per block.
     #[serde(default)]
     evolve_log: Vec<EvolveRecord>,
+    /// Boundary pruning per block.
+    #[serde(default)]
+    prune_log: Vec<PruneRecord>,
 }
 
 /// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
@@ -383,6 +391,7 @@ pub fn reconstruct_with(
         log: RunLog::default(),
         max_stages_hint: params.schedule.max_stages,
         evolve_log: Vec::new(),
+        prune_log: Vec::new(),
     };
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
@@ -507,6 +516,29 @@ fn prepare_topology(
     st.positions = pos;
     st.triangles = tris;
     Ok(boundary)
+}
+
+/// Keeps the triangles flagged in `keep` and the vertices they use (renumbered in order), with their Adam
+/// moments.
+fn drop_faces(st: &mut State, keep: &[bool]) {
+    let mut new_index = vec![u32::MAX; st.positions.len()];
+    let mut old_of_new: Vec<u32> = Vec::new();
+    let mut triangles = Vec::with_capacity(st.triangles.len());
+    for (t, _) in st.triangles.iter().zip(keep).filter(|(_, k)| **k) {
+        let mut out = [0u32; 3];
+        for (o, &v) in out.iter_mut().zip(t) {
+            if new_index[v as usize] == u32::MAX {
+                new_index[v as usize] = old_of_new.len() as u32;
+                old_of_new.push(v);
+            }
+            *o = new_index[v as usize];
+        }
+        triangles.push(out);
+    }
+    let weights: Vec<[(u32, f32); 3]> = old_of_new.iter().map(|&v| [(v, 1.0), (v, 0.0), (v, 0.0)]).collect();
+    st.shape_adam = st.shape_adam.transfer(&weights);
+    st.positions = old_of_new.iter().map(|&v| st.positions[v as usize]).collect();
+    st.triangles = triangles;
 }
 
 /// Whether the mesh's triangles rebuild into a valid half-edge mesh (no non-manifold vertex or edge).
@@ -767,6 +799,31 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             }
         }
 
+        // ---- boundary pruning ----
+        if let Some(pp) = &params.prune {
+            let brdf = st.reflectance.brdf()?;
+            let mut rendered = brdf.forward(&renderer);
+            let (bins, scale) = (measured.bins(), st.scale);
+            let row_loss = |m: usize, row: &[f32]| -> Result<f64> {
+                let measured_row = &data[m * bins..(m + 1) * bins];
+                match &params.sensor {
+                    Some(sensor) => sensor.row_value(row, measured_row, background, scale),
+                    None => params.data.row_value(row, measured_row, m * bins, scale),
+                }
+            };
+            let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
+            if p.removed > 0 {
+                drop_faces(&mut st, &p.keep);
+            }
+            st.prune_log.push(PruneRecord {
+                stage: st.stage,
+                block: st.block_in_stage,
+                tested: p.tested,
+                removed: p.removed,
+                data_change: p.data_change / norm,
+            });
+        }
+
         // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
         st.blocks_done += 1;
         let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
@@ -806,6 +863,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 stage: st.stage,
                 blocks_done: st.blocks_done,
                 evolve: st.evolve_log.clone(),
+                prune: st.prune_log.clone(),
             });
         }
     }
@@ -823,6 +881,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         stage: st.stage,
         blocks_done: st.blocks_done,
         evolve: st.evolve_log.clone(),
+        prune: st.prune_log.clone(),
     })
 }
 

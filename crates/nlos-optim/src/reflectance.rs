@@ -133,6 +133,17 @@ impl ConcreteBrdf {
         }
     }
 
+    /// One triangle's share of the forward pass with this BRDF (`Renderer::forward_triangle`).
+    ///
+    /// # Errors
+    /// As `Renderer::forward_triangle`: a triangle index out of range.
+    pub fn forward_triangle(&self, r: &Renderer, triangle: usize) -> Result<Vec<nlos_render::RowSpan>> {
+        Ok(match self {
+            ConcreteBrdf::Lambertian(b) => r.forward_triangle(b, triangle)?,
+            ConcreteBrdf::Ggx(b) => r.forward_triangle(b, triangle)?,
+        })
+    }
+
     /// Adjoint pass with this BRDF.
     ///
     /// # Errors

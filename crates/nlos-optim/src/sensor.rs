@@ -270,6 +270,32 @@ impl SensorFit {
         Ok(DataEval { value, scale, d_rendered })
     }
 
+    /// The data term of one histogram at a fixed scale: `Σ_k μ_k − n_k + n_k ln(n_k/μ_k)` with
+    /// `μ = scale·J I + b` over `rendered_row` (one histogram of expected flux) and `counts_row`. The data
+    /// term of [`SensorFit::evaluate`] is the sum of these; boundary pruning ([`crate::prune`]) compares them
+    /// with and without a face.
+    ///
+    /// # Errors
+    /// [`OptimError::LengthMismatch`] for rows of different lengths, [`OptimError::Sensor`] for an empty row.
+    pub fn row_value(&self, rendered_row: &[f32], counts_row: &[f32], background: f64, scale: f64) -> Result<f64> {
+        if counts_row.len() != rendered_row.len() {
+            return Err(OptimError::LengthMismatch {
+                what: "measured row",
+                expected: rendered_row.len(),
+                got: counts_row.len(),
+            });
+        }
+        let a = self.jitter(rendered_row, rendered_row.len())?;
+        Ok(a.iter()
+            .zip(counts_row)
+            .map(|(&ak, &nk)| {
+                let n = f64::from(nk);
+                let mu = (scale * ak + background).max(MU_FLOOR);
+                mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 }
+            })
+            .sum())
+    }
+
     /// The expected value of the data term if the expected counts `μ = scale·J I + b` of `rendered` were
     /// exact, `Σ_k d(μ_k)` ([`expected_half_deviance`]): the part of the data term that no surface can
     /// remove (module docs, "Noise floor").

@@ -164,4 +164,4 @@ pub use brdf::RenderBrdf;
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;
-pub use render::{DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, Sampling, Visibility};
+pub use render::{DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, Visibility};

@@ -109,6 +109,18 @@ pub struct RenderParams {
     pub two_sided: bool,
 }
 
+/// The non-zero part of one measurement's histogram ([`Renderer::forward_triangle`]): bins
+/// `first_bin .. first_bin + values.len()` of measurement `measurement`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowSpan {
+    /// Measurement (row of the transient).
+    pub measurement: usize,
+    /// First bin of `values`.
+    pub first_bin: usize,
+    /// The histogram values from `first_bin` on (the first and last are non-zero).
+    pub values: Vec<f32>,
+}
+
 /// dE/d(vertex positions) and dE/d(BRDF parameters) from the adjoint pass.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gradient {
@@ -439,6 +451,50 @@ impl Renderer {
             }
         });
         data
+    }
+
+    /// The forward pass of one mesh triangle: its share of [`Renderer::forward`] (same samples, kernel and
+    /// visibility; summed over every triangle it equals the forward pass up to f32 rounding). Sparse: one
+    /// [`RowSpan`] per measurement the triangle reaches, holding the bins from its first to its last
+    /// non-zero one. Used to ask what the loss would be without a face (boundary pruning in `nlos-optim`).
+    ///
+    /// Degenerate triangles (skipped by the forward pass) give no rows.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidParameter`] when `triangle` is not a triangle of the mesh.
+    pub fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
+        let nt = self.tris.v0.len();
+        if triangle >= nt {
+            return Err(RenderError::InvalidParameter {
+                name: "triangle",
+                value: triangle as f64,
+                reason: "not a triangle of the renderer's mesh (0 ≤ triangle < number of triangles)",
+            });
+        }
+        // The cached visibility is stored in the block order: the triangle's storage slot.
+        let slot = self.tris.soa.order.iter().position(|&o| o as usize == triangle).unwrap_or(0);
+        let bins = self.kernel.bins();
+        let mut hist = vec![0.0f32; bins];
+        let mut rows = Vec::new();
+        for m in 0..self.wall.l.len() {
+            let fr = self.frame(m);
+            let Some(sign) = self.orientation(triangle, &fr) else { continue };
+            let vis = match (&self.params.visibility, &self.cache) {
+                (Visibility::Cached { .. }, Some(c)) => f32::from(c[m * nt + slot]) * (1.0 / 255.0),
+                _ => 1.0,
+            };
+            if vis == 0.0 {
+                continue;
+            }
+            hist.fill(0.0);
+            self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist);
+            if let (Some(first), Some(last)) =
+                (hist.iter().position(|x| *x != 0.0), hist.iter().rposition(|x| *x != 0.0))
+            {
+                rows.push(RowSpan { measurement: m, first_bin: first, values: hist[first..=last].to_vec() });
+            }
+        }
+        Ok(rows)
     }
 
     /// [`Renderer::forward`] wrapped as a [`Transient`] with the renderer's scan and time axis.

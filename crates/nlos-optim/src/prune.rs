@@ -1,0 +1,312 @@
+//! Loss-driven boundary pruning: delete the boundary faces the measurement says are not there.
+//!
+//! The shape steps move vertices; they cannot change where the surface ends. An initial surface taken from a
+//! blurred volume (LCT) ends too far out where the object's silhouette recedes (the albedo halo, a rim at
+//! the wrong depth), and gradient steps only bend such a rim, never remove it. Pruning asks the data term
+//! directly: for a boundary face `f` with rendered share `I_f` (`nlos_render::Renderer::forward_triangle`,
+//! same samples, kernel and cached visibility as the forward pass, so `Σ_f I_f = I`),
+//! ```text
+//! ΔE_f = E(I − I_f) − E(I)      (scale s held at the block's value)
+//! ```
+//! is the exact change of the data term if `f` were deleted. For the L2 term it is
+//! `s⟨s I − Ĩ, I_f⟩ · (−1) + ½ s² ‖I_f‖²`: negative exactly when the face adds light where the rendering
+//! already exceeds the measurement by more than half the face's own contribution. A face of the true
+//! surface has `E[ΔE_f] = +½ s²‖I_f‖² > 0` under zero-mean noise, a face where nothing is has
+//! `E[ΔE_f] = −½ s²‖I_f‖²`, so the sign test is unbiased and needs no threshold; faces that receive no light
+//! have `ΔE_f = 0` and are left to the unlit-face rule.
+//!
+//! **Margin.** Deletions interact (faces overlap in time), and with noise the sign is uncertain for faces
+//! whose share is small, so a face goes only when `ΔE_f < −κ · ½ c_f`, with `c_f = ΔE_f(+) + ΔE_f(−)` the
+//! second difference of the data term along the face's share (`E(I + I_f) + E(I − I_f) − 2E(I)`, which is
+//! `s²‖I_f‖²` for L2): with κ = ½, the rendering must exceed the measurement, in the face's bins, by ¾ of the
+//! face's own contribution. A face nothing supports has `ΔE_f = −½ c_f` and still goes.
+//!
+//! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted
+//! greedily from the most negative, each re-tested against the rendering left by the deletions before it
+//! (their shares overlap in time and measurement). A deletion that would pinch a vertex into two fans (a
+//! non-manifold "bow tie") is skipped. Later rounds test the faces the deletions exposed. At most
+//! [`PruneParams::max_fraction`] of the faces go per call.
+
+use std::collections::HashMap;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{OptimError, Result};
+use crate::reflectance::ConcreteBrdf;
+use nlos_render::{Renderer, RowSpan};
+
+/// Settings of boundary pruning ([`crate::ReconstructParams::prune`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PruneParams {
+    /// Rounds per call: each tests the faces on the boundary the previous round left (≥ 1; default 3).
+    pub rounds: u32,
+    /// Largest share of the faces deleted per call, in (0, 1] (default 0.2): a guard against a data term
+    /// that is wrong everywhere (a bad scale) eating the mesh in one block.
+    pub max_fraction: f64,
+    /// Margin κ ≥ 0 of the test (module docs): a face goes when `ΔE_f < −κ · ½ c_f`, `c_f` the data term's
+    /// second difference along the face's share. 0 is the plain sign test; 1 deletes only faces that
+    /// nothing in the measurement supports. Default 0.5.
+    pub margin: f64,
+}
+
+impl Default for PruneParams {
+    fn default() -> Self {
+        Self { rounds: 3, max_fraction: 0.2, margin: 0.5 }
+    }
+}
+
+impl PruneParams {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] for `rounds = 0` or `max_fraction` outside (0, 1].
+    pub fn validate(&self) -> Result<()> {
+        if self.rounds == 0 {
+            return Err(OptimError::InvalidParameter {
+                name: "prune.rounds",
+                value: 0.0,
+                reason: "pruning needs at least one round (or switch pruning off)",
+            });
+        }
+        if !(self.max_fraction > 0.0 && self.max_fraction <= 1.0) {
+            return Err(OptimError::InvalidParameter {
+                name: "prune.max_fraction",
+                value: self.max_fraction,
+                reason: "the share of faces a pruning may delete lies in (0, 1]",
+            });
+        }
+        if !(self.margin >= 0.0 && self.margin.is_finite()) {
+            return Err(OptimError::InvalidParameter {
+                name: "prune.margin",
+                value: self.margin,
+                reason: "the margin κ is finite and ≥ 0 (0: the plain sign test)",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// What one call of [`prune_boundary`] did (one per block in the run's checkpoint).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PruneRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Face tests made (a face tested in several rounds counts each time).
+    pub tested: usize,
+    /// Faces deleted.
+    pub removed: usize,
+    /// Change of the (unnormalised) data term from the deletions, `Σ ΔE_f` (≤ 0).
+    pub data_change: f64,
+}
+
+/// The result of [`prune_boundary`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pruned {
+    /// Per input triangle: kept (`true`) or deleted.
+    pub keep: Vec<bool>,
+    /// Face tests made.
+    pub tested: usize,
+    /// Faces deleted.
+    pub removed: usize,
+    /// `Σ ΔE_f` of the deletions (unnormalised data term).
+    pub data_change: f64,
+}
+
+/// Deletes boundary faces whose removal lowers the data term (module docs).
+///
+/// `renderer` holds the mesh `triangles` at the current positions, `rendered` its forward pass with `brdf`
+/// (measurement-major, `bins` per histogram; updated in place: the deleted faces' shares are subtracted),
+/// and `row_loss(m, row)` the data term of histogram `m` for the rendered histogram `row` at the block's
+/// scale (`DataTerm::row_value`, `SensorFit::row_value`).
+///
+/// # Errors
+/// [`OptimError::InvalidParameter`] for invalid `params`, [`OptimError::LengthMismatch`] when `rendered`
+/// is not measurements × `bins` long, and the errors of `row_loss` and of the renderer.
+pub fn prune_boundary(
+    triangles: &[[u32; 3]],
+    renderer: &Renderer,
+    brdf: &ConcreteBrdf,
+    rendered: &mut [f32],
+    bins: usize,
+    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    params: &PruneParams,
+) -> Result<Pruned> {
+    params.validate()?;
+    let rows = renderer.scan().measurements();
+    if bins == 0 || rendered.len() != rows * bins {
+        return Err(OptimError::LengthMismatch { what: "rendered", expected: rows * bins, got: rendered.len() });
+    }
+    let nt = triangles.len();
+    let budget = ((nt as f64 * params.max_fraction).floor() as usize).min(nt.saturating_sub(1));
+    let mut keep = vec![true; nt];
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(nt * 2);
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let n_vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
+    let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    for (f, t) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            *edges.entry(key(t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+            vertex_faces[t[k] as usize].push(f);
+        }
+    }
+    // The data term of every histogram now (updated as faces go).
+    let mut base: Vec<f64> =
+        rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
+    let (mut tested, mut removed, mut change) = (0usize, 0usize, 0.0f64);
+
+    for _ in 0..params.rounds {
+        let candidates: Vec<usize> = (0..nt)
+            .filter(|&f| {
+                let t = triangles[f];
+                keep[f] && (0..3).any(|k| edges.get(&key(t[k], t[(k + 1) % 3])) == Some(&1))
+            })
+            .collect();
+        if candidates.is_empty() || removed >= budget {
+            break;
+        }
+        tested += candidates.len();
+        let snapshot: &[f32] = rendered;
+        let mut scored: Vec<(f64, usize, Vec<RowSpan>)> = candidates
+            .par_iter()
+            .map(|&f| {
+                let spans = brdf.forward_triangle(renderer, f)?;
+                let (d, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin)?;
+                Ok((d, f, spans))
+            })
+            .collect::<Result<_>>()?;
+        scored.retain(|(d, _, _)| *d < 0.0);
+        scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let before = removed;
+        for (_, f, spans) in scored {
+            if removed >= budget {
+                break;
+            }
+            // Re-test against the rendering the deletions so far have left.
+            let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin)?;
+            if !(test < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
+                continue;
+            }
+            for s in &spans {
+                let row = &mut rendered[s.measurement * bins..(s.measurement + 1) * bins];
+                for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
+                    // Guard: f32 cancellation can leave −ε where the face was the only light.
+                    *x = (*x - v).max(0.0);
+                }
+                base[s.measurement] = row_loss(s.measurement, row)?;
+            }
+            keep[f] = false;
+            let t = triangles[f];
+            for k in 0..3 {
+                if let Some(c) = edges.get_mut(&key(t[k], t[(k + 1) % 3])) {
+                    *c -= 1;
+                }
+            }
+            removed += 1;
+            change += d;
+        }
+        if removed == before {
+            break;
+        }
+    }
+    Ok(Pruned { keep, tested, removed, data_change: change })
+}
+
+/// `E(I − I_f) − E(I)` minus the margin `−κ·½ c_f` (module docs) over the histograms the face reaches: the
+/// face goes when this is negative.
+fn delta(
+    spans: &[RowSpan],
+    rendered: &[f32],
+    base: &[f64],
+    bins: usize,
+    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    margin: f64,
+) -> Result<(f64, f64)> {
+    let mut row = vec![0.0f32; bins];
+    let (mut minus, mut plus) = (0.0, 0.0);
+    for s in spans {
+        let m = s.measurement;
+        let src = &rendered[m * bins..(m + 1) * bins];
+        row.copy_from_slice(src);
+        for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
+            *x = (*x - v).max(0.0);
+        }
+        minus += row_loss(m, &row)? - base[m];
+        if margin > 0.0 {
+            row.copy_from_slice(src);
+            for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
+                *x += v;
+            }
+            plus += row_loss(m, &row)? - base[m];
+        }
+    }
+    // c_f = ΔE(+) + ΔE(−): the data term's curvature along the face's share (s²‖I_f‖² for L2).
+    Ok((minus + margin * 0.5 * (minus + plus), minus))
+}
+
+/// Whether deleting face `f` leaves one of its vertices with two separate fans of faces (a vertex where
+/// two boundary loops touch: not a manifold mesh).
+fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_faces: &[Vec<usize>]) -> bool {
+    triangles[f].iter().any(|&v| {
+        let fan: Vec<usize> = vertex_faces[v as usize].iter().copied().filter(|&g| g != f && keep[g]).collect();
+        if fan.len() < 2 {
+            return false;
+        }
+        // Connected components of the fan: two faces are adjacent when they share an edge at v.
+        let others = |g: usize| triangles[g].into_iter().filter(move |&w| w != v);
+        let mut component = vec![usize::MAX; fan.len()];
+        let mut count = 0;
+        for start in 0..fan.len() {
+            if component[start] != usize::MAX {
+                continue;
+            }
+            component[start] = count;
+            let mut stack = vec![start];
+            while let Some(i) = stack.pop() {
+                for j in 0..fan.len() {
+                    if component[j] == usize::MAX && others(fan[i]).any(|w| others(fan[j]).any(|u| u == w)) {
+                        component[j] = count;
+                        stack.push(j);
+                    }
+                }
+            }
+            count += 1;
+        }
+        count > 1
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fan of 4 triangles around vertex 0 (a closed-off square cut into 4) plus one more.
+    fn square() -> Vec<[u32; 3]> {
+        // 1---2
+        // | \ |     centre 0, corners 1..4
+        vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]]
+    }
+
+    #[test]
+    fn pinching_is_detected_at_a_vertex_between_two_fans() {
+        let t = square();
+        let vf: Vec<Vec<usize>> = (0..5).map(|v| (0..4).filter(|&f| t[f].contains(&v)).collect()).collect();
+        // Full fan: deleting any face opens it, no pinch.
+        assert!(!(0..4).any(|f| pinches(f, &t, &[true; 4], &vf)));
+        // With face 0 gone, deleting face 2 (opposite) would leave faces 1 and 3 touching only at 0.
+        let keep = [false, true, true, true];
+        assert!(pinches(2, &t, &keep, &vf));
+        assert!(!pinches(1, &t, &keep, &vf) && !pinches(3, &t, &keep, &vf));
+    }
+
+    #[test]
+    fn params_are_validated() {
+        assert!(PruneParams::default().validate().is_ok());
+        assert!(PruneParams { rounds: 0, ..PruneParams::default() }.validate().is_err());
+        for f in [0.0, -0.1, 1.5, f64::NAN] {
+            assert!(PruneParams { max_fraction: f, ..PruneParams::default() }.validate().is_err());
+        }
+    }
+}
