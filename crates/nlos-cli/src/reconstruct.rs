@@ -121,6 +121,10 @@ pub(crate) struct Args {
     /// whose deletion lowers the data term, then tests the faces it exposed; `nlos_optim::prune`).
     #[arg(long, value_name = "off|ROUNDS", default_value = "off")]
     prune: String,
+    /// Boundary growth after every block (after pruning): faces across the boundary edges are added where
+    /// they lower the data term (`nlos_optim::grow`).
+    #[arg(long)]
+    grow: bool,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -408,6 +412,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
     };
     p.remove_unlit_boundary_faces = !args.keep_unlit;
+    p.grow = args.grow.then(nlos_optim::GrowParams::default);
     p.prune = match args.prune.as_str() {
         "off" => None,
         n => match n.parse::<u32>() {

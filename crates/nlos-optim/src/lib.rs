@@ -13,6 +13,7 @@
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;
 //! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
+//! - [`grow`]: loss-driven boundary growth — faces across boundary edges are added where they lower it;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -32,6 +33,7 @@
 
 pub mod adam;
 pub mod error;
+pub mod grow;
 pub mod loss;
 pub mod params;
 pub mod prune;
@@ -42,6 +44,7 @@ pub mod sensor;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
 pub use error::{OptimError, Result};
+pub use grow::{GrowParams, GrowRecord, Grown, grow_boundary};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};

@@ -8,6 +8,7 @@ use nlos_render::{DeterministicRule, RenderParams};
 
 use crate::adam::AdamParams;
 use crate::error::{OptimError, Result};
+use crate::grow::GrowParams;
 use crate::loss::DataTerm;
 use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
@@ -152,6 +153,9 @@ pub struct ReconstructParams {
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
     /// lowers the data term are deleted (default `None`: off).
     pub prune: Option<PruneParams>,
+    /// Loss-driven boundary growth after every block, after pruning ([`crate::grow`]): faces across boundary
+    /// edges are added where they lower the data term (default `None`: off).
+    pub grow: Option<GrowParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
     pub seed: u64,
     /// Rollbacks (non-finite loss, gradient or positions → restore the last good state, halve the step)
@@ -184,6 +188,7 @@ impl Default for ReconstructParams {
             boundary_depth_only: false,
             remove_unlit_boundary_faces: true,
             prune: None,
+            grow: None,
             seed: 0,
             max_rollbacks: 10,
             out_dir: None,
@@ -201,6 +206,9 @@ impl ReconstructParams {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         if let Some(p) = &self.prune {
             p.validate()?;
+        }
+        if let Some(g) = &self.grow {
+            g.validate()?;
         }
         let s = &self.schedule;
         if !pos(s.initial_resolution) {

@@ -173,7 +173,7 @@ pub fn prune_boundary(
             .par_iter()
             .map(|&f| {
                 let spans = brdf.forward_triangle(renderer, f)?;
-                let (d, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin)?;
+                let (d, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin, false)?;
                 Ok((d, f, spans))
             })
             .collect::<Result<_>>()?;
@@ -185,7 +185,7 @@ pub fn prune_boundary(
                 break;
             }
             // Re-test against the rendering the deletions so far have left.
-            let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin)?;
+            let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin, false)?;
             if !(test < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
@@ -214,27 +214,32 @@ pub fn prune_boundary(
     Ok(Pruned { keep, tested, removed, data_change: change })
 }
 
-/// `E(I − I_f) − E(I)` minus the margin `−κ·½ c_f` (module docs) over the histograms the face reaches: the
-/// face goes when this is negative.
-fn delta(
+/// The test value and the change of the data term of deleting (`add` false: `ΔE = E(I − I_f) − E(I)`) or
+/// adding (`add` true: `E(I + I_f) − E(I)`) a face with share `spans`, over the histograms it reaches; the
+/// test value is `ΔE + κ · ½ c_f` (module docs) and the move is made when it is negative.
+pub(crate) fn delta(
     spans: &[RowSpan],
     rendered: &[f32],
     base: &[f64],
     bins: usize,
     row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
     margin: f64,
+    add: bool,
 ) -> Result<(f64, f64)> {
     let mut row = vec![0.0f32; bins];
     let (mut minus, mut plus) = (0.0, 0.0);
     for s in spans {
         let m = s.measurement;
         let src = &rendered[m * bins..(m + 1) * bins];
-        row.copy_from_slice(src);
-        for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
-            *x = (*x - v).max(0.0);
+        if !add || margin > 0.0 {
+            row.copy_from_slice(src);
+            for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
+                // Guard: f32 cancellation can leave −ε where the face was the only light.
+                *x = (*x - v).max(0.0);
+            }
+            minus += row_loss(m, &row)? - base[m];
         }
-        minus += row_loss(m, &row)? - base[m];
-        if margin > 0.0 {
+        if add || margin > 0.0 {
             row.copy_from_slice(src);
             for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
                 *x += v;
@@ -243,7 +248,8 @@ fn delta(
         }
     }
     // c_f = ΔE(+) + ΔE(−): the data term's curvature along the face's share (s²‖I_f‖² for L2).
-    Ok((minus + margin * 0.5 * (minus + plus), minus))
+    let change = if add { plus } else { minus };
+    Ok((change + margin * 0.5 * (minus + plus), change))
 }
 
 /// Whether deleting face `f` leaves one of its vertices with two separate fans of faces (a vertex where

@@ -11,8 +11,9 @@
 //!    above its noise floor for photon counts, [`crate::sensor`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
-//! 4. **Pruning** (optional, [`crate::ReconstructParams::prune`]): boundary faces whose deletion lowers the
-//!    data term are deleted ([`crate::prune`]).
+//! 4. **Pruning and growth** (optional, [`crate::ReconstructParams::prune`], [`crate::ReconstructParams::grow`]):
+//!    boundary faces whose deletion lowers the data term are deleted ([`crate::prune`]), then faces across
+//!    the boundary edges are added where they lower it ([`crate::grow`]).
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
@@ -45,6 +46,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::adam::{VectorAdam, VertexAdam};
 use crate::error::{OptimError, Result};
+use crate::grow::{GrowRecord, grow_boundary};
 use crate::params::{ReconstructParams, SamplingSchedule};
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::reflectance::Reflectance;
@@ -248,6 +250,8 @@ pub struct Outcome {
     pub evolve: Vec<EvolveRecord>,
     /// One record per boundary pruning (per block; empty when [`ReconstructParams::prune`] is `None`).
     pub prune: Vec<PruneRecord>,
+    /// One record per boundary growth (per block; empty when [`ReconstructParams::grow`] is `None`).
+    pub grow: Vec<GrowRecord>,
 }
 
 /// Everything needed to continue a run (written as the checkpoint).
@@ -281,6 +285,9 @@ struct State {
     /// Boundary pruning per block.
     #[serde(default)]
     prune_log: Vec<PruneRecord>,
+    /// Boundary growth per block.
+    #[serde(default)]
+    grow_log: Vec<GrowRecord>,
 }
 
 /// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
@@ -392,6 +399,7 @@ pub fn reconstruct_with(
         max_stages_hint: params.schedule.max_stages,
         evolve_log: Vec::new(),
         prune_log: Vec::new(),
+        grow_log: Vec::new(),
     };
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
@@ -799,8 +807,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             }
         }
 
-        // ---- boundary pruning ----
-        if let Some(pp) = &params.prune {
+        // ---- boundary pruning and growth ----
+        if params.prune.is_some() || params.grow.is_some() {
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
@@ -811,17 +819,48 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     None => params.data.row_value(row, measured_row, m * bins, scale),
                 }
             };
-            let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
-            if p.removed > 0 {
-                drop_faces(&mut st, &p.keep);
+            if let Some(pp) = &params.prune {
+                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
+                if p.removed > 0 {
+                    drop_faces(&mut st, &p.keep);
+                }
+                st.prune_log.push(PruneRecord {
+                    stage: st.stage,
+                    block: st.block_in_stage,
+                    tested: p.tested,
+                    removed: p.removed,
+                    data_change: p.data_change / norm,
+                });
             }
-            st.prune_log.push(PruneRecord {
-                stage: st.stage,
-                block: st.block_in_stage,
-                tested: p.tested,
-                removed: p.removed,
-                data_change: p.data_change / norm,
-            });
+            if let Some(gp) = &params.grow {
+                let g = grow_boundary(
+                    &st.positions,
+                    &st.triangles,
+                    measured.scan(),
+                    measured.time(),
+                    *renderer.params(),
+                    &brdf,
+                    &mut rendered,
+                    bins,
+                    &row_loss,
+                    gp,
+                )?;
+                let n_old = st.positions.len() as u32;
+                let weights: Vec<[(u32, f32); 3]> = (0..n_old)
+                    .map(|v| [(v, 1.0), (v, 0.0), (v, 0.0)])
+                    .chain(g.positions.iter().map(|_| [(u32::MAX, 0.0); 3]))
+                    .collect();
+                st.shape_adam = st.shape_adam.transfer(&weights);
+                st.positions.extend(&g.positions);
+                st.triangles.extend(&g.triangles);
+                st.grow_log.push(GrowRecord {
+                    stage: st.stage,
+                    block: st.block_in_stage,
+                    edges: g.edges,
+                    added: g.triangles.len(),
+                    data_change: g.data_change / norm,
+                });
+            }
         }
 
         // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
@@ -864,6 +903,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 blocks_done: st.blocks_done,
                 evolve: st.evolve_log.clone(),
                 prune: st.prune_log.clone(),
+                grow: st.grow_log.clone(),
             });
         }
     }
@@ -882,6 +922,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         blocks_done: st.blocks_done,
         evolve: st.evolve_log.clone(),
         prune: st.prune_log.clone(),
+        grow: st.grow_log.clone(),
     })
 }
 

@@ -1,12 +1,15 @@
-//! Boundary pruning (`nlos_optim::prune`): on a surface that extends past the true object, the faces where
-//! nothing is are deleted and the true ones kept; on the true surface nothing goes; the reported data change
-//! is the exact change of the data term; the result is a manifold mesh.
+//! Boundary pruning and growth (`nlos_optim::prune`, `nlos_optim::grow`): on a surface that extends past
+//! the true object, the faces where nothing is are deleted and the true ones kept; on a surface that stops
+//! short of it, faces are added where it continues; on the true surface nothing changes; the reported data
+//! changes are the exact changes of the data term; the results are manifold meshes.
 #![allow(clippy::unwrap_used)]
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{ConcreteBrdf, DataTerm, Loss, PruneParams, SensorBackground, SensorFit, prune_boundary};
+use nlos_optim::{
+    ConcreteBrdf, DataTerm, GrowParams, Loss, PruneParams, SensorBackground, SensorFit, grow_boundary, prune_boundary,
+};
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::sensor::BinKernel;
 use nlos_transient::{PointSet, Scan, TimeAxis};
@@ -155,4 +158,65 @@ fn row_values_sum_to_the_data_terms() {
     assert!(DataTerm::default().row_value(&rendered[..5], &measured[..4], 0, 1.0).is_err());
     let weighted = DataTerm { weights: Some(vec![1.0; 10]), ..DataTerm::default() };
     assert!(weighted.row_value(&rendered[..5], &measured[..5], 8, 1.0).is_err());
+}
+
+/// Grows `init_half` cells (a centred part of the 4-cell truth) against the truth's rendering.
+fn grow_run(init_half: i32, params: &GrowParams) -> (Vec<Vec3>, Vec<[u32; 3]>, nlos_optim::Grown, f64, f64) {
+    let (scan, time, rp) = setup();
+    let (tp, tt) = patch(4);
+    let measured = Renderer::new(&tp, &tt, &scan, &time, rp).unwrap().forward(&Lambertian::new(1.0f32).unwrap());
+    let (p, t) = patch(init_half);
+    let b = brdf();
+    let mut rendered = b.forward(&Renderer::new(&p, &t, &scan, &time, rp).unwrap());
+    let bins = time.bins;
+    let term = DataTerm::default();
+    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0);
+    let total = |rendered: &[f32]| -> f64 {
+        (0..scan.measurements()).map(|m| row_loss(m, &rendered[m * bins..(m + 1) * bins]).unwrap()).sum()
+    };
+    let before = total(&rendered);
+    let grown = grow_boundary(&p, &t, &scan, &time, rp, &b, &mut rendered, bins, &row_loss, params).unwrap();
+    let after = total(&rendered);
+    (p, t, grown, before, after)
+}
+
+#[test]
+fn growth_adds_faces_where_the_object_continues() {
+    // Init: the central 6 × 6 cells of the 8 × 8-cell truth.
+    let (p, t, grown, before, after) = grow_run(3, &GrowParams::default());
+    assert!(grown.edges > 0);
+    assert!(!grown.triangles.is_empty(), "nothing grown");
+    assert!(after < before);
+    assert!((grown.data_change - (after - before)).abs() <= 1e-6 * before);
+    // The new vertices continue the plane (the flat proposal wins) and stay within the truth's extent.
+    for q in &grown.positions {
+        assert!((q.z - z(q.x, q.y)).abs() < 2e-3, "new vertex {q} off the plane");
+        assert!(q.x.abs() <= 4.0 * CELL + 1e-3 && q.y.abs() <= 4.0 * CELL + 1e-3, "new vertex {q} outside");
+    }
+    // A manifold mesh facing the wall.
+    let mut all = p.clone();
+    all.extend(&grown.positions);
+    let mut tris = t.clone();
+    tris.extend(&grown.triangles);
+    let mesh = SurfaceMesh::from_triangles(&all, &tris).unwrap();
+    for f in mesh.faces() {
+        let [a, b, c] = mesh.face_points(f);
+        assert!((b - a).cross(c - a).z < 0.0, "a face turned away from the wall");
+    }
+}
+
+#[test]
+fn nothing_grows_beyond_the_object() {
+    let (_, _, grown, before, after) = grow_run(4, &GrowParams::default());
+    assert!(grown.edges > 0);
+    assert!(grown.triangles.is_empty(), "{} faces grown where nothing is", grown.triangles.len());
+    assert_eq!(before, after);
+}
+
+#[test]
+fn grow_params_are_validated() {
+    assert!(GrowParams::default().validate().is_ok());
+    assert!(GrowParams { angles: vec![], ..GrowParams::default() }.validate().is_err());
+    assert!(GrowParams { angles: vec![95.0], ..GrowParams::default() }.validate().is_err());
+    assert!(GrowParams { margin: -1.0, ..GrowParams::default() }.validate().is_err());
 }
