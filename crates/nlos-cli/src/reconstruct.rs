@@ -125,6 +125,12 @@ pub(crate) struct Args {
     /// they lower the data term (`nlos_optim::grow`).
     #[arg(long)]
     grow: bool,
+    /// Margin κ of the growth test (a quad is added when ΔE⁺ < −κ·½c; default 0.5).
+    #[arg(long, value_name = "KAPPA", default_value_t = 0.5)]
+    grow_margin: f64,
+    /// Angles (degrees, comma-separated) by which growth proposals turn away from the wall (default 0,30,60).
+    #[arg(long, value_name = "DEG,...", default_value = "0,30,60")]
+    grow_angles: String,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -412,7 +418,13 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
     };
     p.remove_unlit_boundary_faces = !args.keep_unlit;
-    p.grow = args.grow.then(nlos_optim::GrowParams::default);
+    let angles = args
+        .grow_angles
+        .split(',')
+        .map(|a| a.trim().parse::<f64>())
+        .collect::<Result<Vec<f64>, _>>()
+        .map_err(|e| bad(format!("--grow-angles `{}`: {e}", args.grow_angles)))?;
+    p.grow = args.grow.then(|| nlos_optim::GrowParams { angles, margin: args.grow_margin });
     p.prune = match args.prune.as_str() {
         "off" => None,
         n => match n.parse::<u32>() {

@@ -2,25 +2,29 @@
 //!
 //! The counterpart of [`crate::prune`]. An initial surface from a thresholded volume stops short where the
 //! object is dim (grazing flanks, a receding rim), and neither the shape steps (which move vertices) nor
-//! the remeshing (which keeps the boundary where it is) can extend it. For every boundary edge `ab` of a
-//! face `abc`, growth proposes a new triangle `b a p` across it: `p` lies one triangle height `h = |ab|·√3/2`
-//! from the edge's midpoint, away from `c` in the face's plane, turned by θ ∈ [`GrowParams::angles`] about
-//! the edge away from the wall (a silhouette recedes: the surface turns parallel to the line of sight). The
-//! proposal with the lowest test value is kept for the edge when
+//! the remeshing (which keeps the boundary where it is) can extend it. Growth proposes a strip one triangle
+//! height wide around the boundary: every boundary vertex `v` gets a new vertex `p_v` at
+//! `v + h (cos θ · o_v + sin θ · a_v)`, with `o_v` the mean outward direction (in the faces' planes,
+//! perpendicular to its boundary edges), `a_v` the side of the surface away from the wall, `h = ℓ·√3/2`
+//! for the mean boundary edge length `ℓ`, and θ ∈ [`GrowParams::angles`] (a silhouette recedes: the surface
+//! turns parallel to the line of sight). Every boundary edge `a → b` proposes the quad `a b p_b p_a` (two
+//! triangles, `b a p_a` and `b p_a p_b`, oriented like the mesh) at each angle, and keeps its best one when
 //! ```text
-//! ΔE⁺ = E(I + I_new) − E(I) < −κ · ½ c      (c = ΔE⁺ + ΔE⁻, the second difference; crate::prune)
+//! ΔE⁺ = E(I + I_quad) − E(I) < −κ · ½ c      (c = ΔE⁺ + ΔE⁻, the second difference; crate::prune)
 //! ```
-//! i.e. when the measurement holds light the rendering lacks, in the new face's bins, by more than
-//! `(1 + κ)/2` of the face's own share. Proposals are rendered without occlusion (they lie beyond the
-//! mesh's boundary), with the block's samples and kernel. Accepted proposals are added greedily from the
-//! lowest test value, each re-tested against the rendering the additions before it have left, and at most
-//! one new face per boundary vertex per call (neighbouring proposals would overlap at a concave corner).
+//! i.e. when the measurement holds light the rendering lacks, in the quad's bins, by more than `(1 + κ)/2`
+//! of the quad's own share. Proposals are rendered without occlusion (they lie beyond the mesh's boundary),
+//! with the block's samples and kernel. Accepted quads are added greedily from the lowest test value, each
+//! re-tested against the rendering the additions before it have left; neighbouring quads share their new
+//! vertex (placed by the first of them), so runs of accepted edges add a strip without gaps or overlaps.
 
+use std::collections::{HashMap, HashSet};
+
+use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use glam::Vec3;
-use nlos_render::{RenderParams, Renderer, Visibility};
+use nlos_render::{RenderParams, Renderer, RowSpan, Visibility};
 use nlos_transient::{Scan, TimeAxis};
 
 use crate::error::{OptimError, Result};
@@ -83,7 +87,7 @@ pub struct GrowRecord {
     pub block: u32,
     /// Boundary edges proposed across.
     pub edges: usize,
-    /// Faces added.
+    /// Faces added (two per accepted edge).
     pub added: usize,
     /// Change of the normalised data term from the additions (≤ 0).
     pub data_change: f64,
@@ -130,40 +134,56 @@ pub fn grow_boundary(
         return Err(OptimError::LengthMismatch { what: "rendered", expected: rows * bins, got: rendered.len() });
     }
     // Boundary half-edges a → b (of face a b c) are those whose twin b → a belongs to no face.
-    let mut directed = std::collections::HashSet::with_capacity(triangles.len() * 3);
+    let mut directed = HashSet::with_capacity(triangles.len() * 3);
     for t in triangles {
         for k in 0..3 {
             directed.insert((t[k], t[(k + 1) % 3]));
         }
     }
-    let mut edges: Vec<(u32, u32, Vec3)> = Vec::new();
+    // Per boundary edge: its ends, outward direction in the face's plane, the face's unit normal, length.
+    struct Edge {
+        a: u32,
+        b: u32,
+        out: Vec3,
+        normal: Vec3,
+        len: f32,
+    }
+    let mut edges: Vec<Edge> = Vec::new();
     for t in triangles {
         for k in 0..3 {
             let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-            if !directed.contains(&(b, a)) {
-                edges.push((a, b, positions[c as usize]));
+            if directed.contains(&(b, a)) {
+                continue;
+            }
+            let (pa, pb, pc) = (positions[a as usize], positions[b as usize], positions[c as usize]);
+            let edge = pb - pa;
+            let normal = edge.cross(pc - pa).normalize_or_zero();
+            let mut out = edge.cross(normal).normalize_or_zero();
+            if out.dot(0.5 * (pa + pb) - pc) < 0.0 {
+                out = -out;
+            }
+            let len = edge.length();
+            if len > 0.0 && normal != Vec3::ZERO && out != Vec3::ZERO {
+                edges.push(Edge { a, b, out, normal, len });
             }
         }
     }
-    // Proposals: one triangle (b, a, p) per edge and angle, each on its own three vertices.
-    let mut prop_pos: Vec<Vec3> = Vec::with_capacity(edges.len() * params.angles.len() * 3);
-    let mut prop_tri: Vec<[u32; 3]> = Vec::with_capacity(edges.len() * params.angles.len());
-    let mut prop_of: Vec<(usize, Vec3)> = Vec::new();
-    for (e, &(a, b, c)) in edges.iter().enumerate() {
-        let (pa, pb) = (positions[a as usize], positions[b as usize]);
-        let edge = pb - pa;
-        let len = edge.length();
-        let n = edge.cross(c - pa).normalize_or_zero();
-        if !(len > 0.0) || n == Vec3::ZERO {
-            continue;
+    // Per boundary vertex: the mean outward direction, normal and edge length of its boundary edges.
+    let mut frame: HashMap<u32, (Vec3, Vec3, f32, u32)> = HashMap::new();
+    for e in &edges {
+        for v in [e.a, e.b] {
+            let f = frame.entry(v).or_insert((Vec3::ZERO, Vec3::ZERO, 0.0, 0));
+            f.0 += e.out;
+            f.1 += e.normal;
+            f.2 += e.len;
+            f.3 += 1;
         }
-        let mid = 0.5 * (pa + pb);
-        let mut out = edge.cross(n).normalize_or_zero();
-        if out.dot(mid - c) < 0.0 {
-            out = -out;
-        }
-        // Away from the wall: the side the face's normal does not point to (faces face the wall, n·ẑ < 0);
-        // for a face seen edge-on, +z.
+    }
+    let offset = |v: u32, theta: f64| -> Vec3 {
+        let (o, n, len, k) = frame[&v];
+        let (o, n) = (o.normalize_or_zero(), n.normalize_or_zero());
+        // Away from the wall: the side the faces' normals do not point to (they face the wall, n·ẑ < 0);
+        // +z for a rim seen edge-on.
         let away = if n.z.abs() < 1e-6 {
             Vec3::Z
         } else if n.z < 0.0 {
@@ -171,53 +191,58 @@ pub fn grow_boundary(
         } else {
             n
         };
-        let h = len * 3f32.sqrt() / 2.0;
-        for &theta in &params.angles {
-            let th = (theta as f32).to_radians();
-            let p = mid + h * (th.cos() * out + th.sin() * away);
-            let base = prop_pos.len() as u32;
-            prop_pos.extend([pb, pa, p]);
-            prop_tri.push([base, base + 1, base + 2]);
-            prop_of.push((e, p));
-        }
-    }
-    if prop_tri.is_empty() {
-        return Ok(Grown { positions: Vec::new(), triangles: Vec::new(), edges: edges.len(), data_change: 0.0 });
-    }
-    let r = Renderer::new(&prop_pos, &prop_tri, scan, time, RenderParams { visibility: Visibility::Off, ..render })?;
+        let h = len / k as f32 * 3f32.sqrt() / 2.0;
+        let th = (theta as f32).to_radians();
+        positions[v as usize] + h * (th.cos() * o + th.sin() * away)
+    };
+    let quad = |e: &Edge, pa: Vec3, pb: Vec3| -> Result<Vec<RowSpan>> {
+        let (qa, qb) = (positions[e.a as usize], positions[e.b as usize]);
+        // The strip quad a b p_b p_a as (b, a, p_a) and (b, p_a, p_b): b → a is the twin of the boundary a → b.
+        let r = Renderer::new(
+            &[qb, qa, pa, pb],
+            &[[0, 1, 2], [0, 2, 3]],
+            scan,
+            time,
+            RenderParams { visibility: Visibility::Off, ..render },
+        )?;
+        let mut spans = brdf.forward_triangle(&r, 0)?;
+        spans.extend(brdf.forward_triangle(&r, 1)?);
+        Ok(merge(spans))
+    };
     let mut base: Vec<f64> =
         rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
     let snapshot: &[f32] = rendered;
-    let scored: Vec<(f64, usize)> = (0..prop_tri.len())
-        .into_par_iter()
-        .map(|i| {
-            let spans = brdf.forward_triangle(&r, i)?;
-            if spans.is_empty() {
-                return Ok((f64::INFINITY, i));
+    // The best angle per edge (both ends turned alike), if it passes.
+    let scored: Vec<Option<(f64, f64)>> = edges
+        .par_iter()
+        .map(|e| {
+            let mut best: Option<(f64, f64)> = None;
+            for &theta in &params.angles {
+                let spans = quad(e, offset(e.a, theta), offset(e.b, theta))?;
+                if spans.is_empty() {
+                    continue;
+                }
+                let (test, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin, true)?;
+                if test < 0.0 && best.is_none_or(|(t, _)| test < t) {
+                    best = Some((test, theta));
+                }
             }
-            Ok((delta(&spans, snapshot, &base, bins, row_loss, params.margin, true)?.0, i))
+            Ok(best)
         })
         .collect::<Result<_>>()?;
-    // The best proposal per edge, if it passes.
-    let mut best: Vec<Option<(f64, usize)>> = vec![None; edges.len()];
-    for &(test, i) in &scored {
-        let e = prop_of[i].0;
-        if test < 0.0 && best[e].is_none_or(|(t, _)| test < t) {
-            best[e] = Some((test, i));
-        }
-    }
-    let mut order: Vec<(f64, usize)> = best.into_iter().flatten().collect();
+    let mut order: Vec<(f64, usize, f64)> =
+        scored.iter().enumerate().filter_map(|(i, b)| b.map(|(t, theta)| (t, i, theta))).collect();
     order.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    // New vertex of each boundary vertex, once placed (shared by the quads of its two boundary edges).
     let n_old = positions.len() as u32;
-    let mut used = std::collections::HashSet::new();
+    let mut placed: HashMap<u32, (u32, Vec3)> = HashMap::new();
     let (mut new_pos, mut new_tri, mut change) = (Vec::new(), Vec::new(), 0.0);
-    for (_, i) in order {
-        let (e, p) = prop_of[i];
-        let (a, b, _) = edges[e];
-        if used.contains(&a) || used.contains(&b) {
-            continue;
-        }
-        let spans = brdf.forward_triangle(&r, i)?;
+    for (_, i, theta) in order {
+        let e = &edges[i];
+        let pa = placed.get(&e.a).map_or_else(|| offset(e.a, theta), |p| p.1);
+        let pb = placed.get(&e.b).map_or_else(|| offset(e.b, theta), |p| p.1);
+        // Re-test at the placed positions against the rendering the additions so far have left.
+        let spans = quad(e, pa, pb)?;
         let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin, true)?;
         if !(test < 0.0) {
             continue;
@@ -229,11 +254,54 @@ pub fn grow_boundary(
             }
             base[s.measurement] = row_loss(s.measurement, row)?;
         }
-        used.insert(a);
-        used.insert(b);
-        new_tri.push([b, a, n_old + new_pos.len() as u32]);
-        new_pos.push(p);
+        let mut id = |v: u32, p: Vec3| {
+            placed
+                .entry(v)
+                .or_insert_with(|| {
+                    new_pos.push(p);
+                    (n_old + new_pos.len() as u32 - 1, p)
+                })
+                .0
+        };
+        let (ia, ib) = (id(e.a, pa), id(e.b, pb));
+        new_tri.push([e.b, e.a, ia]);
+        new_tri.push([e.b, ia, ib]);
         change += d;
     }
     Ok(Grown { positions: new_pos, triangles: new_tri, edges: edges.len(), data_change: change })
+}
+
+/// Merges spans of the same measurement into one (summing the overlapping bins), in measurement order.
+fn merge(mut spans: Vec<RowSpan>) -> Vec<RowSpan> {
+    spans.sort_by_key(|s| s.measurement);
+    let mut out: Vec<RowSpan> = Vec::with_capacity(spans.len());
+    for s in spans {
+        match out.last_mut() {
+            Some(last) if last.measurement == s.measurement => {
+                let first = last.first_bin.min(s.first_bin);
+                let end = (last.first_bin + last.values.len()).max(s.first_bin + s.values.len());
+                let mut values = vec![0.0f32; end - first];
+                for span in [&*last, &s] {
+                    for (k, v) in span.values.iter().enumerate() {
+                        values[span.first_bin - first + k] += v;
+                    }
+                }
+                *last = RowSpan { measurement: s.measurement, first_bin: first, values };
+            }
+            _ => out.push(s),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_sums_spans_of_one_measurement() {
+        let span = |m, f, v: &[f32]| RowSpan { measurement: m, first_bin: f, values: v.to_vec() };
+        let merged = merge(vec![span(3, 5, &[1.0, 2.0]), span(1, 0, &[4.0]), span(3, 4, &[1.0, 1.0, 1.0, 1.0])]);
+        assert_eq!(merged, vec![span(1, 0, &[4.0]), span(3, 4, &[1.0, 2.0, 3.0, 1.0])]);
+    }
 }

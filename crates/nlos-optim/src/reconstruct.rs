@@ -807,8 +807,15 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             }
         }
 
-        // ---- boundary pruning and growth ----
-        if params.prune.is_some() || params.grow.is_some() {
+        let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
+        // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
+        let converged = !(rel >= sch.rel_tol);
+        let last_block =
+            (converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage) && st.stage + 1 >= sch.max_stages;
+
+        // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces) ----
+        let grow = params.grow.as_ref().filter(|_| !last_block);
+        if params.prune.is_some() || grow.is_some() {
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
@@ -832,7 +839,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     data_change: p.data_change / norm,
                 });
             }
-            if let Some(gp) = &params.grow {
+            if let Some(gp) = grow {
                 let g = grow_boundary(
                     &st.positions,
                     &st.triangles,
@@ -865,9 +872,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
 
         // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
         st.blocks_done += 1;
-        let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
-        // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
-        let converged = !(rel >= sch.rel_tol);
         if converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage {
             if let Some(dir) = &out_dir {
                 let m = mesh_of(&st)?;
