@@ -117,9 +117,10 @@ pub(crate) struct Args {
     /// Keep boundary faces that no measurement can see (by default they are deleted before each remeshing).
     #[arg(long)]
     keep_unlit: bool,
-    /// Boundary pruning after every block: `off`, or the number of rounds (each deletes the boundary faces
-    /// whose deletion lowers the data term, then tests the faces it exposed; `nlos_optim::prune`).
-    #[arg(long, value_name = "off|ROUNDS", default_value = "off")]
+    /// Boundary pruning after every block: the number of rounds (each deletes the boundary faces whose
+    /// deletion lowers the data term by more than the margin, then tests the faces it exposed;
+    /// `nlos_optim::prune`), or `off`.
+    #[arg(long, value_name = "ROUNDS|off", default_value = "3")]
     prune: String,
     /// Boundary growth after every block (after pruning): faces across the boundary edges are added where
     /// they lower the data term (`nlos_optim::grow`).
@@ -424,7 +425,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         .map(|a| a.trim().parse::<f64>())
         .collect::<Result<Vec<f64>, _>>()
         .map_err(|e| bad(format!("--grow-angles `{}`: {e}", args.grow_angles)))?;
-    p.grow = args.grow.then(|| nlos_optim::GrowParams { angles, margin: args.grow_margin });
+    p.grow = args.grow.then_some(nlos_optim::GrowParams { angles, margin: args.grow_margin });
     p.prune = match args.prune.as_str() {
         "off" => None,
         n => match n.parse::<u32>() {

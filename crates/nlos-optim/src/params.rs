@@ -151,10 +151,17 @@ pub struct ReconstructParams {
     /// outside the time window) before each remeshing (default true).
     pub remove_unlit_boundary_faces: bool,
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
-    /// lowers the data term are deleted (default `None`: off).
+    /// lowers the data term by more than the margin are deleted (default `Some(PruneParams::default())`:
+    /// 3 rounds, margin 0.5). Measured on the seed-setup bunny from LCT (1000 photons, 3 stages × 4 blocks
+    /// × 20 steps; docs/acceptance.md): mean depth error 1.89 → 1.39 mm, RMS 8.45 → 6.39 mm, Chamfer
+    /// 35.7 → 34.6 mm, normal error 29.3 → 27.1°, coverage 87.8 → 85.1 %; on the independent renderer's
+    /// bunny 1.47 → 0.84 mm, normal error 23.6 → 16.8°, coverage 90.3 → 88.5 %.
     pub prune: Option<PruneParams>,
     /// Loss-driven boundary growth after every block, after pruning ([`crate::grow`]): faces across boundary
-    /// edges are added where they lower the data term (default `None`: off).
+    /// edges are added where they lower the data term (default `None`: off). It trades depth accuracy for
+    /// coverage: on the seed-setup bunny (as for [`Self::prune`], with pruning) coverage 85.1 → 92.6 % and
+    /// Chamfer 34.6 → 27.2 mm, but mean depth error 1.39 → 3.58 mm and normal error 27 → 52°: strips that
+    /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity).
     pub grow: Option<GrowParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
     pub seed: u64,
@@ -187,7 +194,7 @@ impl Default for ReconstructParams {
             collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),
             boundary_depth_only: false,
             remove_unlit_boundary_faces: true,
-            prune: None,
+            prune: Some(PruneParams::default()),
             grow: None,
             seed: 0,
             max_rollbacks: 10,
