@@ -122,6 +122,9 @@ pub(crate) struct Args {
     /// `nlos_optim::prune`), or `off`.
     #[arg(long, value_name = "ROUNDS|off", default_value = "3")]
     prune: String,
+    /// Margin κ of the pruning test (a face goes when ΔE < −κ·½c; 0 is the plain sign test; default 0.5).
+    #[arg(long, value_name = "KAPPA", default_value_t = 0.5)]
+    prune_margin: f64,
     /// Boundary growth after every block (after pruning): faces across the boundary edges are added where
     /// they lower the data term (`nlos_optim::grow`).
     #[arg(long)]
@@ -429,7 +432,11 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     p.prune = match args.prune.as_str() {
         "off" => None,
         n => match n.parse::<u32>() {
-            Ok(rounds) if rounds > 0 => Some(nlos_optim::PruneParams { rounds, ..nlos_optim::PruneParams::default() }),
+            Ok(rounds) if rounds > 0 => Some(nlos_optim::PruneParams {
+                rounds,
+                margin: args.prune_margin,
+                ..nlos_optim::PruneParams::default()
+            }),
             _ => return Err(bad(format!("--prune `{n}`: expected `off` or a number of rounds ≥ 1"))),
         },
     };

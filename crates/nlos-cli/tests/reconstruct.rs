@@ -117,6 +117,12 @@ fn bad_arguments_are_input_errors() {
         vec!["--sensor", "ideal", "--background=-3"],
         vec!["--sensor", "ideal", "--background", "lots"],
         vec!["--noise", "gaussian"],
+        vec!["--prune", "0"],
+        vec!["--prune", "lots"],
+        vec!["--prune-margin=-1"],
+        vec!["--grow", "--grow-angles", "0,120"],
+        vec!["--grow", "--grow-angles", "flat"],
+        vec!["--grow", "--grow-margin=-0.5"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
