@@ -53,32 +53,58 @@ fn brdf() -> ConcreteBrdf {
     ConcreteBrdf::Lambertian(Lambertian::new(1.0f32).unwrap())
 }
 
-/// Prunes `init` against the rendering of the 8 × 8-cell truth with `row_loss` built from `term`.
+/// The 8 × 8-cell truth's rendering as the measurement, and the `init_half` patch as the current mesh.
+struct Fixture {
+    scan: Scan,
+    time: TimeAxis,
+    render: RenderParams,
+    measured: Vec<f32>,
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    term: DataTerm,
+}
+
+impl Fixture {
+    fn new(init_half: i32) -> (Self, Vec<f32>) {
+        let (scan, time, render) = setup();
+        let (tp, tt) = patch(4);
+        let lambert = Lambertian::new(1.0f32).unwrap();
+        let measured = Renderer::new(&tp, &tt, &scan, &time, render).unwrap().forward(&lambert);
+        let (positions, triangles) = patch(init_half);
+        let rendered = Renderer::new(&positions, &triangles, &scan, &time, render).unwrap().forward(&lambert);
+        (Self { scan, time, render, measured, positions, triangles, term: DataTerm::default() }, rendered)
+    }
+
+    /// The data term of histogram `m` (L2, scale 1).
+    fn row_loss(&self, m: usize, row: &[f32]) -> nlos_optim::Result<f64> {
+        let bins = self.time.bins;
+        self.term.row_value(row, &self.measured[m * bins..(m + 1) * bins], m * bins, 1.0)
+    }
+
+    fn total(&self, rendered: &[f32]) -> f64 {
+        let bins = self.time.bins;
+        (0..self.scan.measurements()).map(|m| self.row_loss(m, &rendered[m * bins..(m + 1) * bins]).unwrap()).sum()
+    }
+}
+
+/// Prunes the `init_half` patch against the truth's rendering.
 fn run(init_half: i32, params: PruneParams) -> (Vec<Vec3>, Vec<[u32; 3]>, nlos_optim::Pruned, f64, f64) {
-    let (scan, time, rp) = setup();
-    let (tp, tt) = patch(4);
-    let measured = Renderer::new(&tp, &tt, &scan, &time, rp).unwrap().forward(&Lambertian::new(1.0f32).unwrap());
-    let (p, t) = patch(init_half);
-    let r = Renderer::new(&p, &t, &scan, &time, rp).unwrap();
-    let b = brdf();
-    let mut rendered = b.forward(&r);
-    let bins = time.bins;
-    let term = DataTerm::default();
-    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0);
-    let total = |rendered: &[f32]| -> f64 {
-        (0..scan.measurements()).map(|m| row_loss(m, &rendered[m * bins..(m + 1) * bins]).unwrap()).sum()
-    };
-    let before = total(&rendered);
-    let pruned = prune_boundary(&t, &r, &b, &mut rendered, bins, &row_loss, &params).unwrap();
-    let after = total(&rendered);
+    let (fx, mut rendered) = Fixture::new(init_half);
+    let (p, t) = (&fx.positions, &fx.triangles);
+    let r = Renderer::new(p, t, &fx.scan, &fx.time, fx.render).unwrap();
+    let before = fx.total(&rendered);
+    let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
+    let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, fx.time.bins, &row_loss, &params).unwrap();
+    let after = fx.total(&rendered);
     // The updated rendering is the forward pass of the kept faces.
     let kept: Vec<[u32; 3]> = t.iter().zip(&pruned.keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
-    let direct = Renderer::new(&p, &kept, &scan, &time, rp).unwrap().forward(&Lambertian::new(1.0f32).unwrap());
+    let direct =
+        Renderer::new(p, &kept, &fx.scan, &fx.time, fx.render).unwrap().forward(&Lambertian::new(1.0f32).unwrap());
     let peak = direct.iter().fold(0.0f32, |a, x| a.max(*x));
     for (a, b) in rendered.iter().zip(&direct) {
         assert!((a - b).abs() <= 1e-4 * peak, "updated rendering {a} vs forward pass of the kept faces {b}");
     }
-    (p, t, pruned, before, after)
+    (p.clone(), t.clone(), pruned, before, after)
 }
 
 #[test]
@@ -160,24 +186,16 @@ fn row_values_sum_to_the_data_terms() {
     assert!(weighted.row_value(&rendered[..5], &measured[..5], 8, 1.0).is_err());
 }
 
-/// Grows `init_half` cells (a centred part of the 4-cell truth) against the truth's rendering.
+/// Grows the `init_half` patch against the truth's rendering.
 fn grow_run(init_half: i32, params: &GrowParams) -> (Vec<Vec3>, Vec<[u32; 3]>, nlos_optim::Grown, f64, f64) {
-    let (scan, time, rp) = setup();
-    let (tp, tt) = patch(4);
-    let measured = Renderer::new(&tp, &tt, &scan, &time, rp).unwrap().forward(&Lambertian::new(1.0f32).unwrap());
-    let (p, t) = patch(init_half);
-    let b = brdf();
-    let mut rendered = b.forward(&Renderer::new(&p, &t, &scan, &time, rp).unwrap());
-    let bins = time.bins;
-    let term = DataTerm::default();
-    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0);
-    let total = |rendered: &[f32]| -> f64 {
-        (0..scan.measurements()).map(|m| row_loss(m, &rendered[m * bins..(m + 1) * bins]).unwrap()).sum()
-    };
-    let before = total(&rendered);
-    let grown = grow_boundary(&p, &t, &scan, &time, rp, &b, &mut rendered, bins, &row_loss, params).unwrap();
-    let after = total(&rendered);
-    (p, t, grown, before, after)
+    let (fx, mut rendered) = Fixture::new(init_half);
+    let (p, t) = (&fx.positions, &fx.triangles);
+    let before = fx.total(&rendered);
+    let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
+    let (bins, b) = (fx.time.bins, brdf());
+    let grown = grow_boundary(p, t, &fx.scan, &fx.time, fx.render, &b, &mut rendered, bins, &row_loss, params).unwrap();
+    let after = fx.total(&rendered);
+    (p.clone(), t.clone(), grown, before, after)
 }
 
 #[test]

@@ -3,34 +3,17 @@
 //! reduction runs over fixed chunks (chosen from the mesh and scan only) and sums the chunks' partials in
 //! chunk order.
 
+mod common;
+
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
-/// A bumpy height field of `2 n²` triangles at z ≈ 0.4 facing the wall (normals toward −z), plus a small
-/// occluder in front of it; enough triangles for several adjoint tasks (256-triangle blocks).
+/// The shared bumpy height field with an occluder; enough triangles for several adjoint tasks (256-triangle
+/// blocks).
 fn surface(n: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut p = Vec::new();
-    for i in 0..=n {
-        for j in 0..=n {
-            let (x, y) = (-0.2 + 0.4 * i as f32 / n as f32, -0.2 + 0.4 * j as f32 / n as f32);
-            p.push(Vec3::new(x, y, 0.4 + 0.03 * (17.0 * x).sin() * (11.0 * y).cos()));
-        }
-    }
-    let id = |i: usize, j: usize| (i * (n + 1) + j) as u32;
-    let mut f = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            // (p01 − p00) × (p10 − p00) points to −z.
-            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
-    let k = p.len() as u32;
-    p.extend([Vec3::new(-0.05, -0.05, 0.2), Vec3::new(0.02, 0.1, 0.21), Vec3::new(0.12, -0.02, 0.19)]);
-    f.push([k, k + 1, k + 2]);
-    (p, f)
+    common::bumpy_surface_with_occluder(n)
 }
 
 /// Forward, adjoint and loss-and-gradient of one configuration in a pool of `threads` threads.

@@ -1,6 +1,8 @@
 //! `Renderer::forward_triangle`: the triangles' shares add up to the forward pass, for every sampling and
 //! visibility mode (the occluder's shadow included), and bad indices are typed errors.
 
+mod common;
+
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderError, RenderParams, Renderer, Sampling, Visibility};
@@ -8,26 +10,7 @@ use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// A bumpy 8 × 8 height field at z ≈ 0.4 facing the wall, and a small occluder in front of it.
 fn scene() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let n = 8;
-    let mut p = Vec::new();
-    for i in 0..=n {
-        for j in 0..=n {
-            let (x, y) = (-0.2 + 0.4 * i as f32 / n as f32, -0.2 + 0.4 * j as f32 / n as f32);
-            p.push(Vec3::new(x, y, 0.4 + 0.03 * (17.0 * x).sin() * (11.0 * y).cos()));
-        }
-    }
-    let id = |i: usize, j: usize| (i * (n + 1) + j) as u32;
-    let mut f = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
-    let k = p.len() as u32;
-    p.extend([Vec3::new(-0.05, -0.05, 0.2), Vec3::new(0.02, 0.1, 0.21), Vec3::new(0.12, -0.02, 0.19)]);
-    f.push([k, k + 1, k + 2]);
-    (p, f)
+    common::bumpy_surface_with_occluder(8)
 }
 
 fn check<B: RenderBrdf>(params: RenderParams, brdf: &B) {

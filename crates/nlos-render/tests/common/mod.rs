@@ -120,3 +120,28 @@ pub fn metrics(m: &[f32], r: &[f32], bins: usize) -> Metrics {
         mean_bin_pixel_rms: (sq / cnt.max(1) as f64).sqrt(),
     }
 }
+
+/// A bumpy height field of `2 n²` triangles over [−0.2, 0.2]² at z ≈ 0.4 facing the wall (normals toward
+/// −z), plus a small occluder triangle in front of it.
+pub fn bumpy_surface_with_occluder(n: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, y) = (-0.2 + 0.4 * i as f32 / n as f32, -0.2 + 0.4 * j as f32 / n as f32);
+            p.push(Vec3::new(x, y, 0.4 + 0.03 * (17.0 * x).sin() * (11.0 * y).cos()));
+        }
+    }
+    let id = |i: usize, j: usize| (i * (n + 1) + j) as u32;
+    let mut f = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            // (p01 − p00) × (p10 − p00) points to −z.
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
+            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
+        }
+    }
+    let k = p.len() as u32;
+    p.extend([Vec3::new(-0.05, -0.05, 0.2), Vec3::new(0.02, 0.1, 0.21), Vec3::new(0.12, -0.02, 0.19)]);
+    f.push([k, k + 1, k + 2]);
+    (p, f)
+}
