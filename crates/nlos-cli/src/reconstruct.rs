@@ -135,6 +135,9 @@ pub(crate) struct Args {
     /// Angles (degrees, comma-separated) by which growth proposals turn away from the wall (default 0,30,60).
     #[arg(long, value_name = "DEG,...", default_value = "0,30,60")]
     grow_angles: String,
+    /// Grow only in the first N coarse-to-fine stages (default: every stage).
+    #[arg(long, value_name = "N")]
+    grow_stages: Option<u32>,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -428,7 +431,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         .map(|a| a.trim().parse::<f64>())
         .collect::<Result<Vec<f64>, _>>()
         .map_err(|e| bad(format!("--grow-angles `{}`: {e}", args.grow_angles)))?;
-    p.grow = args.grow.then_some(nlos_optim::GrowParams { angles, margin: args.grow_margin });
+    p.grow = args.grow.then_some(nlos_optim::GrowParams { angles, margin: args.grow_margin, stages: args.grow_stages });
     p.prune = match args.prune.as_str() {
         "off" => None,
         n => match n.parse::<u32>() {

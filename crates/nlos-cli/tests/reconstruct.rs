@@ -123,6 +123,7 @@ fn bad_arguments_are_input_errors() {
         vec!["--grow", "--grow-angles", "0,120"],
         vec!["--grow", "--grow-angles", "flat"],
         vec!["--grow", "--grow-margin=-0.5"],
+        vec!["--grow", "--grow-stages", "0"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];

@@ -39,11 +39,14 @@ pub struct GrowParams {
     pub angles: Vec<f64>,
     /// Margin κ ≥ 0 of the test (module docs; default 0.5, as pruning).
     pub margin: f64,
+    /// Grow only in the first this many coarse-to-fine stages (default `None`: every stage). The coarse
+    /// stages' faces are larger, so each proposal's share stands further above the noise.
+    pub stages: Option<u32>,
 }
 
 impl Default for GrowParams {
     fn default() -> Self {
-        Self { angles: vec![0.0, 30.0, 60.0], margin: 0.5 }
+        Self { angles: vec![0.0, 30.0, 60.0], margin: 0.5, stages: None }
     }
 }
 
@@ -51,7 +54,8 @@ impl GrowParams {
     /// Checks the ranges.
     ///
     /// # Errors
-    /// [`OptimError::InvalidParameter`] for no angle, an angle outside [0, 90] or a negative margin.
+    /// [`OptimError::InvalidParameter`] for no angle, an angle outside [0, 90], a negative margin or
+    /// `stages = Some(0)`.
     pub fn validate(&self) -> Result<()> {
         if self.angles.is_empty() {
             return Err(OptimError::InvalidParameter {
@@ -65,6 +69,13 @@ impl GrowParams {
                 name: "grow.angles",
                 value: *a,
                 reason: "proposal angles lie in [0, 90] degrees (turning away from the wall)",
+            });
+        }
+        if self.stages == Some(0) {
+            return Err(OptimError::InvalidParameter {
+                name: "grow.stages",
+                value: 0.0,
+                reason: "growth in no stage: give at least 1, or switch growth off",
             });
         }
         if !(self.margin >= 0.0 && self.margin.is_finite()) {

@@ -814,7 +814,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             (converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage) && st.stage + 1 >= sch.max_stages;
 
         // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces) ----
-        let grow = params.grow.as_ref().filter(|_| !last_block);
+        let grow = params.grow.as_ref().filter(|g| !last_block && g.stages.is_none_or(|n| st.stage < n));
         if params.prune.is_some() || grow.is_some() {
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);

@@ -237,4 +237,5 @@ fn grow_params_are_validated() {
     assert!(GrowParams { angles: vec![], ..GrowParams::default() }.validate().is_err());
     assert!(GrowParams { angles: vec![95.0], ..GrowParams::default() }.validate().is_err());
     assert!(GrowParams { margin: -1.0, ..GrowParams::default() }.validate().is_err());
+    assert!(GrowParams { stages: Some(0), ..GrowParams::default() }.validate().is_err());
 }
