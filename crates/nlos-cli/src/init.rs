@@ -80,7 +80,7 @@ pub(crate) struct Args {
     edge: Option<f64>,
 }
 
-fn parse_gate(s: &str) -> Result<Gate, String> {
+pub(crate) fn parse_gate(s: &str) -> Result<Gate, String> {
     match s {
         "auto" => Ok(Gate::Auto),
         "off" | "none" => Ok(Gate::None),

@@ -65,6 +65,12 @@ pub(crate) struct Args {
     /// Sum K consecutive bins of the capture before anything else (faster, coarser).
     #[arg(long, value_name = "K")]
     rebin: Option<usize>,
+    /// Zero the bins that begin before this path length (metres) before fitting: the direct reflection
+    /// off the wall is in no three-bounce rendering, and left in it would dominate the data term. `auto`
+    /// (the default) finds where the direct light ends in the summed histogram (`nlos init`'s gate; a
+    /// capture without direct light, e.g. a simulation, is left as it is), `off` keeps every bin.
+    #[arg(long, value_name = "METRES|auto|off", default_value = "auto", value_parser = crate::init::parse_gate)]
+    gate: nlos_init::Gate,
     /// Keep every K-th scan row and column before anything else (faster, coarser).
     #[arg(long, value_name = "K")]
     subsample: Option<usize>,
@@ -169,6 +175,14 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
     let mut full = nlos_transient::read(&args.data).map_err(CliError::input)?;
     if let Some(k) = args.rebin {
         full = full.rebin(k).map_err(CliError::input)?;
+    }
+    let gate = match args.gate {
+        nlos_init::Gate::None => None,
+        nlos_init::Gate::Auto => Some(full.direct_light_end()),
+        nlos_init::Gate::Path(p) => Some(p),
+    };
+    if let Some(g) = gate.filter(|g| *g > full.time().t0) {
+        full = full.gate(g).map_err(CliError::input)?;
     }
     let measured = match args.subsample {
         Some(k) => full.subsample(k, k).map_err(CliError::input)?,
@@ -332,6 +346,7 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
         ("shape iterations per block", opt(args.iterations.map(|v| v.to_string()))),
         ("rebin", opt(args.rebin.map(|v| v.to_string()))),
         ("subsample", opt(args.subsample.map(|v| v.to_string()))),
+        ("gate", format!("{:?}", args.gate)),
         ("visibility", args.visibility.clone()),
         ("quadrature max level", args.max_level.to_string()),
         ("sensor", opt(args.sensor.clone())),

@@ -117,6 +117,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--sensor", "ideal", "--background=-3"],
         vec!["--sensor", "ideal", "--background", "lots"],
         vec!["--noise", "gaussian"],
+        vec!["--gate", "lots"],
+        vec!["--gate", "inf"],
         vec!["--prune", "0"],
         vec!["--prune", "lots"],
         vec!["--prune-margin=-1"],
