@@ -71,6 +71,11 @@ pub(crate) struct Args {
     /// capture without direct light, e.g. a simulation, is left as it is), `off` keeps every bin.
     #[arg(long, value_name = "METRES|auto|off", default_value = "auto", value_parser = crate::init::parse_gate)]
     gate: nlos_init::Gate,
+    /// Drop the bins whose path length exceeds 2 × this depth (metres) before anything else: for a confocal
+    /// scan, everything deeper than it (late background, a far wall) is then neither fitted nor in the
+    /// initial surface. Default: the whole time axis.
+    #[arg(long, value_name = "METRES")]
+    max_depth: Option<f64>,
     /// Keep every K-th scan row and column before anything else (faster, coarser).
     #[arg(long, value_name = "K")]
     subsample: Option<usize>,
@@ -183,6 +188,13 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
     };
     if let Some(g) = gate.filter(|g| *g > full.time().t0) {
         full = full.gate(g).map_err(CliError::input)?;
+    }
+    if let Some(d) = args.max_depth {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(bad(format!("--max-depth {d}: a depth in metres, finite and > 0")));
+        }
+        let t0 = full.time().t0;
+        full = full.crop_path(t0, 2.0 * d).map_err(|e| bad(format!("--max-depth {d}: {e}")))?;
     }
     let measured = match args.subsample {
         Some(k) => full.subsample(k, k).map_err(CliError::input)?,
@@ -347,6 +359,7 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
         ("rebin", opt(args.rebin.map(|v| v.to_string()))),
         ("subsample", opt(args.subsample.map(|v| v.to_string()))),
         ("gate", format!("{:?}", args.gate)),
+        ("max depth", opt(args.max_depth.map(|v| v.to_string()))),
         ("visibility", args.visibility.clone()),
         ("quadrature max level", args.max_level.to_string()),
         ("sensor", opt(args.sensor.clone())),

@@ -119,6 +119,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--noise", "gaussian"],
         vec!["--gate", "lots"],
         vec!["--gate", "inf"],
+        vec!["--max-depth=-1"],
+        vec!["--max-depth", "0"],
         vec!["--prune", "0"],
         vec!["--prune", "lots"],
         vec!["--prune-margin=-1"],
