@@ -181,12 +181,7 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
     if let Some(k) = args.rebin {
         full = full.rebin(k).map_err(CliError::input)?;
     }
-    let gate = match args.gate {
-        nlos_init::Gate::None => None,
-        nlos_init::Gate::Auto => Some(full.direct_light_end()),
-        nlos_init::Gate::Path(p) => Some(p),
-    };
-    if let Some(g) = gate.filter(|g| *g > full.time().t0) {
+    if let Some(g) = args.gate.path(&full).map_err(bad)?.filter(|g| *g > full.time().t0) {
         full = full.gate(g).map_err(CliError::input)?;
     }
     if let Some(d) = args.max_depth {

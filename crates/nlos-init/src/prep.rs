@@ -17,6 +17,26 @@ pub enum Gate {
     Path(f64),
 }
 
+impl Gate {
+    /// The path length (metres) before which this gate zeroes the bins of `t`: `None` for [`Gate::None`],
+    /// [`Transient::direct_light_end`] for [`Gate::Auto`], the given length for [`Gate::Path`].
+    ///
+    /// # Errors
+    /// [`InitError::InvalidParameter`] for a non-finite [`Gate::Path`].
+    pub fn path(self, t: &Transient) -> Result<Option<f64>> {
+        match self {
+            Gate::None => Ok(None),
+            Gate::Auto => Ok(Some(t.direct_light_end())),
+            Gate::Path(g) if g.is_finite() => Ok(Some(g)),
+            Gate::Path(g) => Err(InitError::InvalidParameter {
+                name: "gate",
+                value: g,
+                reason: "the gate must be a finite path length",
+            }),
+        }
+    }
+}
+
 /// A confocal grid capture ready for the FFT methods: times start at path length 0, bins merged.
 #[derive(Debug, Clone)]
 pub(crate) struct ConfocalGrid {
@@ -93,18 +113,7 @@ pub(crate) fn prepare(
         return Err(InitError::TimeOrigin { t0: time.t0, bin_width: delta0 });
     }
     let k0 = k0 as usize;
-    let gate_path = match gate {
-        Gate::None => f64::NEG_INFINITY,
-        Gate::Auto => t.direct_light_end(),
-        Gate::Path(g) if g.is_finite() => g,
-        Gate::Path(g) => {
-            return Err(InitError::InvalidParameter {
-                name: "gate",
-                value: g,
-                reason: "the gate must be a finite path length",
-            });
-        }
-    };
+    let gate_path = gate.path(t)?.unwrap_or(f64::NEG_INFINITY);
     let mut total = k0 + time.bins;
     if let Some(d) = max_depth {
         if !(d.is_finite() && d > 0.0) {

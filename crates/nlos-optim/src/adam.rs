@@ -88,6 +88,14 @@ impl VertexAdam {
         d
     }
 
+    /// The state of a renumbered vertex set: new vertex `i` takes the moments of old vertex `source[i]`,
+    /// or zero moments for `None` (a new vertex) or an old index out of range. The step count is kept.
+    pub fn select(&self, source: &[Option<u32>]) -> Self {
+        let old = |j: Option<u32>| j.and_then(|j| Some((*self.m.get(j as usize)?, *self.v.get(j as usize)?)));
+        let (m, v) = source.iter().map(|&j| old(j).unwrap_or((DVec3::ZERO, 0.0))).unzip();
+        Self { m, v, t: self.t }
+    }
+
     /// The state carried to a new vertex set: `weights[i]` lists `(old vertex, weight)` pairs whose weighted
     /// sum gives new vertex i's moments (e.g. barycentric interpolation on the closest old face). The step
     /// count is kept, so the bias corrections continue.
@@ -144,6 +152,21 @@ impl VectorAdam {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn select_keeps_renumbered_moments_and_zeroes_new_vertices() {
+        let mut a = VertexAdam::new(3);
+        let g = [Vec3::X, Vec3::Y * 2.0, Vec3::Z * 3.0];
+        a.step(&AdamParams::default(), &g, |_| 0.1);
+        let b = a.select(&[Some(2), None, Some(0), Some(9)]);
+        assert_eq!((b.len(), b.t), (4, a.t));
+        assert_eq!((b.m[0], b.v[0]), (a.m[2], a.v[2]));
+        assert_eq!((b.m[2], b.v[2]), (a.m[0], a.v[0]));
+        for i in [1, 3] {
+            assert_eq!((b.m[i], b.v[i]), (DVec3::ZERO, 0.0), "vertex {i}: new or out of range");
+        }
+        assert!(a.v[2] > 0.0, "a non-trivial state");
+    }
 
     #[test]
     fn first_step_has_length_lr_along_the_gradient() {

@@ -28,7 +28,7 @@ use nlos_render::{RenderParams, Renderer, RowSpan, Visibility};
 use nlos_transient::{Scan, TimeAxis};
 
 use crate::error::{OptimError, Result};
-use crate::prune::delta;
+use crate::prune::{apply_spans, delta};
 use crate::reflectance::ConcreteBrdf;
 
 /// Settings of boundary growth ([`crate::ReconstructParams::grow`]).
@@ -125,7 +125,8 @@ pub struct Grown {
 ///
 /// # Errors
 /// [`OptimError::InvalidParameter`] for invalid `params`, [`OptimError::LengthMismatch`] when `rendered`
-/// is not measurements × `bins` long, and the errors of `row_loss` and of the renderer.
+/// is not measurements × `bins` long, [`OptimError::Render`] (`IndexOutOfRange`) for a triangle that names
+/// a vertex beyond `positions`, and the errors of `row_loss` and of the renderer.
 #[allow(clippy::too_many_arguments)]
 pub fn grow_boundary(
     positions: &[Vec3],
@@ -143,6 +144,13 @@ pub fn grow_boundary(
     let rows = scan.measurements();
     if bins == 0 || rendered.len() != rows * bins {
         return Err(OptimError::LengthMismatch { what: "rendered", expected: rows * bins, got: rendered.len() });
+    }
+    if let Some((triangle, &vertex)) = triangles
+        .iter()
+        .enumerate()
+        .find_map(|(i, t)| t.iter().find(|&&v| v as usize >= positions.len()).map(|v| (i, v)))
+    {
+        return Err(nlos_render::RenderError::IndexOutOfRange { triangle, vertex, vertices: positions.len() }.into());
     }
     // Boundary half-edges a → b (of face a b c) are those whose twin b → a belongs to no face.
     let mut directed = HashSet::with_capacity(triangles.len() * 3);
@@ -258,13 +266,7 @@ pub fn grow_boundary(
         if !(test < 0.0) {
             continue;
         }
-        for s in &spans {
-            let row = &mut rendered[s.measurement * bins..(s.measurement + 1) * bins];
-            for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
-                *x += v;
-            }
-            base[s.measurement] = row_loss(s.measurement, row)?;
-        }
+        apply_spans(&spans, rendered, &mut base, bins, row_loss, true)?;
         let mut id = |v: u32, p: Vec3| {
             placed
                 .entry(v)

@@ -189,14 +189,7 @@ pub fn prune_boundary(
             if !(test < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
-            for s in &spans {
-                let row = &mut rendered[s.measurement * bins..(s.measurement + 1) * bins];
-                for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
-                    // Guard: f32 cancellation can leave −ε where the face was the only light.
-                    *x = (*x - v).max(0.0);
-                }
-                base[s.measurement] = row_loss(s.measurement, row)?;
-            }
+            apply_spans(&spans, rendered, &mut base, bins, row_loss, false)?;
             keep[f] = false;
             let t = triangles[f];
             for k in 0..3 {
@@ -212,6 +205,27 @@ pub fn prune_boundary(
         }
     }
     Ok(Pruned { keep, tested, removed, data_change: change })
+}
+
+/// Subtracts (`add` false) or adds a face's share `spans` to `rendered` and updates the data term `base` of
+/// every histogram it touches.
+pub(crate) fn apply_spans(
+    spans: &[RowSpan],
+    rendered: &mut [f32],
+    base: &mut [f64],
+    bins: usize,
+    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    add: bool,
+) -> Result<()> {
+    for s in spans {
+        let row = &mut rendered[s.measurement * bins..(s.measurement + 1) * bins];
+        for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
+            // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
+            *x = if add { *x + v } else { (*x - v).max(0.0) };
+        }
+        base[s.measurement] = row_loss(s.measurement, row)?;
+    }
+    Ok(())
 }
 
 /// The test value and the change of the data term of deleting (`add` false: `ΔE = E(I − I_f) − E(I)`) or

@@ -543,8 +543,8 @@ fn drop_faces(st: &mut State, keep: &[bool]) {
         }
         triangles.push(out);
     }
-    let weights: Vec<[(u32, f32); 3]> = old_of_new.iter().map(|&v| [(v, 1.0), (v, 0.0), (v, 0.0)]).collect();
-    st.shape_adam = st.shape_adam.transfer(&weights);
+    let source: Vec<Option<u32>> = old_of_new.iter().map(|&v| Some(v)).collect();
+    st.shape_adam = st.shape_adam.select(&source);
     st.positions = old_of_new.iter().map(|&v| st.positions[v as usize]).collect();
     st.triangles = triangles;
 }
@@ -852,12 +852,10 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     &row_loss,
                     gp,
                 )?;
-                let n_old = st.positions.len() as u32;
-                let weights: Vec<[(u32, f32); 3]> = (0..n_old)
-                    .map(|v| [(v, 1.0), (v, 0.0), (v, 0.0)])
-                    .chain(g.positions.iter().map(|_| [(u32::MAX, 0.0); 3]))
-                    .collect();
-                st.shape_adam = st.shape_adam.transfer(&weights);
+                // Old vertices keep their moments, the new ones start at zero.
+                let source: Vec<Option<u32>> =
+                    (0..st.positions.len() as u32).map(Some).chain(g.positions.iter().map(|_| None)).collect();
+                st.shape_adam = st.shape_adam.select(&source);
                 st.positions.extend(&g.positions);
                 st.triangles.extend(&g.triangles);
                 st.grow_log.push(GrowRecord {

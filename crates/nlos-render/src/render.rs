@@ -471,7 +471,8 @@ impl Renderer {
                 reason: "not a triangle of the renderer's mesh (0 ≤ triangle < number of triangles)",
             });
         }
-        // The cached visibility is stored in the block order: the triangle's storage slot.
+        // The cached visibility is stored in the block order: the triangle's storage slot. `order` is a
+        // permutation of 0..nt and triangle < nt, so the search always succeeds (0 only as a formal fallback).
         let slot = self.tris.soa.order.iter().position(|&o| o as usize == triangle).unwrap_or(0);
         let bins = self.kernel.bins();
         let mut hist = vec![0.0f32; bins];
