@@ -55,7 +55,7 @@ enum Command {
     /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
     Init(init::Args),
     /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
-    Reconstruct(reconstruct::Args),
+    Reconstruct(Box<reconstruct::Args>),
     /// Simulate the measurements of a mesh (box kernel), optionally as SPAD photon counts.
     Render(render::Args),
     /// (Re)write the report of a reconstruction run: figures and `report.html` in the run directory.

@@ -149,6 +149,24 @@ pub(crate) struct Args {
     /// Grow only in the first N coarse-to-fine stages (default: every stage).
     #[arg(long, value_name = "N")]
     grow_stages: Option<u32>,
+    /// Residual back-projection at the end of every stage but the last: the LCT of the fit's residual
+    /// proposes surface patches away from the mesh, added where they lower the data term
+    /// (`nlos_optim::residual`; confocal grid scans only): `on` or `off`.
+    #[arg(long, value_name = "on|off", default_value = "on")]
+    residual: String,
+    /// Residual columns closer than this to the mesh are left to the shape steps (metres; default 0.02).
+    #[arg(long, value_name = "METRES", default_value_t = 0.02)]
+    residual_separation: f64,
+    /// Margin κ of the residual patches' test (a face joins a patch when ΔE⁺ < −κ·½c; default 0.5).
+    #[arg(long, value_name = "KAPPA", default_value_t = 0.5)]
+    residual_margin: f64,
+    /// Tilts (degrees, comma-separated) of the residual patches' normals away from the wall normal, each
+    /// tried at four azimuths besides the untilted patch (default 40,70).
+    #[arg(long, value_name = "DEG,...", default_value = "40,70")]
+    residual_tilts: String,
+    /// Propose residual patches only after the first N stages (default: every stage but the last).
+    #[arg(long, value_name = "N")]
+    residual_stages: Option<u32>,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -465,6 +483,22 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
             }),
             _ => return Err(bad(format!("--prune `{n}`: expected `off` or a number of rounds ≥ 1"))),
         },
+    };
+    p.residual = match args.residual.as_str() {
+        "off" => None,
+        "on" => Some(nlos_optim::ResidualParams {
+            separation: args.residual_separation,
+            stages: args.residual_stages,
+            margin: args.residual_margin,
+            tilts: args
+                .residual_tilts
+                .split(',')
+                .map(|a| a.trim().parse::<f64>())
+                .collect::<Result<Vec<f64>, _>>()
+                .map_err(|e| bad(format!("--residual-tilts `{}`: {e}", args.residual_tilts)))?,
+            ..nlos_optim::ResidualParams::default()
+        }),
+        r => return Err(bad(format!("--residual `{r}`: expected `on` or `off`"))),
     };
     p.boundary_depth_only = args.depth_only_boundary;
     p.sensor = sensor_fit(args, measured)?;

@@ -49,5 +49,7 @@ pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};
 pub use lct::{LctParams, Material, lct};
 pub use prep::Gate;
-pub use surface::{Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface};
+pub use surface::{
+    Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface, volume_to_surface_where,
+};
 pub use volume::{Axis, Volume};

@@ -265,6 +265,18 @@ pub fn connected_components(
 /// depth jump or edge length, [`InitError::Empty`] when no column passes the threshold or no grid cell
 /// has four kept corners, [`InitError::Mesh`] when remeshing fails.
 pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface> {
+    volume_to_surface_where(vol, params, &|_| true)
+}
+
+/// [`volume_to_surface`] restricted to the columns whose point `(x, y, depth)` (metres, before any rim
+/// recession or smoothing) passes `admit`: the others leave the mask right after the threshold and the
+/// hysteresis, before the connected regions are formed. `nlos_optim` uses it to extract only the parts of
+/// a residual volume away from the surface it already has.
+///
+/// # Errors
+/// As [`volume_to_surface`]; [`InitError::Empty`] also when `admit` rejects every column that could form
+/// a surface.
+pub fn volume_to_surface_where(vol: &Volume, params: &SurfaceParams, admit: &dyn Fn(Vec3) -> bool) -> Result<Surface> {
     vol.validate()?;
     validate(params)?;
     let (nx, ny) = (vol.nx, vol.ny);
@@ -296,6 +308,12 @@ pub fn volume_to_surface(vol: &Volume, params: &SurfaceParams) -> Result<Surface
         let floor = params.grow_noise_sigmas.map_or(0.0, |k| noise_floor(&albedo, k));
         let low = (g * max).max(floor).min(threshold);
         grow(&mut mask, nx, ny, |c| albedo[c] >= low && albedo[c] > 0.0, &depth, max_jump);
+    }
+    for (c, m) in mask.iter_mut().enumerate() {
+        if *m {
+            let (ix, iy) = (c % nx, c / nx);
+            *m = admit(Vec3::new(vol.x.at(ix) as f32, vol.y.at(iy) as f32, depth[c]));
+        }
     }
     if params.largest_component {
         let jump = params.max_depth_jump.map(|j| (depth.as_slice(), j as f32));

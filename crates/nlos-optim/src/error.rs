@@ -87,6 +87,9 @@ pub enum OptimError {
     /// unusable.
     #[error("sensor fit: {0}; check the jitter response, the background window and the capture's bins")]
     Sensor(#[from] nlos_transient::TransientError),
+    /// The residual's volumetric reconstruction failed ([`crate::residual`]).
+    #[error("residual back-projection: {0}; switch it off (ReconstructParams::residual = None, --residual off)")]
+    Init(#[from] nlos_init::InitError),
     /// The evolution hook (collision handling) failed.
     #[error("evolution hook: {0}; fall back to DirectEvolve or fix the hook")]
     Evolve(String),

@@ -285,7 +285,7 @@ pub fn grow_boundary(
 }
 
 /// Merges spans of the same measurement into one (summing the overlapping bins), in measurement order.
-fn merge(mut spans: Vec<RowSpan>) -> Vec<RowSpan> {
+pub(crate) fn merge(mut spans: Vec<RowSpan>) -> Vec<RowSpan> {
     spans.sort_by_key(|s| s.measurement);
     let mut out: Vec<RowSpan> = Vec::with_capacity(spans.len());
     for s in spans {

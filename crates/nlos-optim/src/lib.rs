@@ -14,6 +14,8 @@
 //!   the automatic weight;
 //! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
 //! - [`grow`]: loss-driven boundary growth — faces across boundary edges are added where they lower it;
+//! - [`residual`]: residual back-projection — new surface patches where the LCT of the fit's residual
+//!   finds light away from the mesh, added where they lower the data term;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -40,6 +42,7 @@ pub mod prune;
 pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;
+pub mod residual;
 pub mod sensor;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
@@ -55,4 +58,5 @@ pub use reconstruct::{
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
+pub use residual::{Patches, ResidualParams, ResidualRecord, residual_patches};
 pub use sensor::{SensorBackground, SensorFit, expected_half_deviance};

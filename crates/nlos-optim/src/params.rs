@@ -12,6 +12,7 @@ use crate::grow::GrowParams;
 use crate::loss::DataTerm;
 use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
+use crate::residual::ResidualParams;
 use crate::sensor::SensorFit;
 
 /// The coarse-to-fine schedule (Tsai et al. 2019, Sec. 5: target edge length `L = 0.5/res`, `res × 1.5`
@@ -163,6 +164,10 @@ pub struct ReconstructParams {
     /// Chamfer 34.6 → 27.2 mm, but mean depth error 1.39 → 3.58 mm and normal error 27 → 52°: strips that
     /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity).
     pub grow: Option<GrowParams>,
+    /// Residual back-projection at the end of every stage but the last ([`crate::residual`]): the LCT of
+    /// the fit's residual proposes surface patches away from the mesh, added where they lower the data
+    /// term (default `Some(ResidualParams::default())`; skipped for scans that are not confocal grids).
+    pub residual: Option<ResidualParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
     pub seed: u64,
     /// Rollbacks (non-finite loss, gradient or positions → restore the last good state, halve the step)
@@ -196,6 +201,7 @@ impl Default for ReconstructParams {
             remove_unlit_boundary_faces: true,
             prune: Some(PruneParams::default()),
             grow: None,
+            residual: Some(ResidualParams::default()),
             seed: 0,
             max_rollbacks: 10,
             out_dir: None,
@@ -211,6 +217,9 @@ impl ReconstructParams {
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value: f64, reason| Err(OptimError::InvalidParameter { name, value, reason });
         let pos = |x: f64| x.is_finite() && x > 0.0;
+        if let Some(r) = &self.residual {
+            r.validate()?;
+        }
         if let Some(p) = &self.prune {
             p.validate()?;
         }

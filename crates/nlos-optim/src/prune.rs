@@ -231,6 +231,12 @@ pub(crate) fn apply_spans(
 /// The test value and the change of the data term of deleting (`add` false: `ΔE = E(I − I_f) − E(I)`) or
 /// adding (`add` true: `E(I + I_f) − E(I)`) a face with share `spans`, over the histograms it reaches; the
 /// test value is `ΔE + κ · ½ c_f` (module docs) and the move is made when it is negative.
+///
+/// `c_f` is the second difference of the data term along the share, taken on the side where the rendering
+/// stays a sum of faces: for a deletion `E(I + I_f) + E(I − I_f) − 2E(I)`, where `I − I_f ≥ 0` because `f`
+/// is part of `I`; for an addition `E(I + 2I_f) − 2E(I + I_f) + E(I)`. (Additions once used the central
+/// difference too, but `I − I_f` is negative where the new face is the only light; the guard that clamps
+/// it to 0 shrank `c_f`, and with it the margin, to as little as a third.) Both are `s²‖I_f‖²` for L2.
 pub(crate) fn delta(
     spans: &[RowSpan],
     rendered: &[f32],
@@ -241,29 +247,28 @@ pub(crate) fn delta(
     add: bool,
 ) -> Result<(f64, f64)> {
     let mut row = vec![0.0f32; bins];
-    let (mut minus, mut plus) = (0.0, 0.0);
+    // `once`: ΔE of the move; `other`: the second point of the second difference (E(I + I_f) − E(I) for a
+    // deletion, E(I + 2I_f) − E(I) for an addition).
+    let (mut once, mut other) = (0.0, 0.0);
+    let mut shifted = |src: &[f32], first: usize, values: &[f32], k: f32, m: usize| -> Result<f64> {
+        row.copy_from_slice(src);
+        for (x, v) in row[first..].iter_mut().zip(values) {
+            // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
+            *x = (*x + k * v).max(0.0);
+        }
+        Ok(row_loss(m, &row)? - base[m])
+    };
     for s in spans {
         let m = s.measurement;
         let src = &rendered[m * bins..(m + 1) * bins];
-        if !add || margin > 0.0 {
-            row.copy_from_slice(src);
-            for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
-                // Guard: f32 cancellation can leave −ε where the face was the only light.
-                *x = (*x - v).max(0.0);
-            }
-            minus += row_loss(m, &row)? - base[m];
-        }
-        if add || margin > 0.0 {
-            row.copy_from_slice(src);
-            for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
-                *x += v;
-            }
-            plus += row_loss(m, &row)? - base[m];
+        once += shifted(src, s.first_bin, &s.values, if add { 1.0 } else { -1.0 }, m)?;
+        if margin > 0.0 {
+            other += shifted(src, s.first_bin, &s.values, if add { 2.0 } else { 1.0 }, m)?;
         }
     }
-    // c_f = ΔE(+) + ΔE(−): the data term's curvature along the face's share (s²‖I_f‖² for L2).
-    let change = if add { plus } else { minus };
-    Ok((change + margin * 0.5 * (minus + plus), change))
+    // c_f from the three points (0, once, other) of the data term along the share.
+    let c = if add { other - 2.0 * once } else { once + other };
+    Ok((once + margin * 0.5 * c, once))
 }
 
 /// Whether deleting face `f` leaves one of its vertices with two separate fans of faces (a vertex where
@@ -299,6 +304,7 @@ fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_faces: &[Vec<
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 
@@ -307,6 +313,45 @@ mod tests {
         // 1---2
         // | \ |     centre 0, corners 1..4
         vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]]
+    }
+
+    /// L2 row loss ½ Σ (s·r − m)² against a fixed measured row, scale `s`.
+    fn l2(measured: Vec<f32>, s: f64) -> impl Fn(usize, &[f32]) -> Result<f64> + Sync {
+        move |_, row: &[f32]| {
+            Ok(row.iter().zip(&measured).map(|(&r, &m)| 0.5 * (s * f64::from(r) - f64::from(m)).powi(2)).sum())
+        }
+    }
+
+    #[test]
+    fn addition_margin_is_the_full_curvature_where_the_face_is_the_only_light() {
+        // Regression: additions took c_f from E(I + I_f) + E(I − I_f) − 2E(I) with I − I_f clamped at 0,
+        // which shrinks c_f wherever the new face is the only light. For L2 c_f = s²‖I_f‖² exactly.
+        let (bins, s) = (6, 2.0);
+        let rendered = vec![0.0, 0.0, 0.5, 0.0, 0.0, 0.0];
+        let measured = vec![0.0, 0.3, 1.0, 0.2, 0.0, 0.0];
+        let row_loss = l2(measured, s);
+        let base = vec![row_loss(0, &rendered).unwrap()];
+        let spans = [RowSpan { measurement: 0, first_bin: 1, values: vec![0.1, 0.4, 0.2] }];
+        let norm2: f64 = spans[0].values.iter().map(|&v| f64::from(v).powi(2)).sum();
+        for margin in [0.0, 0.5, 1.0] {
+            let (test, change) = delta(&spans, &rendered, &base, bins, &row_loss, margin, true).unwrap();
+            let mut added = rendered.clone();
+            for (x, v) in added[1..].iter_mut().zip(&spans[0].values) {
+                *x += v;
+            }
+            let exact = row_loss(0, &added).unwrap() - base[0];
+            assert!((change - exact).abs() < 1e-9, "{change} vs {exact}");
+            let want = exact + margin * 0.5 * s * s * norm2;
+            assert!((test - want).abs() < 1e-6, "margin {margin}: test {test}, want {want}");
+        }
+        // A deletion of the same share from a rendering that holds it: the same curvature.
+        let mut holding = rendered.clone();
+        for (x, v) in holding[1..].iter_mut().zip(&spans[0].values) {
+            *x += v;
+        }
+        let base = vec![row_loss(0, &holding).unwrap()];
+        let (test, change) = delta(&spans, &holding, &base, bins, &row_loss, 1.0, false).unwrap();
+        assert!((test - change - 0.5 * s * s * norm2).abs() < 1e-6);
     }
 
     #[test]

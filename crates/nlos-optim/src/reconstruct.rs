@@ -51,6 +51,7 @@ use crate::params::{ReconstructParams, SamplingSchedule};
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
+use crate::residual::{ResidualRecord, residual_patches};
 
 /// File name of the checkpoint inside the output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -252,6 +253,9 @@ pub struct Outcome {
     pub prune: Vec<PruneRecord>,
     /// One record per boundary growth (per block; empty when [`ReconstructParams::grow`] is `None`).
     pub grow: Vec<GrowRecord>,
+    /// One record per residual back-projection (per stage but the last; empty when
+    /// [`ReconstructParams::residual`] is `None`).
+    pub residual: Vec<ResidualRecord>,
 }
 
 /// Everything needed to continue a run (written as the checkpoint).
@@ -288,6 +292,9 @@ struct State {
     /// Boundary growth per block.
     #[serde(default)]
     grow_log: Vec<GrowRecord>,
+    /// Residual back-projection per stage.
+    #[serde(default)]
+    residual_log: Vec<ResidualRecord>,
 }
 
 /// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
@@ -400,6 +407,7 @@ pub fn reconstruct_with(
         evolve_log: Vec::new(),
         prune_log: Vec::new(),
         grow_log: Vec::new(),
+        residual_log: Vec::new(),
     };
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
@@ -813,9 +821,15 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let last_block =
             (converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage) && st.stage + 1 >= sch.max_stages;
 
-        // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces) ----
+        // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces),
+        // residual back-projection at the end of a stage but the last ----
         let grow = params.grow.as_ref().filter(|g| !last_block && g.stages.is_none_or(|n| st.stage < n));
-        if params.prune.is_some() || grow.is_some() {
+        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage;
+        let residual =
+            params.residual.as_ref().filter(|r| stage_ends && !last_block && r.stages.is_none_or(|n| st.stage < n));
+        // The stage's mesh as fitted (before residual patches join it).
+        let mut stage_mesh: Option<(Vec<Vec3>, Vec<[u32; 3]>)> = None;
+        if params.prune.is_some() || grow.is_some() || residual.is_some() {
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
@@ -866,13 +880,50 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     data_change: g.data_change / norm,
                 });
             }
+            if let Some(rp) = residual {
+                let model: Vec<f64> = match &params.sensor {
+                    Some(sensor) => sensor.expected(&rendered, bins, background, scale)?,
+                    None => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
+                };
+                let res: Vec<f32> = data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect();
+                let p = residual_patches(
+                    &st.positions,
+                    &st.triangles,
+                    measured,
+                    res,
+                    *renderer.params(),
+                    &brdf,
+                    &mut rendered,
+                    &row_loss,
+                    rp,
+                )?;
+                if !p.triangles.is_empty() {
+                    stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
+                }
+                let source: Vec<Option<u32>> =
+                    (0..st.positions.len() as u32).map(Some).chain(p.positions.iter().map(|_| None)).collect();
+                st.shape_adam = st.shape_adam.select(&source);
+                st.positions.extend(&p.positions);
+                st.triangles.extend(&p.triangles);
+                st.residual_log.push(ResidualRecord {
+                    stage: st.stage,
+                    columns: p.columns,
+                    regions: p.regions,
+                    accepted: p.accepted,
+                    faces: p.triangles.len(),
+                    data_change: p.data_change / norm,
+                });
+            }
         }
 
         // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
         st.blocks_done += 1;
         if converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage {
             if let Some(dir) = &out_dir {
-                let m = mesh_of(&st)?;
+                let m = match &stage_mesh {
+                    Some((p, t)) => SurfaceMesh::from_triangles(p, t)?,
+                    None => mesh_of(&st)?,
+                };
                 nlos_mesh::io::save(&m, dir.join(format!("stage_{:02}.obj", st.stage)))?;
             }
             st.stage += 1;
@@ -906,6 +957,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 evolve: st.evolve_log.clone(),
                 prune: st.prune_log.clone(),
                 grow: st.grow_log.clone(),
+                residual: st.residual_log.clone(),
             });
         }
     }
@@ -925,6 +977,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         evolve: st.evolve_log.clone(),
         prune: st.prune_log.clone(),
         grow: st.grow_log.clone(),
+        residual: st.residual_log.clone(),
     })
 }
 

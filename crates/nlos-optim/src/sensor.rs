@@ -157,6 +157,14 @@ impl SensorFit {
         Ok(b.max(MIN_BACKGROUND_FRACTION * mean))
     }
 
+    /// The model of the counts, `scale · J I + b` per bin (histograms of `bins` bins).
+    ///
+    /// # Errors
+    /// A `rendered` length that is not a multiple of `bins`.
+    pub fn expected(&self, rendered: &[f32], bins: usize, background: f64, scale: f64) -> Result<Vec<f64>> {
+        Ok(self.jitter(rendered, bins)?.into_iter().map(|a| scale * a + background).collect())
+    }
+
     /// `J I` per histogram of `bins` bins, in f64.
     fn jitter(&self, rendered: &[f32], bins: usize) -> Result<Vec<f64>> {
         let x: Vec<f64> = rendered.iter().map(|&v| f64::from(v)).collect();

@@ -1,0 +1,393 @@
+//! Residual back-projection: new surface where the measurement holds light the rendering lacks.
+//!
+//! Shape steps move vertices and [`crate::prune`] deletes boundary faces, but neither creates surface away
+//! from the mesh. Parts of an object that the initial volume left out (a rabbit's ears: 5–10 % of the
+//! LCT's peak, under the albedo halo that a threshold must exclude) are therefore never reconstructed,
+//! however long the optimiser runs. Their light is still in the measurement, and once the rest of the
+//! object is fitted it is most of what the residual holds.
+//!
+//! At the end of a stage the residual `Ĩ − Î` (`Î` the model of the data term: `s·I`, or `s·J I + b`
+//! for the sensor fit) is reconstructed with the LCT (`nlos_init::lct`, Wiener filter, no gate) and a
+//! surface is extracted from it as from a measurement ([`nlos_init::volume_to_surface_where`], Otsu's
+//! threshold, sub-voxel peaks, every region), keeping only the columns whose point lies more than
+//! [`ResidualParams::separation`] from the current mesh (near the mesh the residual is the fit's own
+//! error, which the shape steps handle). Each connected region of that surface is a candidate.
+//!
+//! The LCT says where a missing part is, not which way it faces, and that matters: the bunny's ears face
+//! up (normal ≈ (0, 0.7, −0.6)), so they light the spots above them and hardly those below, and the
+//! untilted wall-facing patch at their place rendered ten times the light the residual holds there
+//! (its optimal amplitude was 0.1). Each region is therefore tried untilted and turned about its centroid
+//! so that its normal tilts by each of [`ResidualParams::tilts`] toward the four azimuths. Per orientation,
+//! faces join by the test of [`crate::prune`] with the sign reversed (`I_f` a face's rendered share, alone:
+//! the mesh's shadow is not in it)
+//! ```text
+//! ΔE_f = E(I + I_f) − E(I),   joins when ΔE_f + κ · ½ c_f < 0
+//! ```
+//! greedily: first the face that passes by the most, then the best of the faces sharing an edge with those
+//! chosen, each against the rendering the choices before it have left, until none passes (a whole region
+//! at once overshoots: its faces' shares overlap in time). The orientation whose choice lowers the data
+//! term most wins, when it has at least [`ResidualParams::min_faces`] faces. An accepted patch is a new
+//! component of the mesh: the next stage remeshes it, the shape steps fit it, and pruning deletes what of
+//! it the data stop supporting.
+//!
+//! Measured on the seed-setup bunny (1000 photons, LCT start, 3 stages × 4 blocks × 20 steps; `/tmp/exp`
+//! runs as in `docs/acceptance.md`): after stage 0 the residual held two regions, the ears' tips and the
+//! underside of the body at 0.48 m, and 11 faces joined; Chamfer distance 34.6 → 31.2 mm, coverage
+//! 85.1 → 85.4 %, mean depth error 1.39 → 1.49 mm, normal error 27.1 → 28.1°.
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use glam::Vec3;
+use nlos_init::{Gate, InitError, LctParams, SurfaceParams, Threshold, lct, volume_to_surface_where};
+use nlos_mesh::bvh::TriangleBvh;
+use nlos_render::{RenderParams, Renderer, RowSpan};
+use nlos_transient::Transient;
+
+use crate::error::{OptimError, Result};
+use crate::prune::{apply_spans, delta};
+use crate::reflectance::ConcreteBrdf;
+
+/// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResidualParams {
+    /// Propose patches at the end of the stages before this one (`Some(1)`: after stage 0 only); `None`
+    /// (the default): after every stage but the last, which would leave a patch no step refines.
+    pub stages: Option<u32>,
+    /// Wiener signal-to-noise ratio of the residual's LCT (> 0; default 0.1, as `nlos init`).
+    pub snr: f64,
+    /// A residual column becomes surface only when its point lies more than this far from the mesh
+    /// (metres, > 0; default 0.02: several LCT depth voxels and bins of the seed setup, so that the fit's
+    /// own error around the mesh is not taken for a missing part).
+    pub separation: f64,
+    /// Margin κ ≥ 0 of the acceptance test (module docs; default 0.5, as pruning).
+    pub margin: f64,
+    /// Fewest faces an accepted patch has (≥ 1; default 3). The residual volume resolves parts a few of its
+    /// columns wide; one face alone can explain an outlier of the L2 term (a hot pixel's spike, tilted to
+    /// light mostly that measurement), which is not a surface.
+    pub min_faces: usize,
+    /// Tilts θ (degrees) of a candidate patch's normal away from the wall normal, each tried at four
+    /// azimuths besides the untilted patch (default [40, 70]).
+    pub tilts: Vec<f64>,
+}
+
+impl Default for ResidualParams {
+    fn default() -> Self {
+        Self { stages: None, snr: 0.1, separation: 0.02, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
+    }
+}
+
+impl ResidualParams {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] for a non-positive or non-finite `snr` or `separation`, or a
+    /// negative or non-finite `margin`.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
+        if !(self.snr.is_finite() && self.snr > 0.0) {
+            return bad("residual.snr", self.snr, "the Wiener signal-to-noise ratio is finite and > 0");
+        }
+        if !(self.separation.is_finite() && self.separation > 0.0) {
+            return bad("residual.separation", self.separation, "a distance in metres, finite and > 0");
+        }
+        if self.min_faces == 0 {
+            return bad("residual.min_faces", 0.0, "an accepted patch has at least one face");
+        }
+        if let Some(&t) = self.tilts.iter().find(|t| !(t.is_finite() && t.abs() < 90.0)) {
+            return bad("residual.tilts", t, "tilts are angles in degrees, finite and within (−90, 90)");
+        }
+        if !(self.margin.is_finite() && self.margin >= 0.0) {
+            return bad("residual.margin", self.margin, "the margin κ is finite and ≥ 0 (0: the plain sign test)");
+        }
+        Ok(())
+    }
+}
+
+/// What one call of [`residual_patches`] did (one per stage in the run's checkpoint).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ResidualRecord {
+    /// The stage that had just ended.
+    pub stage: u32,
+    /// Residual columns kept away from the mesh.
+    pub columns: usize,
+    /// Candidate patches (connected regions) tested.
+    pub regions: usize,
+    /// Patches accepted.
+    pub accepted: usize,
+    /// Faces added.
+    pub faces: usize,
+    /// Change of the normalised data term from the accepted patches (≤ 0).
+    pub data_change: f64,
+}
+
+/// The result of [`residual_patches`]: the accepted patches' vertices (numbered from the mesh's vertex
+/// count on) and faces.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Patches {
+    /// New vertex positions.
+    pub positions: Vec<Vec3>,
+    /// New faces, indexing the old vertices followed by [`Self::positions`].
+    pub triangles: Vec<[u32; 3]>,
+    /// Residual columns kept away from the mesh.
+    pub columns: usize,
+    /// Candidate patches tested.
+    pub regions: usize,
+    /// Patches accepted.
+    pub accepted: usize,
+    /// `Σ ΔE_p` of the accepted patches (unnormalised data term).
+    pub data_change: f64,
+    /// Why nothing was tried, when the measurement does not allow it (not a confocal grid scan).
+    pub skipped: Option<String>,
+}
+
+/// Proposes new surface from the residual of the fit (module docs).
+///
+/// `positions`/`triangles` are the current mesh, `measured` the measurement (for its scan and time axis),
+/// `residual` the measurement minus the data term's model (one value per measurement and bin), `rendered`
+/// the mesh's forward pass with `brdf` (updated in place with the accepted patches' shares) and
+/// `row_loss(m, row)` the data term of histogram `m` for a rendered row at the block's scale.
+///
+/// # Errors
+/// Invalid parameters, a residual of the wrong length, and renderer or LCT failures other than an
+/// unsupported scan (a scan that is not a confocal grid returns empty [`Patches`] with
+/// [`Patches::skipped`] set).
+#[allow(clippy::too_many_arguments)]
+pub fn residual_patches(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    measured: &Transient,
+    residual: Vec<f32>,
+    render: RenderParams,
+    brdf: &ConcreteBrdf,
+    rendered: &mut [f32],
+    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    params: &ResidualParams,
+) -> Result<Patches> {
+    params.validate()?;
+    let bins = measured.bins();
+    let n = measured.data().len();
+    if residual.len() != n {
+        return Err(OptimError::LengthMismatch { what: "residual", expected: n, got: residual.len() });
+    }
+    if rendered.len() != n {
+        return Err(OptimError::LengthMismatch { what: "rendered", expected: n, got: rendered.len() });
+    }
+    let t = Transient::new(measured.scan().clone(), *measured.time(), residual)?;
+    let lct_params = LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() };
+    let vol = match lct(&t, &lct_params) {
+        Ok(v) => v,
+        Err(
+            e @ (InitError::NotConfocal { .. }
+            | InitError::NotGrid { .. }
+            | InitError::BadGrid { .. }
+            | InitError::DeviceLegs
+            | InitError::TimeOrigin { .. }),
+        ) => return Ok(Patches { skipped: Some(e.to_string()), ..Patches::default() }),
+        Err(e) => return Err(e.into()),
+    };
+    let bvh = TriangleBvh::from_triangles(positions, triangles)?;
+    let sep = params.separation as f32;
+    let surface_params = SurfaceParams {
+        threshold: Threshold::Otsu,
+        subvoxel: true,
+        min_region_fraction: 0.0,
+        ..SurfaceParams::default()
+    };
+    let surface = match volume_to_surface_where(&vol, &surface_params, &|p| !bvh.any_within(p, sep)) {
+        Ok(s) => s,
+        // Nothing away from the mesh: no proposal.
+        Err(InitError::Empty { .. }) => return Ok(Patches::default()),
+        Err(e) => return Err(e.into()),
+    };
+    let columns = surface.mask.iter().filter(|&&k| k).count();
+    let (patch_pos, patch_tri) = (&surface.positions, &surface.triangles);
+    let regions = components(patch_pos.len(), patch_tri);
+    let mut base: Vec<f64> =
+        rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
+    let mut out = Patches { columns, regions: regions.len(), ..Patches::default() };
+    let n_old = positions.len() as u32;
+    for faces in &regions {
+        // The region's own vertices and faces.
+        let mut verts: Vec<u32> = faces.iter().flat_map(|&f| patch_tri[f]).collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let local = |v: u32| verts.binary_search(&v).map_or(u32::MAX, |i| i as u32);
+        let tri: Vec<[u32; 3]> = faces.iter().map(|&f| patch_tri[f].map(local)).collect();
+        let pos: Vec<Vec3> = verts.iter().map(|&v| patch_pos[v as usize]).collect();
+        let centroid = pos.iter().copied().sum::<Vec3>() / pos.len() as f32;
+        let adjacency = edge_adjacency(&tri);
+        // (Σ ΔE, turned positions, chosen faces, their shares) of the best orientation so far.
+        let mut best: Option<Candidate> = None;
+        for &(theta, phi) in &orientations(&params.tilts) {
+            // Turn the region about its centroid so that its wall-facing normal (−z) tilts by θ toward the
+            // azimuth φ (the LCT gives where a part is, not which way it faces; a part facing up lights only
+            // the spots above it).
+            let (st, ct) = (theta.to_radians().sin() as f32, theta.to_radians().cos() as f32);
+            let (sp, cp) = (phi.to_radians().sin() as f32, phi.to_radians().cos() as f32);
+            let q = glam::Quat::from_rotation_arc(Vec3::NEG_Z, Vec3::new(st * cp, st * sp, -ct));
+            let turned: Vec<Vec3> = pos.iter().map(|&p| centroid + q * (p - centroid)).collect();
+            let r = Renderer::new(&turned, &tri, measured.scan(), measured.time(), render)?;
+            let shares: Vec<Vec<RowSpan>> =
+                (0..tri.len()).into_par_iter().map(|f| brdf.forward_triangle(&r, f)).collect::<Result<_>>()?;
+            let mut trial = rendered.to_vec();
+            let mut trial_base = base.clone();
+            let (chosen, change) =
+                grow_connected(&shares, &adjacency, &mut trial, &mut trial_base, bins, row_loss, params.margin)?;
+            if chosen.len() >= params.min_faces && best.as_ref().is_none_or(|b| change < b.0) {
+                best = Some((change, turned, chosen, shares));
+            }
+        }
+        let Some((change, turned, chosen, shares)) = best else { continue };
+        for &f in &chosen {
+            apply_spans(&shares[f], rendered, &mut base, bins, row_loss, true)?;
+        }
+        out.accepted += 1;
+        out.data_change += change;
+        let mut new_id = vec![u32::MAX; turned.len()];
+        for &f in &chosen {
+            let t = tri[f].map(|v| {
+                let v = v as usize;
+                if new_id[v] == u32::MAX {
+                    new_id[v] = n_old + out.positions.len() as u32;
+                    out.positions.push(turned[v]);
+                }
+                new_id[v]
+            });
+            out.triangles.push(t);
+        }
+    }
+    Ok(out)
+}
+
+/// One orientation's choice: `Σ ΔE`, the turned region's positions, the chosen faces, every face's share.
+type Candidate = (f64, Vec<Vec3>, Vec<usize>, Vec<Vec<RowSpan>>);
+
+/// The (θ, φ) pairs tried per region: θ = 0 once, every other tilt at the four azimuths 0°, 90°, 180°, 270°.
+fn orientations(tilts: &[f64]) -> Vec<(f64, f64)> {
+    let mut out = vec![(0.0, 0.0)];
+    for &t in tilts.iter().filter(|&&t| t != 0.0) {
+        out.extend([0.0, 90.0, 180.0, 270.0].map(|phi| (t, phi)));
+    }
+    out
+}
+
+/// Per face, the faces sharing an edge with it.
+fn edge_adjacency(tri: &[[u32; 3]]) -> Vec<Vec<usize>> {
+    let mut by_edge: std::collections::HashMap<(u32, u32), Vec<usize>> = std::collections::HashMap::new();
+    for (f, t) in tri.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(f);
+        }
+    }
+    let mut adj = vec![Vec::new(); tri.len()];
+    for fs in by_edge.values() {
+        for &f in fs {
+            adj[f].extend(fs.iter().copied().filter(|&g| g != f));
+        }
+    }
+    adj
+}
+
+/// Greedy connected selection: the face whose addition passes the test by the most, then, repeatedly, the
+/// best of the faces sharing an edge with those chosen, each tested against the rendering the choices so
+/// far have left, until none passes. Returns the chosen faces and `Σ ΔE`; `rendered` and `base` are
+/// updated.
+fn grow_connected(
+    shares: &[Vec<RowSpan>],
+    adjacency: &[Vec<usize>],
+    rendered: &mut [f32],
+    base: &mut [f64],
+    bins: usize,
+    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    margin: f64,
+) -> Result<(Vec<usize>, f64)> {
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut taken = vec![false; shares.len()];
+    let mut change = 0.0;
+    loop {
+        let frontier: Vec<usize> = if chosen.is_empty() {
+            (0..shares.len()).collect()
+        } else {
+            let mut f: Vec<usize> =
+                chosen.iter().flat_map(|&c| adjacency[c].iter().copied()).filter(|&g| !taken[g]).collect();
+            f.sort_unstable();
+            f.dedup();
+            f
+        };
+        let snapshot: &[f32] = rendered;
+        let snap_base: &[f64] = base;
+        let tests: Vec<(f64, f64, usize)> = frontier
+            .par_iter()
+            .filter(|&&f| !shares[f].is_empty())
+            .map(|&f| delta(&shares[f], snapshot, snap_base, bins, row_loss, margin, true).map(|(t, d)| (t, d, f)))
+            .collect::<Result<_>>()?;
+        let Some(&(test, d, f)) = tests.iter().min_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2))) else {
+            break;
+        };
+        if !(test < 0.0) {
+            break;
+        }
+        apply_spans(&shares[f], rendered, base, bins, row_loss, true)?;
+        taken[f] = true;
+        chosen.push(f);
+        change += d;
+    }
+    chosen.sort_unstable();
+    Ok((chosen, change))
+}
+
+/// The faces of a triangle list grouped into edge- or vertex-connected components, largest first (ties by
+/// the smallest face index), each in increasing face order.
+fn components(vertices: usize, triangles: &[[u32; 3]]) -> Vec<Vec<usize>> {
+    let mut parent: Vec<usize> = (0..vertices).collect();
+    fn find(parent: &mut [usize], mut v: usize) -> usize {
+        while parent[v] != v {
+            parent[v] = parent[parent[v]];
+            v = parent[v];
+        }
+        v
+    }
+    for t in triangles {
+        let a = find(&mut parent, t[0] as usize);
+        for &v in &t[1..] {
+            let b = find(&mut parent, v as usize);
+            if a != b {
+                parent[b] = a;
+            }
+        }
+    }
+    let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
+    for (f, t) in triangles.iter().enumerate() {
+        by_root.entry(find(&mut parent, t[0] as usize)).or_default().push(f);
+    }
+    let mut out: Vec<Vec<usize>> = by_root.into_values().collect();
+    out.sort_by(|a, b| b.len().cmp(&a.len()).then(a[0].cmp(&b[0])));
+    out
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn components_groups_by_shared_vertices_largest_first() {
+        // Faces 0 and 2 share vertex 2; face 1 stands alone; faces 3, 4 share an edge.
+        let tris = [[0, 1, 2], [3, 4, 5], [2, 6, 7], [8, 9, 10], [8, 10, 11], [10, 11, 12]];
+        assert_eq!(components(13, &tris), vec![vec![3, 4, 5], vec![0, 2], vec![1]]);
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        for p in [
+            ResidualParams { snr: 0.0, ..ResidualParams::default() },
+            ResidualParams { separation: f64::NAN, ..ResidualParams::default() },
+            ResidualParams { margin: -1.0, ..ResidualParams::default() },
+        ] {
+            assert!(matches!(p.validate(), Err(OptimError::InvalidParameter { .. })));
+        }
+        ResidualParams::default().validate().unwrap();
+    }
+}
