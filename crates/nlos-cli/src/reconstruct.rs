@@ -149,7 +149,7 @@ pub(crate) struct Args {
     /// Grow only in the first N coarse-to-fine stages (default: every stage).
     #[arg(long, value_name = "N")]
     grow_stages: Option<u32>,
-    /// Residual back-projection at the end of every stage but the last: the LCT of the fit's residual
+    /// Residual back-projection at the end of the first stages (--residual-stages): the LCT of the fit's residual
     /// proposes surface patches away from the mesh, added where they lower the data term
     /// (`nlos_optim::residual`; confocal grid scans only): `on` or `off`.
     #[arg(long, value_name = "on|off", default_value = "on")]
@@ -164,9 +164,10 @@ pub(crate) struct Args {
     /// tried at four azimuths besides the untilted patch (default 40,70).
     #[arg(long, value_name = "DEG,...", default_value = "40,70")]
     residual_tilts: String,
-    /// Propose residual patches only after the first N stages (default: every stage but the last).
-    #[arg(long, value_name = "N")]
-    residual_stages: Option<u32>,
+    /// Propose residual patches after each of the first N stages (the last stage never proposes; default
+    /// 1: after stage 0 only, later residuals are at the noise level).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    residual_stages: u32,
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
@@ -488,7 +489,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         "off" => None,
         "on" => Some(nlos_optim::ResidualParams {
             separation: args.residual_separation,
-            stages: args.residual_stages,
+            stages: Some(args.residual_stages),
             margin: args.residual_margin,
             tilts: args
                 .residual_tilts

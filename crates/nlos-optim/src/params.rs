@@ -164,9 +164,12 @@ pub struct ReconstructParams {
     /// Chamfer 34.6 → 27.2 mm, but mean depth error 1.39 → 3.58 mm and normal error 27 → 52°: strips that
     /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity).
     pub grow: Option<GrowParams>,
-    /// Residual back-projection at the end of every stage but the last ([`crate::residual`]): the LCT of
-    /// the fit's residual proposes surface patches away from the mesh, added where they lower the data
-    /// term (default `Some(ResidualParams::default())`; skipped for scans that are not confocal grids).
+    /// Residual back-projection at the end of the first stage ([`crate::residual`]): the LCT of the fit's
+    /// residual proposes surface patches away from the mesh, added where they lower the data term (default
+    /// `Some(ResidualParams::default())`; skipped for scans that are not confocal grids). On the
+    /// independent renderer's bunny (as for [`Self::prune`]): coverage 88.5 → 90.6 %, Chamfer 37.2 → 34.1
+    /// mm, mean depth error 0.84 → 0.89 mm, normal error 16.8 → 17.2°; on the seed-setup bunny coverage
+    /// 85.1 → 85.4 %, Chamfer 34.6 → 31.2 mm, mean depth error 1.39 → 1.49 mm, normal error 27.1 → 28.1°.
     pub residual: Option<ResidualParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.
     pub seed: u64,

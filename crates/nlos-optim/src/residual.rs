@@ -51,8 +51,11 @@ use crate::reflectance::ConcreteBrdf;
 /// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ResidualParams {
-    /// Propose patches at the end of the stages before this one (`Some(1)`: after stage 0 only); `None`
-    /// (the default): after every stage but the last, which would leave a patch no step refines.
+    /// Propose patches at the end of the stages before this one (default `Some(1)`: after stage 0 only);
+    /// `None`: after every stage but the last (which would leave a patch no step refines). On the
+    /// independent renderer's bunny the stage-1 residual is at the noise level: 44 faces in 6 patches
+    /// explained 3.5·10⁻⁵ of the normalised data term (stage 0: 12 faces, 1.9·10⁻³) and took the normal
+    /// error from 17.2 to 26.7° and the Chamfer distance from 34.1 to 32.8 mm.
     pub stages: Option<u32>,
     /// Wiener signal-to-noise ratio of the residual's LCT (> 0; default 0.1, as `nlos init`).
     pub snr: f64,
@@ -73,7 +76,7 @@ pub struct ResidualParams {
 
 impl Default for ResidualParams {
     fn default() -> Self {
-        Self { stages: None, snr: 0.1, separation: 0.02, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
+        Self { stages: Some(1), snr: 0.1, separation: 0.02, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
     }
 }
 
