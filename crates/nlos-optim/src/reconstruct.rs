@@ -637,6 +637,16 @@ fn write_outputs(dir: &Path, st: &State) -> Result<()> {
     write_atomic(&lg, &json_bytes(&st.log, &lg)?)
 }
 
+/// Appends new vertices (numbered from the current count on) and faces; old vertices keep their Adam
+/// moments, the new ones start at zero.
+fn append(st: &mut State, positions: &[Vec3], triangles: &[[u32; 3]]) {
+    let source: Vec<Option<u32>> =
+        (0..st.positions.len() as u32).map(Some).chain(positions.iter().map(|_| None)).collect();
+    st.shape_adam = st.shape_adam.select(&source);
+    st.positions.extend(positions);
+    st.triangles.extend(triangles);
+}
+
 fn mesh_of(st: &State) -> Result<SurfaceMesh> {
     Ok(SurfaceMesh::from_triangles(&st.positions, &st.triangles)?)
 }
@@ -866,12 +876,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     &row_loss,
                     gp,
                 )?;
-                // Old vertices keep their moments, the new ones start at zero.
-                let source: Vec<Option<u32>> =
-                    (0..st.positions.len() as u32).map(Some).chain(g.positions.iter().map(|_| None)).collect();
-                st.shape_adam = st.shape_adam.select(&source);
-                st.positions.extend(&g.positions);
-                st.triangles.extend(&g.triangles);
+                append(&mut st, &g.positions, &g.triangles);
                 st.grow_log.push(GrowRecord {
                     stage: st.stage,
                     block: st.block_in_stage,
@@ -900,11 +905,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 if !p.triangles.is_empty() {
                     stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
                 }
-                let source: Vec<Option<u32>> =
-                    (0..st.positions.len() as u32).map(Some).chain(p.positions.iter().map(|_| None)).collect();
-                st.shape_adam = st.shape_adam.select(&source);
-                st.positions.extend(&p.positions);
-                st.triangles.extend(&p.triangles);
+                append(&mut st, &p.positions, &p.triangles);
                 st.residual_log.push(ResidualRecord {
                     stage: st.stage,
                     columns: p.columns,
