@@ -46,6 +46,7 @@ use serde::{Deserialize, Serialize};
 use glam::Vec3;
 use nlos_init::{Gate, InitError, LctParams, SurfaceParams, Threshold, lct, volume_to_surface_where};
 use nlos_mesh::bvh::TriangleBvh;
+use nlos_mesh::{FaceId, SurfaceMesh};
 use nlos_render::{RenderParams, Renderer, RowSpan};
 use nlos_transient::Transient;
 
@@ -209,8 +210,8 @@ pub fn residual_patches(
         Err(e) => return Err(e.into()),
     };
     let columns = surface.mask.iter().filter(|&&k| k).count();
-    let (patch_pos, patch_tri) = (&surface.positions, &surface.triangles);
-    let regions = components(patch_pos.len(), patch_tri);
+    let (patch_pos, patch_tri) = surface.mesh.to_triangles();
+    let (regions, neighbours) = regions_of(&surface.mesh);
     let mut base: Vec<f64> =
         rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
     let mut out = Patches { columns, regions: regions.len(), ..Patches::default() };
@@ -224,7 +225,9 @@ pub fn residual_patches(
         let tri: Vec<[u32; 3]> = faces.iter().map(|&f| patch_tri[f].map(local)).collect();
         let pos: Vec<Vec3> = verts.iter().map(|&v| patch_pos[v as usize]).collect();
         let centroid = pos.iter().copied().sum::<Vec3>() / pos.len() as f32;
-        let adjacency = edge_adjacency(&tri);
+        // Edge neighbours within the region, as indices into `faces` (sorted).
+        let adjacency: Vec<Vec<usize>> =
+            faces.iter().map(|&f| neighbours[f].iter().filter_map(|g| faces.binary_search(g).ok()).collect()).collect();
         // (Σ ΔE, turned positions, chosen faces, their shares) of the best orientation so far.
         let mut best: Option<Candidate> = None;
         for &(theta, phi) in &orientations(&params.tilts) {
@@ -280,24 +283,6 @@ fn orientations(tilts: &[f64]) -> Vec<(f64, f64)> {
     out
 }
 
-/// Per face, the faces sharing an edge with it.
-fn edge_adjacency(tri: &[[u32; 3]]) -> Vec<Vec<usize>> {
-    let mut by_edge: std::collections::HashMap<(u32, u32), Vec<usize>> = std::collections::HashMap::new();
-    for (f, t) in tri.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            by_edge.entry((a.min(b), a.max(b))).or_default().push(f);
-        }
-    }
-    let mut adj = vec![Vec::new(); tri.len()];
-    for fs in by_edge.values() {
-        for &f in fs {
-            adj[f].extend(fs.iter().copied().filter(|&g| g != f));
-        }
-    }
-    adj
-}
-
 /// Greedy connected selection: the face whose addition passes the test by the most, then, repeatedly, the
 /// best of the faces sharing an edge with those chosen, each tested against the rendering the choices so
 /// far have left, until none passes. Returns the chosen faces and `Σ ΔE`; `rendered` and `base` are
@@ -346,46 +331,40 @@ fn grow_connected(
     Ok((chosen, change))
 }
 
-/// The faces of a triangle list grouped into edge- or vertex-connected components, largest first (ties by
-/// the smallest face index), each in increasing face order.
-fn components(vertices: usize, triangles: &[[u32; 3]]) -> Vec<Vec<usize>> {
-    let mut parent: Vec<usize> = (0..vertices).collect();
-    fn find(parent: &mut [usize], mut v: usize) -> usize {
-        while parent[v] != v {
-            parent[v] = parent[parent[v]];
-            v = parent[v];
-        }
-        v
+/// The faces of `mesh` (numbered in `mesh.faces()` order, as `to_triangles`) grouped by connected
+/// component, largest first (ties by the smallest face), each in increasing order; and per face the faces
+/// across its interior edges.
+fn regions_of(mesh: &SurfaceMesh) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
+    let faces: Vec<FaceId> = mesh.faces().collect();
+    let mut number = vec![usize::MAX; faces.iter().map(|f| f.idx() + 1).max().unwrap_or(0)];
+    for (i, f) in faces.iter().enumerate() {
+        number[f.idx()] = i;
     }
-    for t in triangles {
-        let a = find(&mut parent, t[0] as usize);
-        for &v in &t[1..] {
-            let b = find(&mut parent, v as usize);
-            if a != b {
-                parent[b] = a;
-            }
-        }
+    let (component, n) = mesh.connected_components();
+    let mut regions = vec![Vec::new(); n];
+    for (i, &f) in faces.iter().enumerate() {
+        regions[component[mesh.face_vertices(f)[0].idx()] as usize].push(i);
     }
-    let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
-    for (f, t) in triangles.iter().enumerate() {
-        by_root.entry(find(&mut parent, t[0] as usize)).or_default().push(f);
-    }
-    let mut out: Vec<Vec<usize>> = by_root.into_values().collect();
-    out.sort_by(|a, b| b.len().cmp(&a.len()).then(a[0].cmp(&b[0])));
-    out
+    regions.retain(|r| !r.is_empty());
+    regions.sort_by(|a, b| b.len().cmp(&a.len()).then(a[0].cmp(&b[0])));
+    let neighbours = faces
+        .iter()
+        .map(|&f| {
+            mesh.face_halfedges(f)
+                .into_iter()
+                .map(|h| h.opposite())
+                .filter(|&o| !mesh.is_boundary_halfedge(o))
+                .map(|o| number[mesh.face(o).idx()])
+                .collect()
+        })
+        .collect();
+    (regions, neighbours)
 }
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn components_groups_by_shared_vertices_largest_first() {
-        // Faces 0 and 2 share vertex 2; face 1 stands alone; faces 3, 4 share an edge.
-        let tris = [[0, 1, 2], [3, 4, 5], [2, 6, 7], [8, 9, 10], [8, 10, 11], [10, 11, 12]];
-        assert_eq!(components(13, &tris), vec![vec![3, 4, 5], vec![0, 2], vec![1]]);
-    }
 
     #[test]
     fn bad_parameters_are_errors() {
