@@ -148,7 +148,7 @@ impl DataTerm {
                 got: measured_row.len(),
             });
         }
-        let w: Option<&[f32]> = match &self.weights {
+        let weights = match &self.weights {
             Some(w) => Some(w.get(offset..offset + rendered_row.len()).ok_or(OptimError::LengthMismatch {
                 what: "weights",
                 expected: offset + rendered_row.len(),
@@ -156,18 +156,10 @@ impl DataTerm {
             })?),
             None => None,
         };
-        let wt = |k: usize| w.map_or(1.0, |w| f64::from(w[k]));
-        let mut e = 0.0;
-        for (k, (&r, &m)) in rendered_row.iter().zip(measured_row).enumerate() {
-            let (mu, n) = (scale * f64::from(r), f64::from(m));
-            e += wt(k)
-                * match self.loss {
-                    Loss::L2 => 0.5 * (mu - n) * (mu - n),
-                    // The same clamp as `nlos_render::Loss::PoissonNll`, applied to the scaled rate.
-                    Loss::PoissonNll { floor } => mu - n * mu.max(f64::from(floor)).ln(),
-                };
-        }
-        Ok(e)
+        // Exactly as `evaluate`: scaled in f32, then the renderer's loss.
+        let s32 = scale as f32;
+        let scaled: Vec<f32> = rendered_row.iter().map(|r| s32 * r).collect();
+        Ok(self.loss.evaluate(&scaled, measured_row, weights)?.0)
     }
 
     /// The expected data term if the measurement were Poisson counts with means `μ = scale·rendered`

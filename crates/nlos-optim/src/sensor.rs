@@ -63,6 +63,12 @@ pub const MIN_BACKGROUND_FRACTION: f64 = 1e-3;
 /// agree to 1e-5 there).
 const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
 
+/// The Poisson half-deviance of one bin, `μ − n + n ln(n/μ)` (`0 · ln 0 = 0`): the data term of the
+/// sensor fit per bin (module docs), zero exactly at `μ = n`.
+fn half_deviance(mu: f64, n: f64) -> f64 {
+    mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 }
+}
+
 /// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
 /// (module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
 /// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
@@ -269,7 +275,7 @@ impl SensorFit {
         for ((rk, &ak), &nk) in r.iter_mut().zip(&a).zip(counts) {
             let n = f64::from(nk);
             let mu = (scale * ak + background).max(MU_FLOOR);
-            value += mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 };
+            value += half_deviance(mu, n);
             *rk = 1.0 - n / mu;
         }
         let mut g = vec![0.0; r.len()];
@@ -296,11 +302,7 @@ impl SensorFit {
         let a = self.jitter(rendered_row, rendered_row.len())?;
         Ok(a.iter()
             .zip(counts_row)
-            .map(|(&ak, &nk)| {
-                let n = f64::from(nk);
-                let mu = (scale * ak + background).max(MU_FLOOR);
-                mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 }
-            })
+            .map(|(&ak, &nk)| half_deviance((scale * ak + background).max(MU_FLOOR), f64::from(nk)))
             .sum())
     }
 
@@ -414,9 +416,7 @@ mod tests {
             let draws = 20_000;
             let (mut sum, mut sum2) = (0.0, 0.0);
             for _ in 0..draws {
-                let n = rng.poisson(mu);
-                let nf = n as f64;
-                let d = mu - nf + if n > 0 { nf * (nf / mu).ln() } else { 0.0 };
+                let d = half_deviance(mu, rng.poisson(mu) as f64);
                 sum += d;
                 sum2 += d * d;
             }

@@ -158,19 +158,23 @@ fn row_values_sum_to_the_data_terms() {
     let measured: Vec<f32> = (0..60).map(|i| ((i * 5 % 13) as f32).floor()).collect();
     let weights: Vec<f32> = (0..60).map(|i| 0.5 + (i % 3) as f32 * 0.5).collect();
     let bins = 20;
+    // The scale solved in closed form (≠ 1), so that the scaling is exercised.
     for term in [
-        DataTerm { solve_scale: false, ..DataTerm::default() },
-        DataTerm { weights: Some(weights.clone()), solve_scale: false, ..DataTerm::default() },
-        DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(weights), solve_scale: false, counts: true },
+        DataTerm::default(),
+        DataTerm { weights: Some(weights.clone()), ..DataTerm::default() },
+        DataTerm { loss: Loss::PoissonNll { floor: 1e-12 }, weights: Some(weights), solve_scale: true, counts: true },
     ] {
-        let whole = term.evaluate(&rendered, &measured, 1.0).unwrap().value;
+        let ev = term.evaluate(&rendered, &measured, 1.0).unwrap();
+        assert!((ev.scale - 1.0).abs() > 0.01, "scale {}", ev.scale);
         let rows: f64 = (0..3)
             .map(|m| {
-                term.row_value(&rendered[m * bins..][..bins], &measured[m * bins..][..bins], m * bins, 1.0).unwrap()
+                term.row_value(&rendered[m * bins..][..bins], &measured[m * bins..][..bins], m * bins, ev.scale)
+                    .unwrap()
             })
             .sum();
-        // `evaluate` scales in f32 before summing, `row_value` in f64: agreement to f32 rounding.
-        assert!((whole - rows).abs() <= 1e-7 * whole.abs(), "{:?}: {whole} vs {rows}", term.loss);
+        // The same f32 values and loss; only the order of the f64 sum differs.
+        let whole = ev.value;
+        assert!((whole - rows).abs() <= 1e-12 * whole.abs(), "{:?}: {whole} vs {rows}", term.loss);
     }
     let fit = SensorFit {
         kernel: BinKernel::new(-1, vec![0.2, 0.5, 0.2, 0.1]).unwrap(),
