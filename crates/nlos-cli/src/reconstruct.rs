@@ -467,12 +467,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         other => return Err(bad(format!("--noise `{other}`: expected `auto`, `counts` or `none`"))),
     };
     p.remove_unlit_boundary_faces = !args.keep_unlit;
-    let angles = args
-        .grow_angles
-        .split(',')
-        .map(|a| a.trim().parse::<f64>())
-        .collect::<Result<Vec<f64>, _>>()
-        .map_err(|e| bad(format!("--grow-angles `{}`: {e}", args.grow_angles)))?;
+    let angles = degrees("--grow-angles", &args.grow_angles)?;
     p.grow = args.grow.then_some(nlos_optim::GrowParams { angles, margin: args.grow_margin, stages: args.grow_stages });
     p.prune = match args.prune.as_str() {
         "off" => None,
@@ -491,12 +486,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
             separation: args.residual_separation,
             stages: Some(args.residual_stages),
             margin: args.residual_margin,
-            tilts: args
-                .residual_tilts
-                .split(',')
-                .map(|a| a.trim().parse::<f64>())
-                .collect::<Result<Vec<f64>, _>>()
-                .map_err(|e| bad(format!("--residual-tilts `{}`: {e}", args.residual_tilts)))?,
+            tilts: degrees("--residual-tilts", &args.residual_tilts)?,
             ..nlos_optim::ResidualParams::default()
         }),
         r => return Err(bad(format!("--residual `{r}`: expected `on` or `off`"))),
@@ -505,6 +495,15 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     p.sensor = sensor_fit(args, measured)?;
     p.validate().map_err(bad)?;
     Ok(p)
+}
+
+/// A comma-separated list of angles in degrees (`--grow-angles`, `--residual-tilts`); their ranges are
+/// checked by the parameters' `validate`.
+fn degrees(flag: &str, list: &str) -> Result<Vec<f64>, CliError> {
+    list.split(',')
+        .map(|a| a.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| bad(format!("{flag} `{list}`: {e}")))
 }
 
 /// The initial surface: a volumetric reconstruction turned into a mesh, or a mesh file.

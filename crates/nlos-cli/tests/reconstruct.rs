@@ -128,6 +128,11 @@ fn bad_arguments_are_input_errors() {
         vec!["--grow", "--grow-angles", "flat"],
         vec!["--grow", "--grow-margin=-0.5"],
         vec!["--grow", "--grow-stages", "0"],
+        vec!["--residual", "maybe"],
+        vec!["--residual-separation", "0"],
+        vec!["--residual-margin=-1"],
+        vec!["--residual-tilts", "40,95"],
+        vec!["--residual-tilts", "steep"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
