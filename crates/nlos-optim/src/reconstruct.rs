@@ -13,7 +13,9 @@
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
 //! 4. **Pruning and growth** (optional, [`crate::ReconstructParams::prune`], [`crate::ReconstructParams::grow`]):
 //!    boundary faces whose deletion lowers the data term are deleted ([`crate::prune`]), then faces across
-//!    the boundary edges are added where they lower it ([`crate::grow`]).
+//!    the boundary edges are added where they lower it ([`crate::grow`]). At the end of the first stages
+//!    ([`crate::ReconstructParams::residual`]), patches from the LCT of the fit's residual join the mesh
+//!    where they lower it ([`crate::residual`]); the stage's saved mesh is the one before they join.
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
@@ -253,8 +255,8 @@ pub struct Outcome {
     pub prune: Vec<PruneRecord>,
     /// One record per boundary growth (per block; empty when [`ReconstructParams::grow`] is `None`).
     pub grow: Vec<GrowRecord>,
-    /// One record per residual back-projection (per stage but the last; empty when
-    /// [`ReconstructParams::residual`] is `None`).
+    /// One record per residual back-projection (per stage that proposes, [`crate::ResidualParams::stages`];
+    /// empty when [`ReconstructParams::residual`] is `None`).
     pub residual: Vec<ResidualRecord>,
 }
 
@@ -828,13 +830,12 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
         // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
         let converged = !(rel >= sch.rel_tol);
-        let last_block =
-            (converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage) && st.stage + 1 >= sch.max_stages;
+        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage;
+        let last_block = stage_ends && st.stage + 1 >= sch.max_stages;
 
         // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces),
         // residual back-projection at the end of a stage but the last ----
         let grow = params.grow.as_ref().filter(|g| !last_block && g.stages.is_none_or(|n| st.stage < n));
-        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage;
         let residual =
             params.residual.as_ref().filter(|r| stage_ends && !last_block && r.stages.is_none_or(|n| st.stage < n));
         // The stage's mesh as fitted (before residual patches join it).
@@ -919,7 +920,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
 
         // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
         st.blocks_done += 1;
-        if converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage {
+        if stage_ends {
             if let Some(dir) = &out_dir {
                 let m = match &stage_mesh {
                     Some((p, t)) => SurfaceMesh::from_triangles(p, t)?,
