@@ -10,7 +10,7 @@
 //! turns parallel to the line of sight). Every boundary edge `a → b` proposes the quad `a b p_b p_a` (two
 //! triangles, `b a p_a` and `b p_a p_b`, oriented like the mesh) at each angle, and keeps its best one when
 //! ```text
-//! ΔE⁺ = E(I + I_quad) − E(I) < −κ · ½ c      (c = ΔE⁺ + ΔE⁻, the second difference; crate::prune)
+//! ΔE⁺ = E(I + I_quad) − E(I) < −κ · ½ c      (c = E(I + 2I_quad) − 2E(I + I_quad) + E(I); crate::prune)
 //! ```
 //! i.e. when the measurement holds light the rendering lacks, in the quad's bins, by more than `(1 + κ)/2`
 //! of the quad's own share. Proposals are rendered without occlusion (they lie beyond the mesh's boundary),
@@ -285,7 +285,7 @@ pub fn grow_boundary(
 }
 
 /// Merges spans of the same measurement into one (summing the overlapping bins), in measurement order.
-pub(crate) fn merge(mut spans: Vec<RowSpan>) -> Vec<RowSpan> {
+fn merge(mut spans: Vec<RowSpan>) -> Vec<RowSpan> {
     spans.sort_by_key(|s| s.measurement);
     let mut out: Vec<RowSpan> = Vec::with_capacity(spans.len());
     for s in spans {

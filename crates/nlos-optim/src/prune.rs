@@ -19,7 +19,9 @@
 //! whose share is small, so a face goes only when `ΔE_f < −κ · ½ c_f`, with `c_f = ΔE_f(+) + ΔE_f(−)` the
 //! second difference of the data term along the face's share (`E(I + I_f) + E(I − I_f) − 2E(I)`, which is
 //! `s²‖I_f‖²` for L2): with κ = ½, the rendering must exceed the measurement, in the face's bins, by ¾ of the
-//! face's own contribution. A face nothing supports has `ΔE_f = −½ c_f` and still goes.
+//! face's own contribution. A face nothing supports has `ΔE_f = −½ c_f` and still goes. Additions
+//! ([`crate::grow`], [`crate::residual`]) take `c_f` from the forward difference
+//! `E(I + 2I_f) − 2E(I + I_f) + E(I)`, the same `s²‖I_f‖²` for L2.
 //!
 //! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted
 //! greedily from the most negative, each re-tested against the rendering left by the deletions before it
