@@ -103,8 +103,8 @@ impl ResidualParams {
         if self.min_faces == 0 {
             return bad("residual.min_faces", 0.0, "an accepted patch has at least one face");
         }
-        if let Some(&t) = self.tilts.iter().find(|t| !(t.is_finite() && t.abs() < 90.0)) {
-            return bad("residual.tilts", t, "tilts are angles in degrees, finite and within (−90, 90)");
+        if let Some(&t) = self.tilts.iter().find(|t| !(t.is_finite() && (0.0..90.0).contains(*t))) {
+            return bad("residual.tilts", t, "tilts are angles in degrees in [0, 90) (the azimuths give the sides)");
         }
         if !(self.margin.is_finite() && self.margin >= 0.0) {
             return bad("residual.margin", self.margin, "the margin κ is finite and ≥ 0 (0: the plain sign test)");
@@ -372,6 +372,9 @@ mod tests {
             ResidualParams { snr: 0.0, ..ResidualParams::default() },
             ResidualParams { separation: f64::NAN, ..ResidualParams::default() },
             ResidualParams { margin: -1.0, ..ResidualParams::default() },
+            ResidualParams { tilts: vec![40.0, -30.0], ..ResidualParams::default() },
+            ResidualParams { tilts: vec![90.0], ..ResidualParams::default() },
+            ResidualParams { min_faces: 0, ..ResidualParams::default() },
         ] {
             assert!(matches!(p.validate(), Err(OptimError::InvalidParameter { .. })));
         }
