@@ -4,6 +4,8 @@
 //! changes are the exact changes of the data term; the results are manifold meshes.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
@@ -23,24 +25,7 @@ fn z(x: f32, y: f32) -> f32 {
 /// A height field facing the wall over [−half, half]² in cells of `CELL` (the grids of different sizes
 /// share their vertices and triangles where they overlap).
 fn patch(half_cells: i32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let n = 2 * half_cells;
-    let mut p = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, y) = ((i - half_cells) as f32 * CELL, (j - half_cells) as f32 * CELL);
-            p.push(Vec3::new(x, y, z(x, y)));
-        }
-    }
-    let id = |i: i32, j: i32| (j * (n + 1) + i) as u32;
-    let mut t = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            // Normals toward the wall (−z).
-            t.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            t.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
-    (p, t)
+    common::height_field(2 * half_cells, CELL, 0.0, 0.0, z)
 }
 
 fn setup() -> (Scan, TimeAxis, RenderParams) {

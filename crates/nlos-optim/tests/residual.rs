@@ -3,6 +3,8 @@
 //! reported change is the exact change of the data term; a scan that is not a confocal grid is skipped.
 #![allow(clippy::unwrap_used)]
 
+mod common;
+
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_optim::{ConcreteBrdf, DataTerm, ResidualParams, residual_patches};
@@ -11,22 +13,7 @@ use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
 /// A square facing the wall (normals −z), centred at (cx, cy) at depth z, `n × n` cells of `cell`.
 fn square(cx: f32, cy: f32, z: f32, n: i32, cell: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut p = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (x, y) = (cx + (i as f32 - n as f32 / 2.0) * cell, cy + (j as f32 - n as f32 / 2.0) * cell);
-            p.push(Vec3::new(x, y, z));
-        }
-    }
-    let id = |i: i32, j: i32| (j * (n + 1) + i) as u32;
-    let mut t = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            t.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            t.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
-    (p, t)
+    common::height_field(n, cell, cx, cy, |_, _| z)
 }
 
 fn union(a: (Vec<Vec3>, Vec<[u32; 3]>), b: (Vec<Vec3>, Vec<[u32; 3]>)) -> (Vec<Vec3>, Vec<[u32; 3]>) {
