@@ -162,7 +162,8 @@ pub struct ReconstructParams {
     /// edges are added where they lower the data term (default `None`: off). It trades depth accuracy for
     /// coverage: on the seed-setup bunny (as for [`Self::prune`], with pruning) coverage 85.1 → 92.6 % and
     /// Chamfer 34.6 → 27.2 mm, but mean depth error 1.39 → 3.58 mm and normal error 27 → 52°: strips that
-    /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity).
+    /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity). (Measured
+    /// before the growth margin was corrected to the full curvature of the data term, `crate::prune`.)
     pub grow: Option<GrowParams>,
     /// Residual back-projection at the end of the first stage ([`crate::residual`]): the LCT of the fit's
     /// residual proposes surface patches away from the mesh, added where they lower the data term (default
