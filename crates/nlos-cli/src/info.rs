@@ -16,6 +16,8 @@ struct Peak {
     path: Option<f64>,
     /// The direct-light gate used, metres of path.
     gate: Option<f64>,
+    /// Where the last return ends (`Transient::signal_end_path`), metres of path.
+    end: Option<f64>,
     /// How it was obtained, or why it is missing.
     note: String,
 }
@@ -31,7 +33,7 @@ fn peak(t: &Transient) -> Peak {
                 &removed
             }
             Err(e) => {
-                return Peak { depth: None, path: None, gate: None, note: format!("not computed: {e}") };
+                return Peak { depth: None, path: None, gate: None, end: None, note: format!("not computed: {e}") };
             }
         }
     } else {
@@ -41,9 +43,10 @@ fn peak(t: &Transient) -> Peak {
     note.push_str(&format!("summed histogram after gating the direct light before {gate:.4} m of path"));
     let path = t.summed_peak_path(Some(gate));
     let depth = if t.scan().is_confocal() { t.summed_peak_depth(Some(gate)).ok() } else { None };
+    let end = Some(t.signal_end_path(gate));
     match path {
-        Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), note },
-        Err(e) => Peak { depth: None, path: None, gate: Some(gate), note: format!("not computed: {e}") },
+        Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), end, note },
+        Err(e) => Peak { depth: None, path: None, gate: Some(gate), end, note: format!("not computed: {e}") },
     }
 }
 
@@ -126,6 +129,7 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
                 "depth_m": peak.depth,
                 "path_m": peak.path,
                 "direct_light_gate_m": peak.gate,
+                "signal_end_path_m": peak.end,
                 "note": peak.note,
             },
         });
@@ -187,6 +191,10 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         (Some(d), _) => println!("peak depth:    {} m ({})", num(d, 4), peak.note),
         (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
         _ => println!("peak depth:    n/a ({})", peak.note),
+    }
+    if let Some(e) = peak.end {
+        let depth = if scan.is_confocal() { format!(" (depth {} m)", num(e / 2.0, 4)) } else { String::new() };
+        println!("signal ends:   {} m of path{depth}: later bins hold only background", num(e, 4));
     }
     Ok(())
 }

@@ -73,9 +73,12 @@ pub(crate) struct Args {
     gate: nlos_init::Gate,
     /// Drop the bins whose path length exceeds 2 × this depth (metres) before anything else: for a confocal
     /// scan, everything deeper than it (late background, a far wall) is then neither fitted nor in the
-    /// initial surface. Default: the whole time axis.
-    #[arg(long, value_name = "METRES")]
-    max_depth: Option<f64>,
+    /// initial surface. `auto` (the default) drops the bins after the last return, where the summed
+    /// histogram holds only background (`Transient::signal_end_path`, plus 5 %; a capture without
+    /// background, e.g. a simulation, keeps its whole axis): left in, an L2 fit explains that background
+    /// with far, large surfaces. `off` keeps the whole axis.
+    #[arg(long, value_name = "METRES|auto|off", default_value = "auto", value_parser = parse_max_depth)]
+    max_depth: MaxDepth,
     /// Keep every K-th scan row and column before anything else (faster, coarser).
     #[arg(long, value_name = "K")]
     subsample: Option<usize>,
@@ -187,6 +190,40 @@ fn bad<E: std::fmt::Display>(e: E) -> CliError {
     CliError::Input(e.to_string())
 }
 
+/// `--max-depth`: where the time axis ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum MaxDepth {
+    /// After the last return (`Transient::signal_end_path`).
+    Auto,
+    /// The whole axis.
+    Off,
+    /// At twice this depth (metres) of path.
+    Depth(f64),
+}
+
+impl std::fmt::Display for MaxDepth {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Auto => f.write_str("auto (after the last return)"),
+            Self::Off => f.write_str("off"),
+            Self::Depth(d) => write!(f, "{d} m"),
+        }
+    }
+}
+
+fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
+    match s {
+        "auto" => Ok(MaxDepth::Auto),
+        "off" | "none" => Ok(MaxDepth::Off),
+        _ => s
+            .parse::<f64>()
+            .ok()
+            .filter(|d| d.is_finite() && *d > 0.0)
+            .map(MaxDepth::Depth)
+            .ok_or_else(|| format!("`{s}` is not a depth in metres (finite, > 0), `auto` or `off`")),
+    }
+}
+
 /// The capture, after the requested rebinning and subsampling.
 fn load_measured(args: &Args) -> Result<Transient, CliError> {
     let (_, measured) = load_capture(args)?;
@@ -200,15 +237,35 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
     if let Some(k) = args.rebin {
         full = full.rebin(k).map_err(CliError::input)?;
     }
-    if let Some(g) = args.gate.path(&full).map_err(bad)?.filter(|g| *g > full.time().t0) {
+    let gate = args.gate.path(&full).map_err(bad)?.filter(|g| *g > full.time().t0);
+    if let Some(g) = gate {
         full = full.gate(g).map_err(CliError::input)?;
     }
-    if let Some(d) = args.max_depth {
-        if !(d.is_finite() && d > 0.0) {
-            return Err(bad(format!("--max-depth {d}: a depth in metres, finite and > 0")));
+    match args.max_depth {
+        MaxDepth::Off => {}
+        MaxDepth::Depth(d) => {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(bad(format!("--max-depth {d}: a depth in metres, finite and > 0")));
+            }
+            let t0 = full.time().t0;
+            full = full.crop_path(t0, 2.0 * d).map_err(|e| bad(format!("--max-depth {d}: {e}")))?;
         }
-        let t0 = full.time().t0;
-        full = full.crop_path(t0, 2.0 * d).map_err(|e| bad(format!("--max-depth {d}: {e}")))?;
+        MaxDepth::Auto => {
+            let ax = *full.time();
+            let end = full.signal_end_path(gate.unwrap_or(ax.t0));
+            if end < ax.end() {
+                if !args.quiet {
+                    eprintln!(
+                        "--max-depth auto: the last return ends at {:.4} m of path (depth {:.4} m); the {} later \
+                         bins hold only background and are dropped (--max-depth off keeps them)",
+                        end,
+                        end / 2.0,
+                        ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
+                    );
+                }
+                full = full.crop_path(ax.t0, end).map_err(|e| bad(format!("--max-depth auto: {e}")))?;
+            }
+        }
     }
     let measured = match args.subsample {
         Some(k) => full.subsample(k, k).map_err(CliError::input)?,
@@ -373,7 +430,7 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
         ("rebin", opt(args.rebin.map(|v| v.to_string()))),
         ("subsample", opt(args.subsample.map(|v| v.to_string()))),
         ("gate", format!("{:?}", args.gate)),
-        ("max depth", opt(args.max_depth.map(|v| v.to_string()))),
+        ("max depth", args.max_depth.to_string()),
         ("visibility", args.visibility.clone()),
         ("quadrature max level", args.max_level.to_string()),
         ("sensor", opt(args.sensor.clone())),

@@ -121,6 +121,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--gate", "inf"],
         vec!["--max-depth=-1"],
         vec!["--max-depth", "0"],
+        vec!["--max-depth", "deep"],
+        vec!["--max-depth", "inf"],
         vec!["--prune", "0"],
         vec!["--prune", "lots"],
         vec!["--prune-margin=-1"],

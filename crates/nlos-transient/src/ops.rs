@@ -195,6 +195,54 @@ impl Transient {
         ax.t0
     }
 
+    /// Estimates where the last return from the hidden scene ends, as a path length (metres): the end of
+    /// the last bin whose summed histogram stands clearly above the background. Later bins hold only
+    /// background, which an L2 fit would explain with far, large surfaces.
+    ///
+    /// Heuristic, documented here because it is a choice (it sets `nlos reconstruct --max-depth auto`);
+    /// only the bins that begin at or after `min_path` count (pass [`Transient::direct_light_end`] for a
+    /// raw capture):
+    /// 1. the summed histogram `h` is smoothed with a box of `w = max(1, 6 mm / bin_width)` bins (`h̄`);
+    /// 2. the background `B` is the 10th percentile of `h̄` (the bins between and around the returns; the
+    ///    last bins of a capture are no guide: in `data_s_u.mat` they hold the U and a rise of the
+    ///    background), and the noise `σ` of one bin is `1.4826·MAD/√2` of the first differences of `h`
+    ///    (slow structure cancels in a difference, Poisson noise does not);
+    /// 3. a bin holds signal when its smoothed excess `h̄ − B` exceeds both `5σ/√w` and 2 % of the largest
+    ///    excess (at 1 % the diffuse S's late background bumps at 1.1 m counted as signal);
+    /// 4. the end of the last such bin, plus 5 % of its path length (the faint tails of the last return),
+    ///    is returned, at most the end of the axis.
+    ///
+    /// A capture without background (`B = 0`: a simulation, noisy or not) returns the end of the axis: its
+    /// late bins hold nothing that could mislead a fit, and the faint tails of its returns are signal.
+    /// So does a capture with no bin at or after `min_path`, or with no excess at all.
+    pub fn signal_end_path(&self, min_path: f64) -> f64 {
+        let ax = self.time();
+        let h = self.summed_histogram();
+        let w = ((0.006 / ax.bin_width).round() as usize).max(1);
+        let smooth = box_smooth(&h, w);
+        let first = (0..ax.bins).find(|&k| ax.bin_start(k) >= min_path).unwrap_or(ax.bins);
+        if ax.bins - first < 2 {
+            return ax.end();
+        }
+        let mut sorted = smooth[first..].to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let background = sorted[(sorted.len() - 1) / 10];
+        let mut diffs: Vec<f64> = h[first..].windows(2).map(|p| p[1] - p[0]).collect();
+        let centre = median_of(&mut diffs);
+        let mut dev: Vec<f64> = diffs.iter().map(|d| (d - centre).abs()).collect();
+        let sigma = 1.4826 * median_of(&mut dev) / std::f64::consts::SQRT_2;
+        let peak = smooth[first..].iter().map(|v| v - background).fold(0.0f64, f64::max);
+        // Guard: no background (or none measurable) means nothing to drop; no excess means no return.
+        if !(background > 0.0 && peak > 0.0) {
+            return ax.end();
+        }
+        let threshold = (5.0 * sigma / (w as f64).sqrt()).max(0.02 * peak);
+        (first..ax.bins)
+            .rev()
+            .find(|&k| smooth[k] - background > threshold)
+            .map_or(ax.end(), |k| (1.05 * (ax.bin_start(k) + ax.bin_width)).min(ax.end()))
+    }
+
     /// Path length (metres, at the bin centre) of the maximum of the summed histogram among the bins
     /// that begin at or after `min_path`; `None` for `min_path` means [`Transient::direct_light_end`].
     ///
@@ -257,6 +305,16 @@ pub(crate) fn shift_histogram(input: &[f32], shift: f64, out: &mut [f32]) {
     for (k, o) in out.iter_mut().enumerate() {
         *o = (c(k as f64 + 1.0 + shift) - c(k as f64 + shift)) as f32;
     }
+}
+
+/// The median of `v` (reordered in place); 0 for an empty slice.
+fn median_of(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
 fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {

@@ -202,3 +202,39 @@ fn fractional_leg_shift_conserves_and_splits_mass() {
     let h = r.histogram(0);
     assert!((h[3] - 1.0).abs() < 1e-5 && (h[4] - 3.0).abs() < 1e-5, "{h:?}");
 }
+
+/// Photon counts of 16 measurements: background `b` per bin, a strong return at bin 400 (peak ≈ 400
+/// counts) and a weaker one (`second` × that) at bin 800, on 1200 bins of 1.2 mm.
+fn two_returns(b: f64, second: f64) -> Transient {
+    use nlos_transient::sensor::Pcg32;
+    let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.1, 0.1).expect("grid"));
+    let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
+    let mut rng = Pcg32::new(7, 1);
+    let data: Vec<f32> = (0..16 * 1200)
+        .map(|i| {
+            let k = (i % 1200) as f64;
+            let bump = |c: f64| (-((k - c) / 10.0).powi(2)).exp();
+            rng.poisson(b + 400.0 * (bump(400.0) + second * bump(800.0))) as f32
+        })
+        .collect();
+    Transient::new(scan, time, data).expect("transient")
+}
+
+#[test]
+fn signal_end_path_ends_after_the_last_return_that_stands_above_the_background() {
+    // The second return at 20 % of the first is signal: the end lies just after it (bin 800 ± 3 widths),
+    // with the 5 % margin.
+    let t = two_returns(2.0, 0.2);
+    let end = t.signal_end_path(0.0);
+    let last = 0.0012 * 830.0;
+    assert!(end > 800.0 * 0.0012 && end <= 1.05 * last, "end {end}");
+    // At 1 % it is not: the end follows the first return.
+    let t = two_returns(2.0, 0.01);
+    let end = t.signal_end_path(0.0);
+    assert!(end > 400.0 * 0.0012 && end < 1.05 * 0.0012 * 440.0, "end {end}");
+    // No background (a simulation): the whole axis.
+    let t = two_returns(0.0, 0.01);
+    assert_eq!(t.signal_end_path(0.0), t.time().end());
+    // Nothing at or after min_path: the whole axis.
+    assert_eq!(t.signal_end_path(10.0), t.time().end());
+}
