@@ -46,7 +46,7 @@ use serde::{Deserialize, Serialize};
 use glam::Vec3;
 use nlos_init::{Gate, InitError, LctParams, SurfaceParams, Threshold, lct, volume_to_surface_where};
 use nlos_mesh::bvh::TriangleBvh;
-use nlos_mesh::{FaceId, SurfaceMesh};
+use nlos_mesh::{BuildOptions, FaceId, SurfaceMesh};
 use nlos_render::{RenderParams, Renderer, RowSpan};
 use nlos_transient::Transient;
 
@@ -255,20 +255,28 @@ pub fn residual_patches(
         }
         out.accepted += 1;
         out.data_change += change;
-        let mut new_id = vec![u32::MAX; turned.len()];
-        for &f in &chosen {
-            let t = tri[f].map(|v| {
-                let v = v as usize;
-                if new_id[v] == u32::MAX {
-                    new_id[v] = n_old + out.positions.len() as u32;
-                    out.positions.push(turned[v]);
-                }
-                new_id[v]
-            });
-            out.triangles.push(t);
-        }
+        let (p, t) = patch_mesh(&turned, &tri, &chosen)?;
+        let offset = n_old + out.positions.len() as u32;
+        out.positions.extend(p);
+        out.triangles.extend(t.into_iter().map(|t| t.map(|v| v + offset)));
     }
     Ok(out)
+}
+
+/// The chosen faces of a region as a mesh of their own: only the vertices they use, and a separate copy
+/// of a vertex per fan where the choice touches itself at a vertex only (faces joined through an edge
+/// chain around a vertex whose fan they do not fill). Such a pinched vertex is non-manifold, and the
+/// run's next `SurfaceMesh` of the whole mesh would refuse it (it stopped `data_resolution_chart_40cm`
+/// at the end of stage 0).
+fn patch_mesh(positions: &[Vec3], triangles: &[[u32; 3]], chosen: &[usize]) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    let mut used: Vec<u32> = chosen.iter().flat_map(|&f| triangles[f]).collect();
+    used.sort_unstable();
+    used.dedup();
+    let local = |v: u32| used.binary_search(&v).map_or(u32::MAX, |i| i as u32);
+    let pos: Vec<Vec3> = used.iter().map(|&v| positions[v as usize]).collect();
+    let tri: Vec<[u32; 3]> = chosen.iter().map(|&f| triangles[f].map(local)).collect();
+    let mesh = SurfaceMesh::from_triangles_with(&pos, &tri, BuildOptions { split_non_manifold_vertices: true })?;
+    Ok(mesh.to_triangles())
 }
 
 /// One orientation's choice: `Σ ΔE`, the turned region's positions, the chosen faces, every face's share.
@@ -365,6 +373,23 @@ fn regions_of(mesh: &SurfaceMesh) -> (Vec<Vec<usize>>, Vec<Vec<usize>>) {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn residual_patch_pinched_at_a_vertex_is_split_there() {
+        // Faces 0 and 2 of a fan around vertex 0 (face 1 between them not chosen) touch at vertex 0 only.
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y, -Vec3::X, -Vec3::Y, Vec3::new(1.0, 1.0, 0.0)];
+        let triangles = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [1, 5, 2]];
+        let (p, t) = patch_mesh(&positions, &triangles, &[0, 2, 3]).expect("patch");
+        assert_eq!(t.len(), 3);
+        assert_eq!(p.len(), 7, "vertex 0 copied once, vertex 5 kept, nothing unused: {p:?}");
+        assert!(SurfaceMesh::from_triangles(&p, &t).is_ok());
+        // The faces keep their corners.
+        let corners: Vec<[Vec3; 3]> = t.iter().map(|t| t.map(|v| p[v as usize])).collect();
+        assert!(
+            corners.contains(&[Vec3::ZERO, -Vec3::X, -Vec3::Y])
+                && corners.contains(&[Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y])
+        );
+    }
 
     #[test]
     fn bad_parameters_are_errors() {
