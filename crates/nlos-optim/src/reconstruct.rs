@@ -265,6 +265,10 @@ pub struct Outcome {
 struct State {
     version: u32,
     fingerprint: u64,
+    /// [`settings_fingerprint`] of the parameters the run was started with (absent in checkpoints written
+    /// before it existed, which are resumed unchecked).
+    #[serde(default)]
+    settings: Option<u64>,
     #[serde(with = "exact_vec3")]
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
@@ -342,6 +346,15 @@ fn fingerprint(measured: &Transient) -> u64 {
     h
 }
 
+/// FNV-1a over the `Debug` form of the parameters, `out_dir` left out: ties a checkpoint to the settings
+/// that wrote it (pruning, growth, residual patches, the noise model, the schedule, …), so that a resumed
+/// run cannot silently continue with other settings than the run it continues. `Debug` prints every
+/// field, floats in their shortest exact form.
+fn settings_fingerprint(params: &ReconstructParams) -> u64 {
+    let text = format!("{:?}", ReconstructParams { out_dir: None, ..params.clone() });
+    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
+}
+
 /// Writes `bytes` to `path` atomically (temporary file in the same directory + rename).
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
@@ -389,6 +402,7 @@ pub fn reconstruct_with(
     let state = State {
         version: CHECKPOINT_VERSION,
         fingerprint: fingerprint(measured),
+        settings: Some(settings_fingerprint(params)),
         positions,
         triangles,
         reflectance: params.reflectance.clone(),
@@ -440,6 +454,12 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     }
     if state.fingerprint != fingerprint(measured) {
         return Err(ck("it was written for a different measurement".into()));
+    }
+    if state.settings.is_some_and(|s| s != settings_fingerprint(params)) {
+        return Err(ck("it was written with different reconstruction settings; resume with the options of the \
+                       original run (`nlos reconstruct` keeps them in command.json beside the checkpoint), or \
+                       start afresh in another directory"
+            .into()));
     }
     if state.shape_adam.len() != state.positions.len() || state.triangles.is_empty() {
         return Err(ck("inconsistent mesh and optimiser state".into()));

@@ -221,6 +221,12 @@ fn resume_after_interruption_is_bit_identical() {
         // A foreign measurement is refused.
         let other = measurement(6);
         assert!(matches!(resume(&other, &params, Hooks::default()), Err(OptimError::Checkpoint { .. })));
+        // So are other settings (here: no pruning), which would continue a different run.
+        let changed = ReconstructParams { prune: None, ..params.clone() };
+        match resume(&measured, &changed, Hooks::default()) {
+            Err(OptimError::Checkpoint { message, .. }) => assert!(message.contains("settings"), "{message}"),
+            other => panic!("resumed with other settings: {other:?}"),
+        }
         let _ = std::fs::remove_dir_all(&dir);
     });
 }
