@@ -47,7 +47,8 @@ pub(crate) struct Args {
     /// Seed of the run (a run is a deterministic function of its inputs and seed).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Continue the run whose checkpoint is in --out.
+    /// Continue the run whose checkpoint is in --out, with the same options as that run (they are in
+    /// `--out`'s command.json; other settings are an error, not a silently different run).
     #[arg(long)]
     resume: bool,
     /// Coarse-to-fine stages at most (default: the seed's 4).
@@ -254,15 +255,13 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient), CliError> {
             let ax = *full.time();
             let end = full.signal_end_path(gate.unwrap_or(ax.t0));
             if end < ax.end() {
-                if !args.quiet {
-                    eprintln!(
-                        "--max-depth auto: the last return ends at {:.4} m of path (depth {:.4} m); the {} later \
-                         bins hold only background and are dropped (--max-depth off keeps them)",
-                        end,
-                        end / 2.0,
-                        ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
-                    );
-                }
+                let depth =
+                    if full.scan().is_confocal() { format!(" (depth {:.4} m)", end / 2.0) } else { String::new() };
+                eprintln!(
+                    "--max-depth auto: the last return ends at {end:.4} m of path{depth}; the {} later bins hold \
+                     only background and are dropped (--max-depth off keeps them)",
+                    ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
+                );
                 full = full.crop_path(ax.t0, end).map_err(|e| bad(format!("--max-depth auto: {e}")))?;
             }
         }
