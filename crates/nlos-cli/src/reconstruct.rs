@@ -121,6 +121,11 @@ pub(crate) struct Args {
     /// β of the automatic normal-smoothing weight λ = β·E_data/R at the start of each block (default 0.1).
     #[arg(long, value_name = "BETA")]
     smoothing: Option<f64>,
+    /// Weight w of the boundary-smoothing term (the boundary curves' umbrella operator,
+    /// `nlos_optim::boundary_smoothing`) relative to normal smoothing: the regulariser is λ(R + w·R_∂);
+    /// 0 turns it off (default 1).
+    #[arg(long, value_name = "W")]
+    boundary_smoothing: Option<f64>,
     /// Noise of the capture, for the smoothing weight: `counts` (Poisson photon counts: λ is set against
     /// the misfit above the noise floor), `none` (λ against the whole data term, the seed's rule), or
     /// `auto` (the default): `counts` when every value is a non-negative integer. --sensor implies counts.
@@ -158,8 +163,8 @@ pub(crate) struct Args {
     /// (`nlos_optim::residual`; confocal grid scans only): `on` or `off`.
     #[arg(long, value_name = "on|off", default_value = "on")]
     residual: String,
-    /// Residual columns closer than this to the mesh are left to the shape steps (metres; default 0.02).
-    #[arg(long, value_name = "METRES", default_value_t = 0.02)]
+    /// Residual columns closer than this to the mesh are left to the shape steps (metres; default 0.005).
+    #[arg(long, value_name = "METRES", default_value_t = 0.005)]
     residual_separation: f64,
     /// Margin κ of the residual patches' test (a face joins a patch when ΔE⁺ < −κ·½c; default 0.5).
     #[arg(long, value_name = "KAPPA", default_value_t = 0.5)]
@@ -515,6 +520,9 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
     }
     if let Some(x) = args.smoothing {
         p.regulariser_ratio = x;
+    }
+    if let Some(x) = args.boundary_smoothing {
+        p.boundary_smoothing = x;
     }
     p.data.counts = match args.noise.as_str() {
         "auto" => nlos_transient::sensor::is_integer_counts(measured.data()),

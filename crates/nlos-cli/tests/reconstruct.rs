@@ -122,6 +122,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--max-depth=-1"],
         vec!["--max-depth", "0"],
         vec!["--max-depth", "deep"],
+        vec!["--boundary-smoothing=-1"],
+        vec!["--boundary-smoothing", "nan"],
         vec!["--max-depth", "inf"],
         vec!["--prune", "0"],
         vec!["--prune", "lots"],

@@ -34,6 +34,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod adam;
+pub mod boundary_smoothing;
 pub mod error;
 pub mod grow;
 pub mod loss;
@@ -46,6 +47,7 @@ pub mod residual;
 pub mod sensor;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
+pub use boundary_smoothing::BoundarySmoothing;
 pub use error::{OptimError, Result};
 pub use grow::{GrowParams, GrowRecord, Grown, grow_boundary};
 pub use loss::{DataEval, DataTerm};

@@ -124,6 +124,10 @@ pub struct ReconstructParams {
     pub regulariser_ratio: f64,
     /// A fixed regulariser weight λ instead of the automatic one (default None).
     pub regulariser_weight: Option<f64>,
+    /// Weight of the boundary-smoothing term relative to the normal-smoothing one: the regulariser is
+    /// `λ (R + w R_∂)` ([`crate::boundary_smoothing`]; λ is still set against `R` alone). 0 turns it off;
+    /// default 1.
+    pub boundary_smoothing: f64,
     /// Renderer settings (kernel: tent, needed for the time-shift gradient; visibility: live; one-sided).
     /// Its `sampling` is replaced by [`ReconstructParams::sampling`].
     pub render: RenderParams,
@@ -196,6 +200,7 @@ impl Default for ReconstructParams {
             reflectance_adam: AdamParams::default(),
             lr_reflectance: 0.05,
             regulariser_ratio: 0.1,
+            boundary_smoothing: 1.0,
             regulariser_weight: None,
             render: RenderParams::default(),
             sampling: SamplingSchedule::default(),
@@ -257,6 +262,9 @@ impl ReconstructParams {
         }
         if !self.shape_adam.valid() || !self.reflectance_adam.valid() {
             return bad("adam", self.shape_adam.beta1, "need 0 <= beta1, beta2 < 1 and eps > 0");
+        }
+        if !(self.boundary_smoothing.is_finite() && self.boundary_smoothing >= 0.0) {
+            return bad("boundary_smoothing", self.boundary_smoothing, "must be finite and >= 0");
         }
         if !(self.regulariser_ratio.is_finite() && self.regulariser_ratio >= 0.0) {
             return bad("regulariser_ratio", self.regulariser_ratio, "must be finite and >= 0");

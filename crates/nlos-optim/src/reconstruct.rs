@@ -47,6 +47,7 @@ use nlos_transient::{Scan, TimeAxis, Transient};
 use serde::{Deserialize, Serialize};
 
 use crate::adam::{VectorAdam, VertexAdam};
+use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
 use crate::grow::{GrowRecord, grow_boundary};
 use crate::params::{ReconstructParams, SamplingSchedule};
@@ -673,6 +674,10 @@ fn mesh_of(st: &State) -> Result<SurfaceMesh> {
     Ok(SurfaceMesh::from_triangles(&st.positions, &st.triangles)?)
 }
 
+/// A shape step's evaluation: data term and gradient, the regulariser (normal + boundary smoothing), the
+/// normal-smoothing part alone (what λ is set against), the regulariser's gradient.
+type Attempt = (Eval, f64, f64, Vec<Vec3>);
+
 #[allow(clippy::too_many_lines)]
 fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
     let data = measured.data();
@@ -725,6 +730,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             render_params(params, st.stage, &mut st.rng),
         )?;
         let reg = NormalSmoothing::new(st.positions.len(), &st.triangles)?;
+        let edge_reg = BoundarySmoothing::new(st.positions.len(), &st.triangles)?;
+        let w_edge = params.boundary_smoothing;
         let (mut block_first, mut block_last) = (f64::NAN, f64::NAN);
         let block_start = st.positions.clone();
 
@@ -732,13 +739,21 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
         let mut it = 0;
         while it < sch.shape_iterations {
-            let attempt = (|| -> Result<Option<(Eval, f64, Vec<Vec3>)>> {
+            let attempt = (|| -> Result<Option<Attempt>> {
                 let ev = evaluate(&st, &renderer, &fit, counts)?;
-                let (r, rg) = reg.evaluate(&st.positions, &st.triangles)?;
+                let (r_n, mut rg) = reg.evaluate(&st.positions, &st.triangles)?;
+                let mut r = r_n;
+                if w_edge > 0.0 {
+                    let (r_e, eg) = edge_reg.evaluate(&st.positions)?;
+                    r += w_edge * r_e;
+                    for (g, e) in rg.iter_mut().zip(&eg) {
+                        *g += w_edge as f32 * *e;
+                    }
+                }
                 let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
-                Ok(ok.then_some((ev, r, rg)))
+                Ok(ok.then_some((ev, r, r_n, rg)))
             })()?;
-            let Some((ev, r, rg)) = attempt else {
+            let Some((ev, r, r_n, rg)) = attempt else {
                 rollback(&mut st, &mut good, &mut renderer, params, "loss or gradient")?;
                 continue;
             };
@@ -748,8 +763,9 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 // floor (crate::sensor, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
                 // so a fit that has reached the floor keeps some smoothing.
                 let excess = if counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
-                st.reg_weight =
-                    params.regulariser_weight.unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r, area));
+                st.reg_weight = params
+                    .regulariser_weight
+                    .unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r_n, area));
             }
             let lam = st.reg_weight;
             let loss = ev.data + lam * r;
@@ -805,7 +821,10 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
 
         // ---- reflectance block ----
         if refl_iters > 0 && !st.reflectance.theta().is_empty() {
-            let (r, _) = reg.evaluate(&st.positions, &st.triangles)?;
+            let (mut r, _) = reg.evaluate(&st.positions, &st.triangles)?;
+            if w_edge > 0.0 {
+                r += w_edge * edge_reg.evaluate(&st.positions)?.0;
+            }
             let mut good_refl: Option<(Reflectance, VectorAdam)> = None;
             let mut it = 0;
             while it < refl_iters {

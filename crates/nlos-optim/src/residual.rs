@@ -66,8 +66,11 @@ pub struct ResidualParams {
     /// Wiener signal-to-noise ratio of the residual's LCT (> 0; default 0.1, as `nlos init`).
     pub snr: f64,
     /// A residual column becomes surface only when its point lies more than this far from the mesh
-    /// (metres, > 0; default 0.02: several LCT depth voxels and bins of the seed setup, so that the fit's
-    /// own error around the mesh is not taken for a missing part).
+    /// (metres, > 0; default 0.005: several LCT depth voxels and bins of the seed setup, so that the fit's
+    /// own error around the mesh is not taken for a missing part). At 0.02 the bunny's ears, whose lower
+    /// halves lie within 2 cm of the head, were cut to their tips (12 faces over y = 0.147–0.179 m; at
+    /// 0.005: 24 faces over 0.115–0.179 m): coverage 85.4 → 86.1 %, Chamfer distance 31.2 → 30.5 mm on the
+    /// seed-setup bunny, the independent renderer's bunny unchanged (90.6 %, 0.89 mm).
     pub separation: f64,
     /// Margin κ ≥ 0 of the acceptance test (module docs; default 0.5, as pruning).
     pub margin: f64,
@@ -82,7 +85,7 @@ pub struct ResidualParams {
 
 impl Default for ResidualParams {
     fn default() -> Self {
-        Self { stages: Some(1), snr: 0.1, separation: 0.02, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
+        Self { stages: Some(1), snr: 0.1, separation: 0.005, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
     }
 }
 
