@@ -29,6 +29,7 @@ use glam::{DVec3, Vec3};
 use std::collections::HashMap;
 
 use crate::error::{OptimError, Result};
+use crate::regularizer::check_indices;
 
 /// The boundary-smoothing regulariser for one topology (the boundary chains are precomputed).
 #[derive(Debug, Clone, PartialEq)]
@@ -44,18 +45,11 @@ impl BoundarySmoothing {
     /// # Errors
     /// [`OptimError::InvalidParameter`] for a vertex index out of range.
     pub fn new(n_vertices: usize, triangles: &[[u32; 3]]) -> Result<Self> {
+        check_indices(n_vertices, triangles)?;
         let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(triangles.len() * 3);
-        for (f, t) in triangles.iter().enumerate() {
+        for t in triangles {
             for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a as usize >= n_vertices || b as usize >= n_vertices {
-                    return Err(OptimError::InvalidParameter {
-                        name: "triangles",
-                        value: f as f64,
-                        reason: "a triangle (value = its index) refers to a vertex that does not exist",
-                    });
-                }
-                *directed.entry((a, b)).or_insert(0) += 1;
+                *directed.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
             }
         }
         // A boundary half-edge a → b has no twin b → a. Count per vertex how many leave and enter it.

@@ -35,6 +35,21 @@ use crate::error::{OptimError, Result};
 /// Marker for "no neighbour across this edge" in [`NormalSmoothing::neighbours`].
 pub const NO_FACE: u32 = u32::MAX;
 
+/// Checks that every triangle names vertices below `n_vertices`.
+///
+/// # Errors
+/// [`OptimError::InvalidParameter`] (value: the largest offending vertex index) otherwise.
+pub(crate) fn check_indices(n_vertices: usize, triangles: &[[u32; 3]]) -> Result<()> {
+    match triangles.iter().flatten().copied().filter(|&v| v as usize >= n_vertices).max() {
+        Some(v) => Err(OptimError::InvalidParameter {
+            name: "triangles",
+            value: f64::from(v),
+            reason: "a triangle refers to a vertex that does not exist",
+        }),
+        None => Ok(()),
+    }
+}
+
 /// The normal-smoothing regulariser for one topology (the face adjacency is precomputed).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NormalSmoothing {
@@ -50,17 +65,11 @@ impl NormalSmoothing {
     /// # Errors
     /// [`OptimError::InvalidParameter`] for a vertex index out of range.
     pub fn new(n_vertices: usize, triangles: &[[u32; 3]]) -> Result<Self> {
+        check_indices(n_vertices, triangles)?;
         let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::with_capacity(triangles.len() * 2);
         for (f, t) in triangles.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a as usize >= n_vertices || b as usize >= n_vertices {
-                    return Err(OptimError::InvalidParameter {
-                        name: "triangles",
-                        value: f64::from(a.max(b)),
-                        reason: "a triangle refers to a vertex that does not exist",
-                    });
-                }
                 edges.entry((a.min(b), a.max(b))).or_default().push(f as u32);
             }
         }
