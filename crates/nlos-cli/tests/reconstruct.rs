@@ -265,3 +265,45 @@ fn sensor_fit_reconstructs_photon_counts() {
     let it = log["iterations"].as_array().expect("iterations");
     assert!(it.iter().all(|r| r["loss"].as_f64().is_some_and(f64::is_finite)), "non-finite loss in {log}");
 }
+
+#[test]
+fn max_depth_auto_drops_the_late_background_of_a_capture_with_background_only() {
+    let dir = scratch("maxdepth");
+    // The rendered square as photon counts on a background of 2 counts per bin, its axis doubled (to 1024
+    // bins of 4 mm) so that the later half holds background only.
+    let clean = nlos_transient::read(capture(&dir)).expect("clean");
+    let peak = clean.data().iter().copied().fold(0.0f32, f32::max);
+    let mut rng = nlos_transient::sensor::Pcg32::new(3, 1);
+    let bins = clean.bins();
+    let counts: Vec<f32> = clean
+        .histograms()
+        .flat_map(|h| h.iter().copied().chain(std::iter::repeat_n(0.0, bins)).collect::<Vec<f32>>())
+        .map(|v| rng.poisson(2.0 + 200.0 * f64::from(v / peak)) as f32)
+        .collect();
+    let time = TimeAxis::new(clean.time().t0, clean.time().bin_width, 2 * bins).expect("axis");
+    let noisy = nlos_transient::Transient::new(clean.scan().clone(), time, counts).expect("noisy");
+    let expected = noisy.signal_end_path(noisy.time().t0);
+    assert!(expected < noisy.time().end(), "the test capture must have background-only late bins");
+    let file = dir.join("noisy.hdf5");
+    nlos_transient::write(&noisy, &file, Format::Tal).expect("write");
+    let d = file.to_string_lossy().into_owned();
+    let o = dir.join("run").to_string_lossy().into_owned();
+    let fast =
+        ["--stages", "1", "--resolution", "10", "--blocks", "1", "--iterations", "1", "--quiet", "--gate", "off"];
+    let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str()];
+    args.extend(fast);
+    let run = nlos(&args);
+    assert!(run.status.success(), "{}", text(&run));
+    let note = format!("--max-depth auto: the last return ends at {expected:.4} m of path");
+    assert!(text(&run).contains(&note), "expected `{note}` in: {}", text(&run));
+    // `off` keeps every bin, and a capture without background (the clean render) has nothing to drop.
+    args.extend(["--max-depth", "off"]);
+    let run = nlos(&args);
+    assert!(run.status.success() && !text(&run).contains("--max-depth auto"), "{}", text(&run));
+    let clean_file = dir.join("square.hdf5").to_string_lossy().into_owned();
+    let mut args = vec!["reconstruct", clean_file.as_str(), "--out", o.as_str()];
+    args.extend(fast);
+    let run = nlos(&args);
+    assert!(run.status.success() && !text(&run).contains("--max-depth auto"), "{}", text(&run));
+    let _ = std::fs::remove_dir_all(&dir);
+}
