@@ -16,7 +16,8 @@ struct Peak {
     path: Option<f64>,
     /// The direct-light gate used, metres of path.
     gate: Option<f64>,
-    /// Where the last return ends (`Transient::signal_end_path`), metres of path.
+    /// Where the last return ends (`Transient::signal_end_path`), metres of path; `None` when it is the end
+    /// of the axis.
     end: Option<f64>,
     /// How it was obtained, or why it is missing.
     note: String,
@@ -43,7 +44,7 @@ fn peak(t: &Transient) -> Peak {
     note.push_str(&format!("summed histogram after gating the direct light before {gate:.4} m of path"));
     let path = t.summed_peak_path(Some(gate));
     let depth = if t.scan().is_confocal() { t.summed_peak_depth(Some(gate)).ok() } else { None };
-    let end = Some(t.signal_end_path(gate));
+    let end = Some(t.signal_end_path(gate)).filter(|&e| e < t.time().end());
     match path {
         Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), end, note },
         Err(e) => Peak { depth: None, path: None, gate: Some(gate), end, note: format!("not computed: {e}") },
@@ -192,9 +193,12 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
         _ => println!("peak depth:    n/a ({})", peak.note),
     }
-    if let Some(e) = peak.end {
-        let depth = if scan.is_confocal() { format!(" (depth {} m)", num(e / 2.0, 4)) } else { String::new() };
-        println!("signal ends:   {} m of path{depth}: later bins hold only background", num(e, 4));
+    match peak.end {
+        Some(e) => {
+            let depth = if scan.is_confocal() { format!(" (depth {} m)", num(e / 2.0, 4)) } else { String::new() };
+            println!("signal ends:   {} m of path{depth}: later bins hold only background", num(e, 4));
+        }
+        None => println!("signal ends:   at the end of the axis (no late bins of background only)"),
     }
     Ok(())
 }

@@ -255,34 +255,31 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient, Option<f64>), CliE
     if let Some(g) = gate {
         full = full.gate(g).map_err(CliError::input)?;
     }
+    let mut fitted = None;
+    let mut surface_depth = None;
     match args.max_depth {
         MaxDepth::Off => {}
         MaxDepth::Depth(d) => {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(bad(format!("--max-depth {d}: a depth in metres, finite and > 0")));
-            }
             let t0 = full.time().t0;
             full = full.crop_path(t0, 2.0 * d).map_err(|e| bad(format!("--max-depth {d}: {e}")))?;
         }
-        MaxDepth::Auto => {}
-    }
-    let mut fitted = full.clone();
-    let mut surface_depth = None;
-    if args.max_depth == MaxDepth::Auto {
-        let ax = *full.time();
-        let end = full.signal_end_path(gate.unwrap_or(ax.t0));
-        if end < ax.end() {
-            let confocal = full.scan().is_confocal();
-            let depth = if confocal { format!(" (depth {:.4} m)", end / 2.0) } else { String::new() };
-            eprintln!(
-                "--max-depth auto: the last return ends at {end:.4} m of path{depth}; the {} later bins hold only \
-                 background and are not fitted (--max-depth off keeps them)",
-                ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
-            );
-            fitted = full.crop_path(ax.t0, end).map_err(|e| bad(format!("--max-depth auto: {e}")))?;
-            surface_depth = confocal.then_some(end / 2.0);
+        MaxDepth::Auto => {
+            let ax = *full.time();
+            let end = full.signal_end_path(gate.unwrap_or(ax.t0));
+            if end < ax.end() {
+                let confocal = full.scan().is_confocal();
+                let depth = if confocal { format!(" (depth {:.4} m)", end / 2.0) } else { String::new() };
+                eprintln!(
+                    "--max-depth auto: the last return ends at {end:.4} m of path{depth}; the {} later bins hold \
+                     only background and are not fitted (--max-depth off keeps them)",
+                    ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
+                );
+                fitted = Some(full.crop_path(ax.t0, end).map_err(|e| bad(format!("--max-depth auto: {e}")))?);
+                surface_depth = confocal.then_some(end / 2.0);
+            }
         }
     }
+    let fitted = fitted.unwrap_or_else(|| full.clone());
     let measured = match args.subsample {
         Some(k) => fitted.subsample(k, k).map_err(CliError::input)?,
         None => fitted,

@@ -2,6 +2,7 @@
 
 use crate::error::{Result, TransientError};
 use crate::scan::{Scan, ScanPattern};
+use crate::sensor::jitter::median;
 use crate::time_axis::TimeAxis;
 use crate::transient::Transient;
 
@@ -227,10 +228,11 @@ impl Transient {
         let mut sorted = smooth[first..].to_vec();
         sorted.sort_by(f64::total_cmp);
         let background = sorted[(sorted.len() - 1) / 10];
-        let mut diffs: Vec<f64> = h[first..].windows(2).map(|p| p[1] - p[0]).collect();
-        let centre = median_of(&mut diffs);
-        let mut dev: Vec<f64> = diffs.iter().map(|d| (d - centre).abs()).collect();
-        let sigma = 1.4826 * median_of(&mut dev) / std::f64::consts::SQRT_2;
+        let diffs: Vec<f64> = h[first..].windows(2).map(|p| p[1] - p[0]).collect();
+        let centre = median(&diffs);
+        let dev: Vec<f64> = diffs.iter().map(|d| (d - centre).abs()).collect();
+        // 1.4826·MAD estimates σ of a normal distribution; a difference of two bins has σ·√2.
+        let sigma = 1.4826 * median(&dev) / std::f64::consts::SQRT_2;
         let peak = smooth[first..].iter().map(|v| v - background).fold(0.0f64, f64::max);
         // Guard: no background (or none measurable) means nothing to drop; no excess means no return.
         if !(background > 0.0 && peak > 0.0) {
@@ -305,16 +307,6 @@ pub(crate) fn shift_histogram(input: &[f32], shift: f64, out: &mut [f32]) {
     for (k, o) in out.iter_mut().enumerate() {
         *o = (c(k as f64 + 1.0 + shift) - c(k as f64 + shift)) as f32;
     }
-}
-
-/// The median of `v` (reordered in place); 0 for an empty slice.
-fn median_of(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
 fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {
