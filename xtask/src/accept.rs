@@ -43,6 +43,10 @@ struct Opts {
     quick: bool,
     /// Photon budget per measurement of the synthetic captures.
     photons: f64,
+    /// Seed of the Poisson draw of the synthetic captures (default 1; another seed is another noise
+    /// realisation, for telling a change's effect from the run-to-run spread: its captures and run
+    /// directories get a `_seedN` suffix).
+    photon_seed: u64,
     /// Extra `nlos reconstruct` arguments (after `--`).
     extra: Vec<String>,
 }
@@ -333,17 +337,26 @@ fn shape_section(
 
 fn bunny_like(r: &mut Runner, opts: &Opts, name: &str, mesh: &Path, extra_notes: &[String]) -> Result<Section, String> {
     let (clean, render) = r.clean_render(mesh, name, &[])?;
-    let capture = r.out.join(format!("{name}_{}ph.hdf5", opts.photons));
-    with_photons(&clean, opts.photons, 1, &capture)?;
-    let o = reconstruct_and_eval(r, &capture, mesh, &r.out.join(name), &reconstruct_args(opts))?;
+    let tag = seed_tag(opts);
+    let capture = r.out.join(format!("{name}_{}ph{tag}.hdf5", opts.photons));
+    with_photons(&clean, opts.photons, opts.photon_seed, &capture)?;
+    let o = reconstruct_and_eval(r, &capture, mesh, &r.out.join(format!("{name}{tag}")), &reconstruct_args(opts))?;
     let mut notes: Vec<String> = extra_notes.to_vec();
-    notes.push(format!("capture: seed setup, {} photons per measurement (Poisson, seed 1)", opts.photons));
+    notes.push(format!(
+        "capture: seed setup, {} photons per measurement (Poisson, seed {})",
+        opts.photons, opts.photon_seed
+    ));
     if let Some(rr) = render {
         notes.push(format!("render of the ground truth: {:.0} s wall, {:.0} s CPU", rr.wall_s, rr.cpu_s));
     }
     let limit = (!opts.quick).then_some(900.0);
     let (text, pass) = shape_section(name, &o, 1.5, limit, &notes);
     Ok(Section { text, pass })
+}
+
+/// The suffix of captures and run directories drawn with another photon seed than 1.
+fn seed_tag(opts: &Opts) -> String {
+    if opts.photon_seed == 1 { String::new() } else { format!("_seed{}", opts.photon_seed) }
 }
 
 fn bunny(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
@@ -528,7 +541,7 @@ fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
 
 /// Runs the scenarios named by `args` and appends their sections to `docs/acceptance.md`.
 pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
-    let mut opts = Opts { quick: false, photons: 1000.0, extra: Vec::new() };
+    let mut opts = Opts { quick: false, photons: 1000.0, photon_seed: 1, extra: Vec::new() };
     let mut names = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -537,6 +550,10 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "--threshold" => {
                 let t = it.next().ok_or("--threshold needs a value (otsu, a fraction or abs:VALUE)")?;
                 set_threshold(t);
+            }
+            "--photon-seed" => {
+                opts.photon_seed =
+                    it.next().and_then(|v| v.parse().ok()).ok_or("--photon-seed needs a non-negative integer")?;
             }
             "--photons" => {
                 opts.photons = it.next().and_then(|v| v.parse().ok()).ok_or("--photons needs a number")?;

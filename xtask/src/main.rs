@@ -6,7 +6,7 @@
 //!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the LCT
 //!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
-//! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [-- ARGS…]`:
+//! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs of issues 8 and 9 (see `accept.rs`), appended to `docs/acceptance.md`.
 //! - `cargo xtask help`.
 
@@ -25,7 +25,9 @@ fn main() -> ExitCode {
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
-            println!("       cargo xtask accept SCENARIO [--quick] [--photons N] [-- RECONSTRUCT_ARGS...]");
+            println!(
+                "       cargo xtask accept SCENARIO [--quick] [--photons N] [--photon-seed S] [-- RECONSTRUCT_ARGS...]"
+            );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, sensor or all; docs/acceptance.md");
             Ok(())

@@ -128,6 +128,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--prune", "0"],
         vec!["--prune", "lots"],
         vec!["--prune-margin=-1"],
+        vec!["--prune-significance=-1"],
+        vec!["--prune-significance", "inf"],
         vec!["--grow", "--grow-angles", "0,120"],
         vec!["--grow", "--grow-angles", "flat"],
         vec!["--grow", "--grow-margin=-0.5"],
@@ -137,6 +139,10 @@ fn bad_arguments_are_input_errors() {
         vec!["--residual-margin=-1"],
         vec!["--residual-tilts", "40,95"],
         vec!["--residual-tilts", "steep"],
+        vec!["--temporal-blur", "wide"],
+        vec!["--temporal-blur=-0.01"],
+        vec!["--temporal-blur", "0.02,nan"],
+        vec!["--sensor", "ideal", "--temporal-blur", "0.02"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];

@@ -16,6 +16,8 @@
 //! - [`grow`]: loss-driven boundary growth — faces across boundary edges are added where they lower it;
 //! - [`residual`]: residual back-projection — new surface patches where the LCT of the fit's residual
 //!   finds light away from the mesh, added where they lower the data term;
+//! - [`temporal`]: coarse-to-fine in time — the early stages' data term compares Gaussian-blurred
+//!   histograms, so surfaces whose light arrives many bins from the measured return feel a pull toward it;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -45,6 +47,7 @@ pub mod reflectance;
 pub mod regularizer;
 pub mod residual;
 pub mod sensor;
+pub mod temporal;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
 pub use boundary_smoothing::BoundarySmoothing;
@@ -62,3 +65,4 @@ pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{Patches, ResidualParams, ResidualRecord, residual_patches};
 pub use sensor::{SensorBackground, SensorFit, expected_half_deviance};
+pub use temporal::TemporalBlur;

@@ -55,6 +55,7 @@ use crate::prune::{PruneRecord, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{ResidualRecord, residual_patches};
+use crate::temporal::{TemporalBlur, stage_blur};
 
 /// File name of the checkpoint inside the output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -615,6 +616,9 @@ struct Fit<'a> {
     background: f64,
     /// Normaliser of the data term.
     norm: f64,
+    /// The stage's temporal blur ([`crate::temporal`]): `measured` is then the blurred measurement, and the
+    /// rendering and the data term's gradient are blurred in [`evaluate`].
+    blur: Option<&'a TemporalBlur>,
 }
 
 /// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
@@ -622,7 +626,10 @@ struct Fit<'a> {
 fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
-    let rendered = brdf.forward(r);
+    let mut rendered = brdf.forward(r);
+    if let Some(g) = fit.blur {
+        rendered = g.apply(&rendered, fit.bins)?;
+    }
     let mut floor = 0.0;
     let ev = match &params.sensor {
         Some(sensor) => {
@@ -636,13 +643,19 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
         None => {
             let ev = params.data.evaluate(&rendered, measured, st.scale)?;
             if want_floor && params.data.counts {
-                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
+                // Blurred counts: the noise variance is scaled by Σg² (crate::temporal, "Noise floor").
+                let factor = fit.blur.map_or(1.0, TemporalBlur::noise_factor);
+                floor = factor * params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
             }
             ev
         }
     };
     let inv = (1.0 / norm) as f32;
-    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
+    let mut d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
+    if let Some(g) = fit.blur {
+        // ∂E/∂I = Gᵀ ∂E/∂(G I), and G is symmetric.
+        d = g.apply(&d, fit.bins)?;
+    }
     let g = brdf.adjoint(r, &d)?;
     Ok(Eval {
         data: ev.value / norm,
@@ -698,7 +711,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         value: 0.0,
         reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
     })?;
-    let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
+    // The temporal blur of the stage whose histograms are held in `blurred` (crate::temporal).
+    let mut blurred: Option<(u32, TemporalBlur, Vec<f32>)> = None;
     // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
     let counts = params.sensor.is_some() || params.data.counts;
     let sch = params.schedule;
@@ -722,6 +736,26 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     while st.finished.is_none() {
         let target = sch.target_edge_length(st.stage);
         let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
+        if blurred.as_ref().is_none_or(|(s, _, _)| *s != st.stage) {
+            // L2 only: the sensor fit's and the Poisson term's likelihoods need the raw counts.
+            let l2 = params.sensor.is_none() && matches!(params.data.loss, nlos_render::Loss::L2);
+            let schedule: &[f64] = if l2 { &params.temporal_blur } else { &[] };
+            blurred = match stage_blur(schedule, st.stage, measured.time().bin_width)? {
+                Some(g) => {
+                    let b = g.apply(data, measured.bins())?;
+                    Some((st.stage, g, b))
+                }
+                None => None,
+            };
+        }
+        let fit = Fit {
+            params,
+            measured: blurred.as_ref().map_or(data, |(_, _, b)| b.as_slice()),
+            bins: measured.bins(),
+            background,
+            norm,
+            blur: blurred.as_ref().map(|(_, g, _)| g),
+        };
         let mut renderer = Renderer::new(
             &st.positions,
             &st.triangles,
@@ -891,7 +925,30 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 }
             };
             if let Some(pp) = &params.prune {
-                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
+                // Photon counts fitted by L2: the noise of each pruning test is known (crate::prune,
+                // "Significance"); ν_k = w_k² s² · s I_k.
+                let noise: Option<Vec<f32>> = (pp.significance > 0.0
+                    && params.sensor.is_none()
+                    && params.data.counts
+                    && matches!(params.data.loss, nlos_render::Loss::L2))
+                .then(|| {
+                    let w = |i: usize| params.data.weights.as_ref().map_or(1.0, |w| f64::from(w[i]));
+                    rendered
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &r)| (w(i).powi(2) * scale * scale * (scale * f64::from(r)).max(0.0)) as f32)
+                        .collect()
+                });
+                let p = prune_boundary(
+                    &st.triangles,
+                    &renderer,
+                    &brdf,
+                    &mut rendered,
+                    bins,
+                    &row_loss,
+                    noise.as_deref(),
+                    pp,
+                )?;
                 if p.removed > 0 {
                     drop_faces(&mut st, &p.keep);
                 }

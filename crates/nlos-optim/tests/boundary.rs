@@ -79,7 +79,7 @@ fn run(init_half: i32, params: PruneParams) -> (Vec<Vec3>, Vec<[u32; 3]>, nlos_o
     let r = Renderer::new(p, t, &fx.scan, &fx.time, fx.render).unwrap();
     let before = fx.total(&rendered);
     let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
-    let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, fx.time.bins, &row_loss, &params).unwrap();
+    let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, fx.time.bins, &row_loss, None, &params).unwrap();
     let after = fx.total(&rendered);
     // The updated rendering is the forward pass of the kept faces.
     let kept: Vec<[u32; 3]> = t.iter().zip(&pruned.keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
@@ -135,6 +135,60 @@ fn the_true_surface_loses_nothing() {
 fn max_fraction_caps_the_deletions() {
     let (_, t, pruned, _, _) = run(6, PruneParams { rounds: 10, max_fraction: 0.05, ..PruneParams::default() });
     assert!(pruned.removed > 0 && pruned.removed <= (t.len() as f64 * 0.05) as usize);
+    for z in [-1.0, f64::NAN, f64::INFINITY] {
+        assert!(PruneParams { significance: z, ..PruneParams::default() }.validate().is_err(), "{z}");
+    }
+}
+
+/// Prunes the `init_half` patch against Poisson counts drawn from the truth's rendering at `photons` per
+/// histogram (seed `seed`), with the noise weights `ν_k = s² · s I_k` of `prune_boundary` when `noisy`.
+/// Returns (true faces deleted, spurious faces deleted, spurious faces).
+fn run_counts(init_half: i32, params: PruneParams, photons: f64, seed: u64, noisy: bool) -> (usize, usize, usize) {
+    let (mut fx, mut rendered) = Fixture::new(init_half);
+    let m = fx.scan.measurements();
+    let total: f64 = fx.measured.iter().map(|x| f64::from(*x)).sum();
+    let s = photons * m as f64 / total;
+    let mut rng = nlos_transient::sensor::Pcg32::new(seed, 5);
+    fx.measured = fx.measured.iter().map(|&x| rng.poisson(s * f64::from(x)) as f32).collect();
+    let (p, t) = (&fx.positions, &fx.triangles);
+    let r = Renderer::new(p, t, &fx.scan, &fx.time, fx.render).unwrap();
+    let bins = fx.time.bins;
+    let row_loss = |k: usize, row: &[f32]| fx.term.row_value(row, &fx.measured[k * bins..(k + 1) * bins], k * bins, s);
+    let nu: Vec<f32> = rendered.iter().map(|&x| (s * s * s * f64::from(x)) as f32).collect();
+    let noise = noisy.then_some(nu.as_slice());
+    let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, bins, &row_loss, noise, &params).unwrap();
+    let inside = |f: &[u32; 3]| {
+        let c = (p[f[0] as usize] + p[f[1] as usize] + p[f[2] as usize]) / 3.0;
+        c.x.abs() < 4.0 * CELL && c.y.abs() < 4.0 * CELL
+    };
+    let gone_true = t.iter().zip(&pruned.keep).filter(|(f, k)| !**k && inside(f)).count();
+    let gone_spurious = t.iter().zip(&pruned.keep).filter(|(f, k)| !**k && !inside(f)).count();
+    (gone_true, gone_spurious, t.iter().filter(|f| !inside(f)).count())
+}
+
+/// Regression (rim erosion on the seed-setup bunny): with photon noise, the margin test alone deletes faces
+/// of the true surface whose share is small, because the noise of ΔE grows with the share and the margin
+/// with its square; the significance term keeps them and still deletes what nothing supports.
+#[test]
+fn noise_alone_does_not_erode_the_true_boundary() {
+    let params = PruneParams { rounds: 3, max_fraction: 1.0, significance: 2.0, ..PruneParams::default() };
+    let margin_only = PruneParams { significance: 0.0, ..params };
+    let (mut eroded_margin, mut eroded_z) = (0, 0);
+    for seed in 0..8 {
+        // Dim: 20 photons per histogram over 32 faces.
+        eroded_margin += run_counts(4, margin_only, 20.0, seed, true).0;
+        eroded_z += run_counts(4, params, 20.0, seed, true).0;
+        // Without a noise model the significance is not applied: the same as the margin test.
+        assert_eq!(run_counts(4, params, 20.0, seed, false), run_counts(4, margin_only, 20.0, seed, false));
+    }
+    eprintln!("true faces deleted over 8 draws: margin only {eroded_margin}, with z = 2 {eroded_z}");
+    assert!(eroded_margin >= 4, "the margin test alone deleted only {eroded_margin} true faces");
+    assert!(eroded_z * 4 <= eroded_margin, "z = 2 still deleted {eroded_z} true faces (margin only {eroded_margin})");
+    // Bright enough to tell: the spurious ring goes, the object stays.
+    let (gone_true, gone_spurious, spurious) = run_counts(6, PruneParams { rounds: 10, ..params }, 5000.0, 1, true);
+    eprintln!("5000 photons: {gone_spurious}/{spurious} spurious and {gone_true} true faces deleted");
+    assert!(gone_spurious + 4 >= spurious, "only {gone_spurious} of {spurious} spurious faces deleted");
+    assert!(gone_true <= 2, "{gone_true} true faces deleted");
 }
 
 #[test]
