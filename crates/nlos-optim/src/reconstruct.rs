@@ -352,8 +352,14 @@ fn fingerprint(measured: &Transient) -> u64 {
 /// that wrote it (pruning, growth, residual patches, the noise model, the schedule, …), so that a resumed
 /// run cannot silently continue with other settings than the run it continues. `Debug` prints every
 /// field, floats in their shortest exact form.
+///
+/// Parameters added later are left out of the text while they hold the value that means "as before" (no
+/// temporal blur, pruning significance 0), so that a checkpoint written before they existed still resumes
+/// with the settings that wrote it (`settings_fingerprint_of_older_checkpoints_is_unchanged`).
 fn settings_fingerprint(params: &ReconstructParams) -> u64 {
-    let text = format!("{:?}", ReconstructParams { out_dir: None, ..params.clone() });
+    let text = format!("{:?}", ReconstructParams { out_dir: None, ..params.clone() })
+        .replace(", temporal_blur: []", "")
+        .replace(", significance: 0.0 }", " }");
     text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
 }
 
@@ -1174,4 +1180,28 @@ fn rollback_refl(
         st.reflectance_adam = a;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: adding `temporal_blur` and `PruneParams::significance` changed the `Debug` text the
+    /// settings fingerprint hashes, so `--resume` refused checkpoints written by the version before them
+    /// ("different reconstruction settings"). The values below were printed by that version (9145556).
+    #[test]
+    fn settings_fingerprint_of_older_checkpoints_is_unchanged() {
+        let p = ReconstructParams::default();
+        assert_eq!(settings_fingerprint(&p), 2_629_228_410_015_569_325);
+        let q = ReconstructParams { seed: 7, prune: None, ..p.clone() };
+        assert_eq!(settings_fingerprint(&q), 4_625_969_404_322_523_965);
+        // The new settings, when used, still tell runs apart.
+        let blurred = ReconstructParams { temporal_blur: vec![0.02], ..p.clone() };
+        assert_ne!(settings_fingerprint(&blurred), settings_fingerprint(&p));
+        let significant = ReconstructParams {
+            prune: Some(crate::PruneParams { significance: 2.0, ..Default::default() }),
+            ..p.clone()
+        };
+        assert_ne!(settings_fingerprint(&significant), settings_fingerprint(&p));
+    }
 }
