@@ -43,9 +43,9 @@ struct Opts {
     quick: bool,
     /// Photon budget per measurement of the synthetic captures.
     photons: f64,
-    /// Seed of the Poisson draw of the synthetic captures (default 1; another seed is another noise
-    /// realisation, for telling a change's effect from the run-to-run spread: its captures and run
-    /// directories get a `_seedN` suffix).
+    /// Seed of the Poisson draw of the synthetic captures (bunny, soap, GGX, sensor; default 1): another seed
+    /// is another noise realisation, for telling a change's effect from the run-to-run spread. Its captures
+    /// and run directories get a `_seedN` suffix.
     photon_seed: u64,
     /// Extra `nlos reconstruct` arguments (after `--`).
     extra: Vec<String>,
@@ -409,14 +409,18 @@ fn ggx(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     for alpha in [0.2, 0.4] {
         let name = format!("ggx{alpha}");
         let (clean, _) = r.clean_render(&mesh, &name, &[s("--brdf"), s("ggx"), s("--alpha"), alpha.to_string()])?;
-        let capture = r.out.join(format!("{name}_{}ph.hdf5", opts.photons));
-        with_photons(&clean, opts.photons, 1, &capture)?;
+        let tag = seed_tag(opts);
+        let capture = r.out.join(format!("{name}_{}ph{tag}.hdf5", opts.photons));
+        with_photons(&clean, opts.photons, opts.photon_seed, &capture)?;
         let mut args = vec![s("--brdf"), s("ggx"), s("--alpha"), s("0.3")];
         args.extend(reconstruct_args(opts));
-        let o = reconstruct_and_eval(r, &capture, &mesh, &r.out.join(&name), &args)?;
+        let o = reconstruct_and_eval(r, &capture, &mesh, &r.out.join(format!("{name}{tag}")), &args)?;
         let fit = fitted_alpha(&o.run_dir)?;
         let _ = writeln!(text, "\n#### α = {alpha} (fit starts at 0.3)\n");
-        let notes = [format!("fitted α = {fit:.3}")];
+        let notes = [
+            format!("fitted α = {fit:.3}"),
+            format!("capture: {} photons per measurement (Poisson, seed {})", opts.photons, opts.photon_seed),
+        ];
         // Shape within a factor 1.5 of the Lambertian targets.
         let (t, p) = shape_section(&name, &o, 1.5 * 1.5, None, &notes);
         text.push_str(&t);
@@ -497,22 +501,24 @@ fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
         pile_up: false,
         ..SpadModel::ideal(PhotonBudget::PerMeasurement(photons))
     };
-    let counts = model.simulate(&t, 1).map_err(|e| e.to_string())?;
-    let capture = r.out.join(format!("sensor_{photons}ph.hdf5"));
+    let counts = model.simulate(&t, opts.photon_seed).map_err(|e| e.to_string())?;
+    let tag = seed_tag(opts);
+    let capture = r.out.join(format!("sensor_{photons}ph{tag}.hdf5"));
     nlos_transient::write(&counts, &capture, nlos_transient::Format::Tal).map_err(|e| e.to_string())?;
     let base = reconstruct_args(opts);
-    let plain = reconstruct_and_eval(r, &capture, &mesh, &r.out.join("sensor_l2"), &base)?;
+    let plain = reconstruct_and_eval(r, &capture, &mesh, &r.out.join(format!("sensor_l2{tag}")), &base)?;
     let mut aware_args = vec![s("--sensor"), p(&jitter_file)];
     aware_args.extend(base);
-    let aware = reconstruct_and_eval(r, &capture, &mesh, &r.out.join("sensor_poisson"), &aware_args)?;
+    let aware = reconstruct_and_eval(r, &capture, &mesh, &r.out.join(format!("sensor_poisson{tag}")), &aware_args)?;
     let mut text = String::new();
     let _ = writeln!(
         text,
         "capture: the seed-setup render of the shared bunny as flux, {photons} signal photons per measurement, jitter `{}` (FWHM {:.0} ps), background {:.3} \
-         counts per bin, seed 1\n",
+         counts per bin, seed {}\n",
         jitter_file.display(),
         jitter.fwhm_ps(),
-        model.background_per_bin(t.time().bin_width)
+        model.background_per_bin(t.time().bin_width),
+        opts.photon_seed
     );
     let _ = writeln!(
         text,

@@ -69,17 +69,13 @@ pub struct PruneParams {
     /// [`prune_boundary`]'s `noise`): a face goes only when `ΔE_f < −κ · ½ c_f − z · σ_f`, `σ_f` the
     /// standard deviation of `ΔE_f` under the hypothesis that the face is real (module docs,
     /// "Significance"). 0 (the default) is the margin test alone.
-    #[serde(default = "default_significance")]
+    #[serde(default)]
     pub significance: f64,
-}
-
-fn default_significance() -> f64 {
-    0.0
 }
 
 impl Default for PruneParams {
     fn default() -> Self {
-        Self { rounds: 3, max_fraction: 0.2, margin: 0.5, significance: default_significance() }
+        Self { rounds: 3, max_fraction: 0.2, margin: 0.5, significance: 0.0 }
     }
 }
 
@@ -255,7 +251,7 @@ pub fn prune_boundary(
 
 /// `σ_f = √(Σ_k I_f,k² ν_k)` over a face's share (the standard deviation of its `ΔE_f` under the
 /// measurement's noise, [`prune_boundary`]).
-pub(crate) fn noise_sigma(spans: &[RowSpan], nu: &[f32], bins: usize) -> f64 {
+fn noise_sigma(spans: &[RowSpan], nu: &[f32], bins: usize) -> f64 {
     spans
         .iter()
         .map(|s| {
