@@ -128,6 +128,10 @@ pub struct Gradient {
     pub vertices: Vec<Vec3>,
     /// One per BRDF parameter, in the order of [`RenderBrdf::PARAM_NAMES`].
     pub brdf: Vec<f32>,
+    /// One per mesh triangle: dE/dw_t, the derivative with respect to the triangle's reflectance factor
+    /// ([`Renderer::set_face_weights`]; 1 when none are set) at its current value. 0 for degenerate
+    /// triangles and for triangles whose factor is 0 (they are skipped, so nothing is sampled on them).
+    pub faces: Vec<f32>,
 }
 
 /// What [`Renderer::loss_and_gradient`] returns.
@@ -189,6 +193,8 @@ pub struct Renderer {
     isa: Isa,
     /// Fraction of the stratified samples drawn from the glossy lobe (0: area sampling only).
     lobe_fraction: f32,
+    /// Per-triangle reflectance factors (mesh triangle order), None = all 1.
+    face_weights: Option<Vec<f32>>,
 }
 
 impl Renderer {
@@ -248,6 +254,7 @@ impl Renderer {
             cache: None,
             isa: Isa::detect(),
             lobe_fraction: 0.0,
+            face_weights: None,
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -387,6 +394,47 @@ impl Renderer {
         Ok(())
     }
 
+    /// Sets one reflectance factor per mesh triangle (`None`: all 1): triangle t's contribution to the
+    /// forward pass, and to every gradient, is multiplied by `w_t` — a spatially varying albedo constant over
+    /// each face, on top of the BRDF. The factors are kept across [`Renderer::set_positions`]; the adjoint
+    /// pass returns dE/dw_t in [`Gradient::faces`]. A factor of 0 makes the triangle black: it is skipped, but
+    /// it still casts shadows (visibility sees geometry only).
+    ///
+    /// # Errors
+    /// [`RenderError::LengthMismatch`] unless there is one factor per triangle,
+    /// [`RenderError::InvalidParameter`] for a negative or non-finite factor.
+    pub fn set_face_weights(&mut self, weights: Option<&[f32]>) -> Result<()> {
+        if let Some(w) = weights {
+            if w.len() != self.triangles.len() {
+                return Err(RenderError::LengthMismatch {
+                    what: "face weights",
+                    expected: self.triangles.len(),
+                    got: w.len(),
+                });
+            }
+            if let Some(bad) = w.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+                return Err(RenderError::InvalidParameter {
+                    name: "face weight",
+                    value: f64::from(*bad),
+                    reason: "must be finite and ≥ 0 (a reflectance factor)",
+                });
+            }
+        }
+        self.face_weights = weights.map(<[f32]>::to_vec);
+        Ok(())
+    }
+
+    /// The per-triangle reflectance factors set by [`Renderer::set_face_weights`], if any.
+    pub fn face_weights(&self) -> Option<&[f32]> {
+        self.face_weights.as_deref()
+    }
+
+    /// Triangle t's reflectance factor (1 without factors).
+    #[inline(always)]
+    fn face_weight(&self, t: usize) -> f32 {
+        self.face_weights.as_ref().map_or(1.0, |w| w[t])
+    }
+
     /// Number of skipped degenerate triangles.
     pub fn degenerate_triangles(&self) -> usize {
         self.tris.valid.iter().filter(|v| !**v).count()
@@ -483,7 +531,7 @@ impl Renderer {
             let vis = match (&self.params.visibility, &self.cache) {
                 (Visibility::Cached { .. }, Some(c)) => f32::from(c[m * nt + slot]) * (1.0 / 255.0),
                 _ => 1.0,
-            };
+            } * self.face_weight(triangle);
             if vis == 0.0 {
                 continue;
             }
@@ -590,11 +638,19 @@ impl Renderer {
         // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
         // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
         let mut dv = vec![DVec3::ZERO; self.n_vertices];
+        let mut faces = vec![0.0f32; nt];
         for (slot, g) in per_tri.iter().enumerate() {
             let t = self.mesh_triangle(slot);
             let v3 = |k: usize| DVec3::new(g[k], g[k + 1], g[k + 2]);
             let (g0, g1, g2, g_n) = (v3(0), v3(3), v3(6), v3(9));
             let (e1, e2) = (self.tris.e1[t].as_dvec3(), self.tris.e2[t].as_dvec3());
+            // The triangle's integrand w_t·f_s(n̂)·Q(N) is homogeneous of degree 1 in N = e1 × e2 (Q holds
+            // (N·a)(N·b)/|N|, f_s sees N only through n̂ = N/|N|) and the time kernel does not see N, so by
+            // Euler's theorem N·dE/dN = Σ (dE/dI)·(the triangle's contribution) = w_t·dE/dw_t.
+            let w = self.face_weight(t);
+            if w > 0.0 {
+                faces[t] = (e1.cross(e2).dot(g_n) / f64::from(w)) as f32;
+            }
             let (d_e1, d_e2) = (e2.cross(g_n), g_n.cross(e1));
             let [i0, i1, i2] = self.triangles[t];
             dv[i0 as usize] += g0 - d_e1 - d_e2;
@@ -610,6 +666,7 @@ impl Renderer {
         Ok(Gradient {
             vertices: dv.iter().map(|g| g.as_vec3()).collect(),
             brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
+            faces,
         })
     }
 
@@ -842,6 +899,11 @@ impl Renderer {
             }
             _ => sc.vis[..len].fill(1.0),
         }
+        if let Some(w) = &self.face_weights {
+            for (i, o) in sc.vis[..len].iter_mut().enumerate() {
+                *o *= w[self.mesh_triangle(t0 + i)];
+            }
+        }
         // Whether any pair is active, without an early exit (so the loop vectorises).
         sc.sign[..len].iter().zip(&sc.vis[..len]).fold(false, |any, (s, v)| any | ((*s != 0.0) & (*v != 0.0)))
     }
@@ -923,6 +985,11 @@ impl Renderer {
                 }
             }
             _ => sc.vis[..len].fill(1.0),
+        }
+        if let Some(w) = &self.face_weights {
+            for (o, &slot) in sc.vis[..len].iter_mut().zip(&pk.slots[..len]) {
+                *o *= w[self.mesh_triangle(t0 + slot as usize)];
+            }
         }
         sc.sign[..len].iter().zip(&sc.vis[..len]).fold(false, |any, (s, v)| any | ((*s != 0.0) & (*v != 0.0)))
     }
