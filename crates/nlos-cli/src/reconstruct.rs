@@ -136,6 +136,12 @@ pub(crate) struct Args {
     /// only: not with --sensor (blurred counts are not Poisson).
     #[arg(long, value_name = "METRES,...|off")]
     temporal_blur: Option<String>,
+    /// Spatially varying albedo (`nlos_optim::albedo`): fit a map of the albedo over the wall plane with
+    /// cells of CELL metres, alongside the shape (`off`, the default: one albedo for the whole surface). For
+    /// objects with printed patterns (a resolution chart), whose dark print a uniform albedo turns into
+    /// relief. The report shows the map (`albedo.png`).
+    #[arg(long, value_name = "CELL|off", default_value = "off")]
+    albedo_map: String,
     /// Noise of the capture, for the smoothing weight: `counts` (Poisson photon counts: λ is set against
     /// the misfit above the noise floor), `none` (λ against the whole data term, the seed's rule), or
     /// `auto` (the default): `counts` when every value is a non-negative integer. --sensor implies counts.
@@ -472,6 +478,7 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
                 params.temporal_blur.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
             },
         ),
+        ("albedo map (cell, m)", args.albedo_map.clone()),
         ("ground truth", opt(args.gt.as_ref().map(|p| p.display().to_string()))),
         ("resumed", args.resume.to_string()),
     ];
@@ -601,6 +608,15 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         }
         Some("off") => Vec::new(),
         Some(list) => numbers("--temporal-blur", list)?,
+    };
+    p.albedo_map = match args.albedo_map.as_str() {
+        "off" => None,
+        c => Some(nlos_optim::AlbedoMapParams {
+            cell: c
+                .parse()
+                .map_err(|e| bad(format!("--albedo-map `{c}`: expected `off` or a cell size in metres: {e}")))?,
+            ..nlos_optim::AlbedoMapParams::default()
+        }),
     };
     p.validate().map_err(bad)?;
     Ok(p)

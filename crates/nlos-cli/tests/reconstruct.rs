@@ -95,6 +95,38 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     assert!(resumed.status.success(), "{}", text(&resumed));
 }
 
+/// `--albedo-map`: the run fits a map, keeps it in the checkpoint (so `--resume` and `nlos report` find it),
+/// and the report renders with it and shows it.
+#[test]
+fn albedo_map_is_fitted_kept_and_shown() {
+    let dir = scratch("albedo");
+    let data = capture(&dir);
+    let out = dir.join("run");
+    let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
+    let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--stages", "1", "--resolution", "10"];
+    args.extend(["--blocks", "1", "--iterations", "2", "--quiet", "--albedo-map", "0.02"]);
+    let run = nlos(&args);
+    assert!(run.status.success(), "{}", text(&run));
+    let ck: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("checkpoint.json")).expect("checkpoint")).expect("json");
+    let cells = ck["albedo"]["log_albedo"].as_array().map_or(0, Vec::len);
+    assert!(cells >= 100, "a 0.2 m square at 2 cm cells needs at least 10 x 10 cells, got {cells}");
+    let log: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("run_log.json")).expect("log")).expect("json");
+    let kinds: Vec<&str> =
+        log["iterations"].as_array().expect("iterations").iter().filter_map(|r| r["kind"].as_str()).collect();
+    assert!(kinds.contains(&"reflectance"), "a Lambertian run with a map runs reflectance steps: {kinds:?}");
+    assert!(out.join("albedo.png").is_file(), "{}", text(&run));
+    let html = std::fs::read_to_string(out.join("report.html")).expect("report");
+    assert!(html.contains("albedo.png"));
+    // Resuming with other settings (no map) is refused, with the map it continues.
+    let plain: Vec<&str> = args.iter().copied().filter(|a| *a != "--albedo-map" && *a != "0.02").collect();
+    let refused = nlos(&[plain.as_slice(), &["--resume"]].concat());
+    assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
+    let resumed = nlos(&[args.as_slice(), &["--resume"]].concat());
+    assert!(resumed.status.success(), "{}", text(&resumed));
+}
+
 #[test]
 fn bad_arguments_are_input_errors() {
     let dir = scratch("bad");
@@ -143,6 +175,10 @@ fn bad_arguments_are_input_errors() {
         vec!["--temporal-blur=-0.01"],
         vec!["--temporal-blur", "0.02,nan"],
         vec!["--sensor", "ideal", "--temporal-blur", "0.02"],
+        vec!["--albedo-map", "fine"],
+        vec!["--albedo-map", "0"],
+        vec!["--albedo-map=-0.01"],
+        vec!["--albedo-map", "nan"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];

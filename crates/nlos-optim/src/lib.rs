@@ -18,6 +18,8 @@
 //!   finds light away from the mesh, added where they lower the data term;
 //! - [`temporal`]: coarse-to-fine in time — the early stages' data term compares Gaussian-blurred
 //!   histograms, so surfaces whose light arrives many bins from the measured return feel a pull toward it;
+//! - [`albedo`]: spatially varying albedo — a log-albedo map over the wall plane, fitted with the shape, for
+//!   scenes whose reflectance varies (printed patterns), which a uniform albedo turns into relief;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -36,6 +38,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod adam;
+pub mod albedo;
 pub mod boundary_smoothing;
 pub mod error;
 pub mod grow;
@@ -50,6 +53,7 @@ pub mod sensor;
 pub mod temporal;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
+pub use albedo::{AlbedoMap, AlbedoMapParams};
 pub use boundary_smoothing::BoundarySmoothing;
 pub use error::{OptimError, Result};
 pub use grow::{GrowParams, GrowRecord, Grown, grow_boundary};

@@ -7,6 +7,7 @@ use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
 use nlos_render::{DeterministicRule, RenderParams};
 
 use crate::adam::AdamParams;
+use crate::albedo::AlbedoMapParams;
 use crate::error::{OptimError, Result};
 use crate::grow::GrowParams;
 use crate::loss::DataTerm;
@@ -141,6 +142,11 @@ pub struct ReconstructParams {
     /// term only: not applied with [`Self::sensor`] or a Poisson data term, whose likelihoods need the raw
     /// counts (blurred counts are not Poisson).
     pub temporal_blur: Vec<f64>,
+    /// Spatially varying albedo ([`crate::albedo`]): a map of log-albedo over the wall plane, fitted in the
+    /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in the seed).
+    /// For scenes whose reflectance varies (printed patterns, labels), which a uniform albedo turns into
+    /// relief. With a Lambertian BRDF the reflectance blocks then run for the map alone.
+    pub albedo_map: Option<AlbedoMapParams>,
     /// Renderer settings (kernel: tent, needed for the time-shift gradient; visibility: live; one-sided).
     /// Its `sampling` is replaced by [`ReconstructParams::sampling`].
     pub render: RenderParams,
@@ -215,6 +221,7 @@ impl Default for ReconstructParams {
             regulariser_ratio: 0.1,
             boundary_smoothing: 1.0,
             temporal_blur: Vec::new(),
+            albedo_map: None,
             regulariser_weight: None,
             render: RenderParams::default(),
             sampling: SamplingSchedule::default(),
@@ -248,6 +255,9 @@ impl ReconstructParams {
         }
         if let Some(g) = &self.grow {
             g.validate()?;
+        }
+        if let Some(a) = &self.albedo_map {
+            a.validate()?;
         }
         let s = &self.schedule;
         if !pos(s.initial_resolution) {

@@ -10,7 +10,8 @@
 //!    ([`crate::regularizer`]; λ set automatically at the first step of the block, against the data term
 //!    above its noise floor for photon counts, [`crate::sensor`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
-//! 3. **Reflectance block.** Adam steps on θ with the shape fixed.
+//! 3. **Reflectance block.** Adam steps on θ with the shape fixed (and on the albedo map's log-albedo,
+//!    [`crate::albedo`], when there is one).
 //! 4. **Pruning and growth** (optional, [`crate::ReconstructParams::prune`], [`crate::ReconstructParams::grow`]):
 //!    boundary faces whose deletion lowers the data term are deleted ([`crate::prune`]), then faces across
 //!    the boundary edges are added where they lower it ([`crate::grow`]). At the end of the first stages
@@ -47,6 +48,7 @@ use nlos_transient::{Scan, TimeAxis, Transient};
 use serde::{Deserialize, Serialize};
 
 use crate::adam::{VectorAdam, VertexAdam};
+use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
 use crate::grow::{GrowRecord, grow_boundary};
@@ -260,6 +262,8 @@ pub struct Outcome {
     /// One record per residual back-projection (per stage that proposes, [`crate::ResidualParams::stages`];
     /// empty when [`ReconstructParams::residual`] is `None`).
     pub residual: Vec<ResidualRecord>,
+    /// The fitted albedo map ([`ReconstructParams::albedo_map`]; None without one).
+    pub albedo: Option<AlbedoMap>,
 }
 
 /// Everything needed to continue a run (written as the checkpoint).
@@ -303,6 +307,12 @@ struct State {
     /// Residual back-projection per stage.
     #[serde(default)]
     residual_log: Vec<ResidualRecord>,
+    /// The albedo map ([`crate::albedo`]; None without one).
+    #[serde(default)]
+    albedo: Option<AlbedoMap>,
+    /// Adam state of the albedo map's θ.
+    #[serde(default)]
+    albedo_adam: VectorAdam,
 }
 
 /// f32 vectors stored as f64 triples: an f32 widened to f64 prints and parses back exactly (serde_json's
@@ -359,7 +369,8 @@ fn fingerprint(measured: &Transient) -> u64 {
 fn settings_fingerprint(params: &ReconstructParams) -> u64 {
     let text = format!("{:?}", ReconstructParams { out_dir: None, ..params.clone() })
         .replace(", temporal_blur: []", "")
-        .replace(", significance: 0.0 }", " }");
+        .replace(", significance: 0.0 }", " }")
+        .replace(", albedo_map: None", "");
     text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
 }
 
@@ -407,6 +418,12 @@ pub fn reconstruct_with(
         });
     }
     let n = positions.len();
+    // The map covers the initial surface with two cells to spare; points beyond take the edge's value.
+    let albedo = match &params.albedo_map {
+        Some(a) => Some(AlbedoMap::covering(&positions, a.cell, 2.0 * a.cell)?),
+        None => None,
+    };
+    let albedo_adam = VectorAdam::new(albedo.as_ref().map_or(0, |m| m.log_albedo.len()));
     let state = State {
         version: CHECKPOINT_VERSION,
         fingerprint: fingerprint(measured),
@@ -432,6 +449,8 @@ pub fn reconstruct_with(
         prune_log: Vec::new(),
         grow_log: Vec::new(),
         residual_log: Vec::new(),
+        albedo,
+        albedo_adam,
     };
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
@@ -469,7 +488,14 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
                        start afresh in another directory"
             .into()));
     }
-    if state.shape_adam.len() != state.positions.len() || state.triangles.is_empty() {
+    if state.shape_adam.len() != state.positions.len()
+        || state.triangles.is_empty()
+        || state.albedo.is_some() != params.albedo_map.is_some()
+        || state
+            .albedo
+            .as_ref()
+            .is_some_and(|m| m.log_albedo.len() != m.nx * m.ny || state.albedo_adam.m.len() != m.log_albedo.len())
+    {
         return Err(ck("inconsistent mesh and optimiser state".into()));
     }
     run(measured, state, params, hooks)
@@ -611,6 +637,8 @@ struct Eval {
     scale: f64,
     grad_vertices: Vec<Vec3>,
     grad_theta: Vec<f64>,
+    /// dE/dw_t per triangle (`nlos_render::Gradient::faces`), for the albedo map.
+    grad_faces: Vec<f32>,
 }
 
 /// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit with its resolved background.
@@ -669,6 +697,7 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
         scale: ev.scale,
         grad_theta: st.reflectance.chain(&g.brdf),
         grad_vertices: g.vertices,
+        grad_faces: g.faces,
     })
 }
 
@@ -734,7 +763,10 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     // A Lambertian albedo is a pure scale factor: with the scale solved in closed form its gradient is zero,
     // and a reflectance block would spend full forward/adjoint renders to leave θ where it is.
     let scale_only = matches!(st.reflectance, Reflectance::Lambertian { .. }) && params.data.solve_scale;
-    let refl_iters = if params.optimise_reflectance && !scale_only { sch.reflectance_iterations } else { 0 };
+    let fit_brdf = params.optimise_reflectance && !scale_only && !st.reflectance.theta().is_empty();
+    // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
+    let fit_albedo = params.optimise_reflectance && st.albedo.is_some();
+    let refl_iters = if fit_brdf || fit_albedo { sch.reflectance_iterations } else { 0 };
     let planned =
         u64::from(sch.max_stages) * u64::from(sch.max_blocks_per_stage) * u64::from(sch.shape_iterations + refl_iters);
     let out_dir: Option<PathBuf> = params.out_dir.clone();
@@ -769,6 +801,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             measured.time(),
             render_params(params, st.stage, &mut st.rng),
         )?;
+        // The albedo map's factors, held fixed through the shape block (crate::albedo, "Gradient").
+        set_albedo_weights(&st, &mut renderer)?;
         let reg = NormalSmoothing::new(st.positions.len(), &st.triangles)?;
         let edge_reg = BoundarySmoothing::new(st.positions.len(), &st.triangles)?;
         let w_edge = params.boundary_smoothing;
@@ -860,19 +894,25 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         }
 
         // ---- reflectance block ----
-        if refl_iters > 0 && !st.reflectance.theta().is_empty() {
+        if refl_iters > 0 {
             let (mut r, _) = reg.evaluate(&st.positions, &st.triangles)?;
             if w_edge > 0.0 {
                 r += w_edge * edge_reg.evaluate(&st.positions)?.0;
             }
-            let mut good_refl: Option<(Reflectance, VectorAdam)> = None;
+            let mut good_refl: Option<GoodReflectance> = None;
             let mut it = 0;
             while it < refl_iters {
                 let ev = evaluate(&st, &renderer, &fit, false);
                 let ev = match ev {
-                    Ok(ev) if ev.data.is_finite() && ev.grad_theta.iter().all(|g| g.is_finite()) => ev,
+                    Ok(ev)
+                        if ev.data.is_finite()
+                            && ev.grad_theta.iter().all(|g| g.is_finite())
+                            && ev.grad_faces.iter().all(|g| g.is_finite()) =>
+                    {
+                        ev
+                    }
                     Ok(_) | Err(OptimError::Brdf(_)) => {
-                        rollback_refl(&mut st, &mut good_refl, params, "reflectance loss or gradient")?;
+                        rollback_refl(&mut st, &mut good_refl, &mut renderer, params, "reflectance loss or gradient")?;
                         continue;
                     }
                     Err(e) => return Err(e),
@@ -898,9 +938,23 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     noise_floor: None,
                 });
                 let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
-                good_refl = Some((st.reflectance.clone(), st.reflectance_adam.clone()));
-                let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
-                st.reflectance.add_theta(&delta);
+                good_refl = Some((
+                    st.reflectance.clone(),
+                    st.reflectance_adam.clone(),
+                    st.albedo.clone(),
+                    st.albedo_adam.clone(),
+                ));
+                if fit_brdf {
+                    let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
+                    st.reflectance.add_theta(&delta);
+                }
+                if let (Some(map), Some(ap)) = (st.albedo.as_mut(), params.albedo_map.as_ref()) {
+                    let g = map.chain(&st.positions, &st.triangles, &ev.grad_faces);
+                    let delta = st.albedo_adam.step(&params.reflectance_adam, &g, ap.lr * st.lr_scale);
+                    map.add(&delta, ap.max_log);
+                    map.recentre(&st.positions, &st.triangles);
+                    set_albedo_weights(&st, &mut renderer)?;
+                }
                 st.iteration += 1;
                 it += 1;
             }
@@ -1062,6 +1116,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 prune: st.prune_log.clone(),
                 grow: st.grow_log.clone(),
                 residual: st.residual_log.clone(),
+                albedo: st.albedo.clone(),
             });
         }
     }
@@ -1082,6 +1137,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         prune: st.prune_log.clone(),
         grow: st.grow_log.clone(),
         residual: st.residual_log.clone(),
+        albedo: st.albedo.clone(),
     })
 }
 
@@ -1170,14 +1226,31 @@ fn rollback(
 /// Restores θ before the last reflectance step and halves the learning rates.
 fn rollback_refl(
     st: &mut State,
-    good: &mut Option<(Reflectance, VectorAdam)>,
+    good: &mut Option<GoodReflectance>,
+    renderer: &mut Renderer,
     params: &ReconstructParams,
     what: &'static str,
 ) -> Result<()> {
     count_rollback(st, params, what)?;
-    if let Some((r, a)) = good.take() {
+    if let Some((r, a, map, map_adam)) = good.take() {
         st.reflectance = r;
         st.reflectance_adam = a;
+        st.albedo = map;
+        st.albedo_adam = map_adam;
+        set_albedo_weights(st, renderer)?;
+    }
+    Ok(())
+}
+
+/// The reflectance state a reflectance rollback restores: θ, its Adam state, the albedo map and its Adam
+/// state.
+type GoodReflectance = (Reflectance, VectorAdam, Option<AlbedoMap>, VectorAdam);
+
+/// Gives the renderer the albedo map's per-triangle factors at the current positions (nothing without a
+/// map).
+fn set_albedo_weights(st: &State, renderer: &mut Renderer) -> Result<()> {
+    if let Some(map) = &st.albedo {
+        renderer.set_face_weights(Some(&map.face_weights(&st.positions, &st.triangles)))?;
     }
     Ok(())
 }

@@ -286,6 +286,52 @@ pub fn depth_figure(depth: &[f32], view: &DepthView, range: (f64, f64), title: &
     Ok(fig.render()?)
 }
 
+/// The fitted albedo map (`nlos_optim::AlbedoMap`) where the final mesh is seen: at each pixel of `view`
+/// whose ray hits the mesh (`depth` finite), the map's albedo at the pixel centre; grey elsewhere. x right and
+/// y up as seen from the wall, like the depth maps; colours from 0 to the 98th percentile.
+///
+/// # Errors
+/// [`ReportError::InvalidOption`] when `depth` does not hold `grid²` values; drawing errors.
+pub fn albedo_figure(map: &nlos_optim::AlbedoMap, depth: &[f32], view: &DepthView) -> Result<RgbImage> {
+    let n = view.grid;
+    if depth.len() != n * n {
+        return Err(ReportError::InvalidOption {
+            name: "depth",
+            reason: format!("{} values for a {n} x {n} grid", depth.len()),
+        });
+    }
+    let at = |r: [f32; 2], i: usize| f64::from(r[0]) + (i as f64 + 0.5) * f64::from(r[1] - r[0]) / n as f64;
+    let values: Vec<f32> = (0..n * n)
+        .map(|k| {
+            if depth[k].is_finite() {
+                map.log_albedo_at(at(view.x_range, k % n), at(view.y_range, k / n)).exp() as f32
+            } else {
+                f32::NAN
+            }
+        })
+        .collect();
+    let hi = quantile(&values, 0.98).filter(|h| *h > 0.0).unwrap_or(1.0);
+    let ex = Extent::new(f64::from(view.x_range[0]), f64::from(view.x_range[1]))?;
+    let ey = Extent::new(f64::from(view.y_range[0]), f64::from(view.y_range[1]))?;
+    let g = ScalarGrid::new(&values, n, n, ex, ey)?;
+    let (w, h) = aspect_size(ex, ey, 360);
+    let mut fig = Figure::new("albedo map (relative: geometric mean 1 over the surface)");
+    fig.notes.push(format!(
+        "{} x {} cells of {:.1} mm, log-albedo bilinear between cell centres; shown where the final mesh is hit",
+        map.nx,
+        map.ny,
+        map.cell * 1e3
+    ));
+    fig.notes.push("x to the right as in wall coordinates: text facing the wall reads mirrored".into());
+    fig.panels = vec![
+        Panel::image(g, Norm::linear(0.0, hi)?)
+            .with_labels("x (m)", "y (m)")
+            .with_size(w, h)
+            .with_colorbar("albedo (relative)"),
+    ];
+    Ok(fig.render()?)
+}
+
 /// The relief of a depth map: each hit pixel minus the mean of the hit pixels in the `(2r+1)²` box around
 /// it (a high-pass filter through a summed-area table), `NaN` where the ray missed. Removes the object's
 /// overall shape and keeps detail smaller than the box, such as relief lettering.

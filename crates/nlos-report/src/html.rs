@@ -205,11 +205,23 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
     };
     section(&mut o, "Measured vs rendered", &["summed.png", "xt_slice.png"]);
     section(&mut o, "Loss", &["loss.png"]);
-    section(&mut o, "Depth maps seen from the wall", &["depth_init.png", "depth_final.png", "depth_gt.png"]);
+    section(
+        &mut o,
+        "Depth maps seen from the wall",
+        &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png"],
+    );
     section(&mut o, "Relief", &["relief.png"]);
     // Any image not placed above still gets shown.
-    let placed =
-        ["summed.png", "xt_slice.png", "loss.png", "depth_init.png", "depth_final.png", "depth_gt.png", "relief.png"];
+    let placed = [
+        "summed.png",
+        "xt_slice.png",
+        "loss.png",
+        "depth_init.png",
+        "depth_final.png",
+        "depth_gt.png",
+        "albedo.png",
+        "relief.png",
+    ];
     let others: Vec<&str> = imgs.iter().map(String::as_str).filter(|i| !placed.contains(i)).collect();
     section(&mut o, "Other figures", &others);
 

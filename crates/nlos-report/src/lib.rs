@@ -13,10 +13,11 @@
 //! | `loss.png` | total loss, data term and weighted regulariser per iteration, stage starts marked |
 //! | `depth_init.png`, `depth_final.png`, `depth_gt.png` | depth maps seen from the wall (+z rays) |
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
+//! | `albedo.png` | the fitted albedo map where the final mesh is seen (runs with an albedo map only) |
 //! | `report.html` | one self-contained page: run parameters, metrics, per-stage table, the images |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
-//! with the run's reflectance (from the checkpoint) and the renderer settings of the run
+//! with the run's reflectance and albedo map (from the checkpoint) and the renderer settings of the run
 //! ([`ReportOptions::render`]). The measured data's scale is arbitrary, so the rendering is shown as
 //! `s*·I` with the closed-form scale of the run's loss (`nlos_optim::DataTerm::optimal_scale`: for L2,
 //! `s* = ⟨I, Ĩ⟩/⟨I, I⟩`, eq. 7 of Tsai et al. 2019 minimised over s), computed on the bins after the
@@ -156,6 +157,35 @@ pub fn read_reflectance(dir: &Path) -> Result<Option<Reflectance>> {
     Ok(Some(serde_json::from_value(r.clone()).map_err(|e| json(e.to_string()))?))
 }
 
+/// The albedo map recorded in `checkpoint.json` (`nlos_optim::ReconstructParams::albedo_map`), or `None`
+/// when there is no checkpoint or the run had no map.
+///
+/// # Errors
+/// [`ReportError::Io`], or [`ReportError::Json`] for a checkpoint whose `albedo` is malformed.
+pub fn read_albedo(dir: &Path) -> Result<Option<nlos_optim::AlbedoMap>> {
+    let path = dir.join(nlos_optim::CHECKPOINT_FILE);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let json = |message: String| ReportError::Json { file: path.clone(), message };
+    let v: serde_json::Value = serde_json::from_slice(&read(&path)?).map_err(|e| json(e.to_string()))?;
+    match v.get("albedo") {
+        None | Some(serde_json::Value::Null) => Ok(None),
+        Some(a) => {
+            let map: nlos_optim::AlbedoMap = serde_json::from_value(a.clone()).map_err(|e| json(e.to_string()))?;
+            if map.log_albedo.len() != map.nx * map.ny || map.nx == 0 || map.ny == 0 {
+                return Err(json(format!(
+                    "`albedo` holds {} values for {} x {} cells",
+                    map.log_albedo.len(),
+                    map.nx,
+                    map.ny
+                )));
+            }
+            Ok(Some(map))
+        }
+    }
+}
+
 fn save(img: &RgbImage, dir: &Path, name: &str, images: &mut Vec<String>) -> Result<()> {
     img.save_png(dir.join(name))?;
     images.push(name.to_string());
@@ -205,7 +235,11 @@ pub fn write_report(
     let gate = opts.gate.unwrap_or_else(|| measured.direct_light_end()).clamp(ax.t0, ax.end());
     let gated = |t: &Transient| -> Result<Transient> { Ok(if gate > ax.t0 { t.gate(gate)? } else { t.clone() }) };
     let (positions, triangles) = final_mesh.to_triangles();
-    let renderer = Renderer::new(&positions, &triangles, measured.scan(), &ax, opts.render)?;
+    let mut renderer = Renderer::new(&positions, &triangles, measured.scan(), &ax, opts.render)?;
+    let albedo = read_albedo(dir)?;
+    if let Some(map) = &albedo {
+        renderer.set_face_weights(Some(&map.face_weights(&positions, &triangles)))?;
+    }
     let rendered = reflectance.brdf()?.forward(&renderer);
     let measured_g = gated(measured)?;
     let (scaled, scale) = match &opts.sensor {
@@ -272,6 +306,9 @@ pub fn write_report(
     save(&figures::depth_figure(&d_final, &view, range, "depth: final mesh")?, dir, "depth_final.png", &mut images)?;
     if let Some(d) = &d_gt {
         save(&figures::depth_figure(d, &view, range, "depth: ground truth")?, dir, "depth_gt.png", &mut images)?;
+    }
+    if let Some(map) = &albedo {
+        save(&figures::albedo_figure(map, &d_final, &view)?, dir, "albedo.png", &mut images)?;
     }
     let pixel = f64::from(view.x_range[1] - view.x_range[0]) / view.grid as f64;
     let radius = ((opts.relief_box / pixel / 2.0).round() as usize).clamp(1, view.grid.max(2) / 2);
