@@ -102,8 +102,11 @@ pub(crate) struct Args {
     gt: Option<PathBuf>,
     /// Fit photon counts (Poisson NLL of scale·J(I) + background) through this SPAD timing response: a
     /// jitter file (`JitterResponse::load`: MATLAB v7.3 `t_*`/`counts_*`, or HDF5 `counts` +
-    /// `timebin_width_ps`), or `ideal` for no jitter. Without it the fit is L2 on intensities.
-    #[arg(long, value_name = "FILE|ideal")]
+    /// `timebin_width_ps`), `ideal` for no jitter, or `direct` for the capture's own response, taken from
+    /// its direct reflection off the wall (`JitterResponse::from_direct_return`; real confocal captures,
+    /// whose heavy response tail a plain fit explains with surfaces further back). Without it the fit is L2
+    /// on intensities.
+    #[arg(long, value_name = "FILE|ideal|direct")]
     sensor: Option<String>,
     /// Background of the sensor fit: expected counts per bin, or `auto` to estimate it from the bins
     /// before the first return (the default). Needs --sensor.
@@ -495,7 +498,31 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
 /// The sensor fit of `--sensor` / `--background` on the capture's bins.
 fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, CliError> {
     let Some(sensor) = &args.sensor else { return Ok(None) };
+    // The capture as read and rebinned, before the gate and --max-depth: it still holds the direct return
+    // (for `direct`) and the background-only bins at the end of the axis.
+    let raw = {
+        let t = nlos_transient::read(&args.data).map_err(CliError::input)?;
+        match args.rebin {
+            Some(k) => t.rebin(k).map_err(CliError::input)?,
+            None => t,
+        }
+    };
+    // The same decision as `load_capture`'s.
+    let gated = args.gate.path(&raw).map_err(bad)?.is_some_and(|g| g > raw.time().t0);
     let background = match args.background.as_deref() {
+        None | Some("auto") if gated => {
+            // A gated capture's zeroed direct light is not background, and --max-depth may have cut the
+            // background-only bins: estimate on the capture as read (`Auto` falls back to the last 10 % of its
+            // axis when the direct light leaves no bins before the first return).
+            let est = nlos_transient::sensor::estimate_background(&raw, BackgroundWindow::Auto).map_err(bad)?;
+            if !args.quiet {
+                eprintln!(
+                    "--background auto: {:.4} counts per bin (bins {}..{} of the capture before the gate)",
+                    est.per_bin, est.window.0, est.window.1
+                );
+            }
+            SensorBackground::Fixed(est.per_bin.max(0.0))
+        }
         None | Some("auto") => SensorBackground::Estimate(BackgroundWindow::Auto),
         Some(v) => match v.parse::<f64>() {
             Ok(b) if b.is_finite() && b >= 0.0 => SensorBackground::Fixed(b),
@@ -505,6 +532,20 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
     let bin_width = measured.time().bin_width;
     Ok(Some(match sensor.as_str() {
         "ideal" => SensorFit { kernel: BinKernel::identity(), background },
+        "direct" => {
+            let response = JitterResponse::from_direct_return(&raw)
+                .map_err(|e| bad(format!("--sensor direct: {}: {e}", args.data.display())))?;
+            if !args.quiet {
+                eprintln!(
+                    "--sensor direct: the capture's own response: FWHM {:.1} ps, mean delay {:.1} mm of path, {:.0} mm \
+                     long",
+                    response.fwhm_ps(),
+                    response.mean_delay() * 1e3,
+                    response.weights().len() as f64 * response.spacing() * 1e3
+                );
+            }
+            SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?
+        }
         file => {
             let response = JitterResponse::load(file).map_err(|e| bad(format!("--sensor {file}: {e}")))?;
             SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?

@@ -175,6 +175,7 @@ fn bad_arguments_are_input_errors() {
         vec!["--temporal-blur=-0.01"],
         vec!["--temporal-blur", "0.02,nan"],
         vec!["--sensor", "ideal", "--temporal-blur", "0.02"],
+        vec!["--sensor", "direct"],
         vec!["--albedo-map", "fine"],
         vec!["--albedo-map", "0"],
         vec!["--albedo-map=-0.01"],

@@ -33,6 +33,7 @@ use std::path::Path;
 use crate::SPEED_OF_LIGHT;
 use crate::error::{MEMORY, Result, TransientError};
 use crate::formats::hdf5::read_dataset_f64;
+use crate::transient::Transient;
 
 /// A timing response `h(τ)` as a fine, normalised histogram of delays (metres of path). See the
 /// [module docs](self) for the conventions.
@@ -215,6 +216,49 @@ impl JitterResponse {
             }
             Err(e) => Err(e),
         }
+    }
+
+    /// The capture's own timing response, from its direct reflection off the wall.
+    ///
+    /// A confocal capture whose time zero is calibrated on the wall (path lengths exclude the device legs)
+    /// records the laser spot itself at path 0: that return is the system's impulse response — laser pulse,
+    /// SPAD jitter and its diffusion tail, electronics — as measured with this capture, which a separate
+    /// jitter file may not be (the 40 cm resolution chart's return falls to half in 11 mm of path and keeps
+    /// 5 % of its peak 120 mm later; the shared SPAD response falls to half in 7 mm). The response is the
+    /// summed histogram from the start of the axis to the end of the direct light
+    /// ([`Transient::direct_light_end`]), minus the background floor (the median of the summed histogram
+    /// over the last 5 % of the axis), with zero delay at its maximum (the convention of [`Self::load`]).
+    /// Its rising side is whatever precedes the maximum on the axis (nothing when the axis starts at the
+    /// peak).
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidValue`] (field `direct return`) when the capture holds no direct reflection
+    /// before its first hidden return (a simulation, or a capture already gated), or when nothing is left
+    /// above the floor.
+    pub fn from_direct_return(t: &Transient) -> Result<Self> {
+        let ax = *t.time();
+        let summed = t.summed_histogram();
+        let no_direct = |reason: String| invalid("direct return", reason);
+        let end_path = t.direct_light_end();
+        let end = ((end_path - ax.t0) / ax.bin_width).floor().max(0.0) as usize;
+        let head = (ax.bins / 10).max(1);
+        let peak = summed[..head].iter().enumerate().fold(0, |b, (i, &v)| if v > summed[b] { i } else { b });
+        if end <= peak + 1 || end > ax.bins {
+            return Err(no_direct(format!(
+                "no direct reflection off the wall at the start of the axis (the direct light ends at {end_path:.4}                  m of path, bin {end}; the first 10 % of the axis peaks at bin {peak}): a simulation, or a capture                  already gated, has no response to take"
+            )));
+        }
+        let edge = (ax.bins / 20).max(1);
+        let floor = median(&summed[ax.bins - edge..]);
+        let counts: Vec<f64> = summed[..end].iter().map(|&c| (c - floor).max(0.0)).collect();
+        if !(counts[peak] > 0.0) {
+            return Err(no_direct(format!(
+                "the direct return's peak ({}) is not above the floor ({floor})",
+                summed[peak]
+            )));
+        }
+        let origin = -(peak as f64 + 0.5) * ax.bin_width;
+        Self::from_histogram(origin, ax.bin_width, &counts, false)
     }
 
     /// Delay (metres of path) at the start of sample 0.

@@ -477,3 +477,45 @@ fn bad_parameters_give_typed_errors() {
     let r = SpadModel { bin_width: Some(0.0024), ..d.clone() }.simulate(&t, 0).unwrap();
     assert_eq!(r.bins(), 25);
 }
+
+/// The capture's own response from its direct return: a 4 × 4 confocal capture whose histograms hold a
+/// heavy-tailed response at path 0 (peak at bin 3: a rising side on the axis), the same response around a
+/// hidden return at bin 250, and a flat background. The response comes back sample for sample, zero delay at
+/// its peak; a capture without direct light (or gated) is a typed error.
+#[test]
+fn response_from_the_direct_return_recovers_the_impulse_response() {
+    let bins = 500;
+    // h[d], d = −3..=120: a steep rise, then a fast and a slow exponential (a SPAD's diffusion tail).
+    let h: Vec<f64> = (-3i32..=120)
+        .map(|d| {
+            let d = f64::from(d);
+            if d < 0.0 { (-0.5 * (d / 1.5).powi(2)).exp() } else { 0.7 * (-d / 6.0).exp() + 0.3 * (-d / 40.0).exp() }
+        })
+        .collect();
+    let background = 0.5;
+    let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.25, 0.25).unwrap());
+    let mut data = Vec::new();
+    for m in 0..16 {
+        let (direct, hidden) = (1e4 * (1.0 + 0.1 * m as f64), 30.0);
+        let mut hist = vec![background; bins];
+        for (i, &v) in h.iter().enumerate() {
+            hist[i] += direct * v; // peak (d = 0) at bin 3
+            hist[247 + i] += hidden * v;
+        }
+        data.extend(hist.iter().map(|&v| v as f32));
+    }
+    let t = Transient::new(scan, TimeAxis::new(0.0, 0.0012, bins).unwrap(), data).unwrap();
+    let r = JitterResponse::from_direct_return(&t).unwrap();
+    let total: f64 = h.iter().sum();
+    assert!((r.origin() - (-3.5 * 0.0012)).abs() < 1e-12, "zero delay at the peak: origin {}", r.origin());
+    assert!(r.weights().len() >= 100, "the tail is kept: {} samples", r.weights().len());
+    for (i, (&w, &v)) in r.weights().iter().zip(&h).enumerate() {
+        // The response is cut where the direct light ends: compare relative to the kept mass.
+        let kept: f64 = h[..r.weights().len()].iter().sum();
+        assert!((w - v / kept).abs() < 1e-6 * (v / total).max(1e-3), "sample {i}: {w} vs {}", v / kept);
+    }
+    // Without direct light (the same capture gated before the hidden return) there is nothing to take.
+    let gated = t.gate(0.30).unwrap();
+    let e = JitterResponse::from_direct_return(&gated).unwrap_err();
+    assert!(e.to_string().contains("direct return"), "{e}");
+}
