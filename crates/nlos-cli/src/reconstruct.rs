@@ -102,12 +102,13 @@ pub(crate) struct Args {
     gt: Option<PathBuf>,
     /// Fit photon counts (Poisson NLL of scale·J(I) + background) through this SPAD timing response: a
     /// jitter file (`JitterResponse::load`: MATLAB v7.3 `t_*`/`counts_*`, or HDF5 `counts` +
-    /// `timebin_width_ps`), `ideal` for no jitter, or `direct` for the capture's own response, taken from
-    /// its direct reflection off the wall (`JitterResponse::from_direct_return`; real confocal captures,
-    /// whose heavy response tail a plain fit explains with surfaces further back). Without it the fit is L2
-    /// on intensities.
-    #[arg(long, value_name = "FILE|ideal|direct")]
-    sensor: Option<String>,
+    /// `timebin_width_ps`), `ideal` for no jitter, `direct` for the capture's own response, taken from its
+    /// direct reflection off the wall (`JitterResponse::from_direct_return`: real confocal captures, whose
+    /// heavy response tail a plain fit explains with surfaces further back), `off` for an L2 fit on
+    /// intensities, or `auto` (the default): `direct` for photon counts that hold a direct reflection (real
+    /// captures), `off` otherwise (simulations, non-integer data, --temporal-blur).
+    #[arg(long, value_name = "FILE|ideal|direct|off|auto", default_value = "auto")]
+    sensor: String,
     /// Background of the sensor fit: expected counts per bin, or `auto` to estimate it from the bins
     /// before the first return (the default). Needs --sensor.
     #[arg(long, value_name = "COUNTS_PER_BIN|auto", requires = "sensor")]
@@ -471,7 +472,7 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
         ("max depth", args.max_depth.to_string()),
         ("visibility", args.visibility.clone()),
         ("quadrature max level", args.max_level.to_string()),
-        ("sensor", opt(args.sensor.clone())),
+        ("sensor", if params.sensor.is_some() { args.sensor.clone() } else { format!("{} (L2 fit)", args.sensor) }),
         ("background", opt(args.background.clone())),
         (
             "temporal blur (FWHM per stage, m of path)",
@@ -497,7 +498,14 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
 
 /// The sensor fit of `--sensor` / `--background` on the capture's bins.
 fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, CliError> {
-    let Some(sensor) = &args.sensor else { return Ok(None) };
+    let sensor = args.sensor.as_str();
+    if sensor == "off" {
+        return Ok(None);
+    }
+    let blur = args.temporal_blur.as_deref().is_some_and(|w| w != "off");
+    if sensor == "auto" && (blur || !nlos_transient::sensor::is_integer_counts(measured.data())) {
+        return Ok(None);
+    }
     // The capture as read and rebinned, before the gate and --max-depth: it still holds the direct return
     // (for `direct`) and the background-only bins at the end of the axis.
     let raw = {
@@ -509,6 +517,18 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
     };
     // The same decision as `load_capture`'s.
     let gated = args.gate.path(&raw).map_err(bad)?.is_some_and(|g| g > raw.time().t0);
+    // `auto`: the capture's own response when it holds one (a direct reflection, which the gate removed).
+    let direct = match sensor {
+        "auto" => match gated.then(|| JitterResponse::from_direct_return(&raw).ok()).flatten() {
+            Some(r) => Some(r),
+            None => return Ok(None),
+        },
+        "direct" => Some(
+            JitterResponse::from_direct_return(&raw)
+                .map_err(|e| bad(format!("--sensor direct: {}: {e}", args.data.display())))?,
+        ),
+        _ => None,
+    };
     let background = match args.background.as_deref() {
         None | Some("auto") if gated => {
             // A gated capture's zeroed direct light is not background, and --max-depth may have cut the
@@ -530,22 +550,20 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
         },
     };
     let bin_width = measured.time().bin_width;
-    Ok(Some(match sensor.as_str() {
-        "ideal" => SensorFit { kernel: BinKernel::identity(), background },
-        "direct" => {
-            let response = JitterResponse::from_direct_return(&raw)
-                .map_err(|e| bad(format!("--sensor direct: {}: {e}", args.data.display())))?;
-            if !args.quiet {
-                eprintln!(
-                    "--sensor direct: the capture's own response: FWHM {:.1} ps, mean delay {:.1} mm of path, {:.0} mm \
-                     long",
-                    response.fwhm_ps(),
-                    response.mean_delay() * 1e3,
-                    response.weights().len() as f64 * response.spacing() * 1e3
-                );
-            }
-            SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?
+    if let Some(response) = direct {
+        if !args.quiet {
+            eprintln!(
+                "--sensor {sensor}: fitting the counts through the capture's own response (its direct reflection: \
+                 FWHM {:.1} ps, mean delay {:.1} mm of path, {:.0} mm long); --sensor off fits intensities by L2",
+                response.fwhm_ps(),
+                response.mean_delay() * 1e3,
+                response.weights().len() as f64 * response.spacing() * 1e3
+            );
         }
+        return Ok(Some(SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?));
+    }
+    Ok(Some(match sensor {
+        "ideal" => SensorFit { kernel: BinKernel::identity(), background },
         file => {
             let response = JitterResponse::load(file).map_err(|e| bad(format!("--sensor {file}: {e}")))?;
             SensorFit::from_jitter(&response, bin_width, background).map_err(bad)?

@@ -350,3 +350,48 @@ fn max_depth_auto_drops_the_late_background_of_a_capture_with_background_only() 
     assert!(run.status.success() && !text(&run).contains("--max-depth auto"), "{}", text(&run));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--sensor auto` (the default): photon counts with a direct reflection off the wall (a real capture) are
+/// fitted through the capture's own response; the same counts without it, and `--sensor off`, by L2.
+#[test]
+fn sensor_auto_fits_real_captures_through_their_own_response() {
+    let dir = scratch("auto");
+    let clean = nlos_transient::read(capture(&dir)).expect("clean");
+    let peak = clean.data().iter().copied().fold(0.0f32, f32::max);
+    let mut rng = nlos_transient::sensor::Pcg32::new(5, 1);
+    // The direct return: a tail of the sensor's response at path 0 (bins of 4 mm), 100× the object's peak.
+    let direct = |k: usize| if k < 12 { 2e4 * (-(k as f64) / 2.0).exp() } else { 0.0 };
+    let mut files = Vec::new();
+    for (name, with_direct) in [("real", true), ("simulated", false)] {
+        let counts: Vec<f32> = clean
+            .histograms()
+            .flat_map(|h| {
+                h.iter()
+                    .enumerate()
+                    .map(|(k, &v)| {
+                        let d = if with_direct { direct(k) } else { 0.0 };
+                        rng.poisson(1.0 + d + 200.0 * f64::from(v / peak)) as f32
+                    })
+                    .collect::<Vec<f32>>()
+            })
+            .collect();
+        let t = nlos_transient::Transient::new(clean.scan().clone(), *clean.time(), counts).expect("counts");
+        let file = dir.join(format!("{name}.hdf5"));
+        nlos_transient::write(&t, &file, Format::Tal).expect("write");
+        files.push(file);
+    }
+    let run = |file: &Path, extra: &[&str]| {
+        let o = dir.join(format!("run-{}-{}", file.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default(), extra.len()));
+        let (f, o) = (file.to_string_lossy().into_owned(), o.to_string_lossy().into_owned());
+        let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--stages", "1", "--resolution", "10"];
+        args.extend(["--blocks", "1", "--iterations", "2"]);
+        args.extend(extra);
+        let r = nlos(&args);
+        assert!(r.status.success(), "{extra:?}: {}", text(&r));
+        text(&r)
+    };
+    let own = "through the capture's own response";
+    assert!(run(&files[0], &[]).contains(own), "a capture with a direct return is fitted through it");
+    assert!(!run(&files[0], &["--sensor", "off"]).contains(own), "--sensor off fits by L2");
+    assert!(!run(&files[1], &[]).contains(own), "a simulation has no direct return to take");
+}

@@ -251,7 +251,7 @@ impl JitterResponse {
         let edge = (ax.bins / 20).max(1);
         let floor = median(&summed[ax.bins - edge..]);
         let counts: Vec<f64> = summed[..end].iter().map(|&c| (c - floor).max(0.0)).collect();
-        if !(counts[peak] > 0.0) {
+        if counts[peak] <= 0.0 {
             return Err(no_direct(format!(
                 "the direct return's peak ({}) is not above the floor ({floor})",
                 summed[peak]
