@@ -381,7 +381,11 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
         files.push(file);
     }
     let run = |file: &Path, extra: &[&str]| {
-        let o = dir.join(format!("run-{}-{}", file.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default(), extra.len()));
+        let o = dir.join(format!(
+            "run-{}-{}",
+            file.file_stem().map(|s| s.to_string_lossy()).unwrap_or_default(),
+            extra.len()
+        ));
         let (f, o) = (file.to_string_lossy().into_owned(), o.to_string_lossy().into_owned());
         let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--stages", "1", "--resolution", "10"];
         args.extend(["--blocks", "1", "--iterations", "2"]);

@@ -1,0 +1,45 @@
+//! The capture's own timing response from its direct reflection off the wall
+//! (`JitterResponse::from_direct_return`), on the real 40 cm chart capture: a peak at the start of the axis,
+//! a fall to half within about 11 mm of path, and the heavy tail that the shared SPAD response lacks
+//! (docs/chart-depth.md, section 2).
+
+use std::path::PathBuf;
+
+use nlos_transient::sensor::JitterResponse;
+
+const CHART: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/data_resolution_chart_40cm.mat");
+const JITTER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/sensor/spad_jitter.mat");
+
+#[test]
+fn chart_capture_response_has_its_heavy_tail() {
+    let (chart, jitter) = (PathBuf::from(CHART), PathBuf::from(JITTER));
+    if !chart.is_file() || !jitter.is_file() {
+        eprintln!("skipping: {} or {} not found (the shared data live beside the checkout)", CHART, JITTER);
+        return;
+    }
+    let t = nlos_transient::read(&chart).expect("chart capture");
+    let r = JitterResponse::from_direct_return(&t).expect("the chart holds a direct return");
+    let spad = JitterResponse::load(&jitter).expect("shared SPAD response");
+    // The axis starts at the peak: zero delay in the first sample.
+    assert!(r.origin() <= 0.0 && r.origin() > -r.spacing(), "origin {}", r.origin());
+    let w = r.weights();
+    let at = |mm: f64| w[(mm * 1e-3 / r.spacing()).round() as usize] / w[0];
+    // Half maximum after 9–10 bins (11 mm of path); 5 % of the peak 120 mm later (docs/chart-depth.md).
+    let half = w.iter().position(|&v| v < 0.5 * w[0]).expect("falls to half") as f64 * r.spacing();
+    eprintln!(
+        "own response: falls to half after {:.1} mm of path, {:.3} of the peak at 48 mm, {:.3} at 120 mm; mean delay \
+         {:.1} mm (shared SPAD response {:.1} mm), {:.0} mm long",
+        half * 1e3,
+        at(48.0),
+        at(120.0),
+        r.mean_delay() * 1e3,
+        spad.mean_delay() * 1e3,
+        w.len() as f64 * r.spacing() * 1e3
+    );
+    assert!((0.009..=0.013).contains(&half), "half maximum after {half} m");
+    assert!((0.15..=0.21).contains(&at(48.0)), "{}", at(48.0));
+    assert!((0.04..=0.065).contains(&at(120.0)), "{}", at(120.0));
+    // The tail moves the mean delay far beyond the shared SPAD response's.
+    assert!(r.mean_delay() > 5.0 * spad.mean_delay().max(1e-3), "{} vs {}", r.mean_delay(), spad.mean_delay());
+}
