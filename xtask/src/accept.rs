@@ -476,7 +476,12 @@ fn real(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
             // A plane: the vertex depths' 10th–90th percentile spread within 10 mm (the LCT start's is ~7 mm;
             // a fit that turns the print into relief spreads over 60–80 mm).
             let spread = f64::from(p90 - p10);
-            check(&mut text, &mut pass, &format!("chart flat: depth spread {:.1} mm ≤ 10 mm", spread * 1e3), spread <= 0.010);
+            check(
+                &mut text,
+                &mut pass,
+                &format!("chart flat: depth spread {:.1} mm ≤ 10 mm", spread * 1e3),
+                spread <= 0.010,
+            );
             check(
                 &mut text,
                 &mut pass,
