@@ -57,6 +57,21 @@ fn bench(c: &mut Criterion) {
             b.iter(|| r.loss_and_gradient(&brdf, &measured, nlos_render::Loss::L2, None).expect("ok"))
         });
         g.finish();
+        if name == "bunny10k" {
+            // The same with per-triangle reflectance factors (an albedo map, `set_face_weights`): the cost of
+            // reading one factor per (measurement, triangle) pair.
+            let mut rw = Renderer::new(&v, faces, &scan, &time, params).expect("valid");
+            let w: Vec<f32> = (0..faces.len()).map(|i| 0.5 + (i % 7) as f32 / 7.0).collect();
+            rw.set_face_weights(Some(&w)).expect("valid");
+            let mut g = c.benchmark_group("bunny10k_face_weights");
+            g.sample_size(10).measurement_time(std::time::Duration::from_secs(8));
+            g.throughput(Throughput::Elements((faces.len() * scan.measurements()) as u64));
+            g.bench_function("forward", |b| b.iter(|| rw.forward(&brdf)));
+            g.bench_function("forward+adjoint", |b| {
+                b.iter(|| rw.loss_and_gradient(&brdf, &measured, nlos_render::Loss::L2, None).expect("ok"))
+            });
+            g.finish();
+        }
     }
     {
         let (name, faces) = ("bunny10k_stratified20k_live", &small);
