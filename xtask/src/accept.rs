@@ -518,7 +518,8 @@ fn plane_fit(points: &[glam::Vec3]) -> ([f64; 3], f64) {
     let (mut sxx, mut sxy, mut syy, mut sxz, mut syz) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for p in points {
         let d = p.as_dvec3() - mean;
-        (sxx, sxy, syy, sxz, syz) = (sxx + d.x * d.x, sxy + d.x * d.y, syy + d.y * d.y, sxz + d.x * d.z, syz + d.y * d.z);
+        (sxx, sxy, syy, sxz, syz) =
+            (sxx + d.x * d.x, sxy + d.x * d.y, syy + d.y * d.y, sxz + d.x * d.z, syz + d.y * d.z);
     }
     let det = sxx * syy - sxy * sxy;
     if points.len() < 3 || !(det.abs() > 1e-18) {
@@ -527,7 +528,8 @@ fn plane_fit(points: &[glam::Vec3]) -> ([f64; 3], f64) {
     let b = (sxz * syy - syz * sxy) / det;
     let c = (syz * sxx - sxz * sxy) / det;
     let a = mean.z - b * mean.x - c * mean.y;
-    let mut r: Vec<f64> = points.iter().map(|p| f64::from(p.z) - (a + b * f64::from(p.x) + c * f64::from(p.y))).collect();
+    let mut r: Vec<f64> =
+        points.iter().map(|p| f64::from(p.z) - (a + b * f64::from(p.x) + c * f64::from(p.y))).collect();
     r.sort_by(f64::total_cmp);
     let q = |f: f64| r[((r.len() - 1) as f64 * f) as usize];
     ([a, b, c], q(0.9) - q(0.1))
