@@ -895,6 +895,9 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
 
         // ---- reflectance block ----
         if refl_iters > 0 {
+            // The map's factors at the faces' current centroids (the shape block moved them), so that the
+            // renderer's dE/dw_t and the map's chain rule see the same w_t.
+            set_albedo_weights(&st, &mut renderer)?;
             let (mut r, _) = reg.evaluate(&st.positions, &st.triangles)?;
             if w_edge > 0.0 {
                 r += w_edge * edge_reg.evaluate(&st.positions)?.0;

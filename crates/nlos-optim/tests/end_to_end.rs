@@ -183,16 +183,29 @@ fn small_params(dir: PathBuf) -> ReconstructParams {
 
 #[test]
 fn resume_after_interruption_is_bit_identical() {
+    check_resume(None);
+}
+
+/// The albedo map and its Adam state are part of the checkpoint: a resumed run fits the same map.
+#[test]
+fn resume_with_an_albedo_map_is_bit_identical() {
+    check_resume(Some(nlos_optim::AlbedoMapParams { cell: 0.03, ..Default::default() }));
+}
+
+fn check_resume(albedo_map: Option<nlos_optim::AlbedoMapParams>) {
+    let tag = if albedo_map.is_some() { "-albedo" } else { "" };
+    let small_params = |dir: PathBuf| ReconstructParams { albedo_map, ..small_params(dir) };
     // One rayon thread: the renderer's adjoint reduction order is then fixed (see the crate docs).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     pool.install(|| {
         let measured = measurement(8);
         let init = facing_wall(6, |_, _| 0.42);
-        let full = reconstruct_with(&measured, &init, &small_params(out_dir("full")), Hooks::default()).unwrap();
+        let full = reconstruct_with(&measured, &init, &small_params(out_dir(&format!("full{tag}"))), Hooks::default())
+            .unwrap();
         assert_eq!(full.stop, StopReason::MaxStages);
         assert!(full.blocks_done >= 2, "{} blocks", full.blocks_done);
 
-        let dir = out_dir("resume");
+        let dir = out_dir(&format!("resume{tag}"));
         let params = small_params(dir.clone());
         let mut stop_after_2 = |p: &Progress| {
             if p.event == ProgressEvent::BlockEnd && p.blocks_done == 1 {
@@ -213,6 +226,8 @@ fn resume_after_interruption_is_bit_identical() {
         assert_eq!(ta, tb);
         assert!(pa.iter().zip(&pb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
         assert_eq!(full.reflectance, resumed.reflectance);
+        assert_eq!(full.albedo, resumed.albedo);
+        assert_eq!(full.albedo.is_some(), albedo_map.is_some());
         assert_eq!(full.scale.to_bits(), resumed.scale.to_bits());
         let strip = |l: &nlos_optim::RunLog| {
             l.iterations.iter().map(|r| nlos_optim::IterationRecord { time_s: 0.0, ..r.clone() }).collect::<Vec<_>>()
