@@ -522,7 +522,7 @@ fn plane_fit(points: &[glam::Vec3]) -> ([f64; 3], f64) {
             (sxx + d.x * d.x, sxy + d.x * d.y, syy + d.y * d.y, sxz + d.x * d.z, syz + d.y * d.z);
     }
     let det = sxx * syy - sxy * sxy;
-    if points.len() < 3 || !(det.abs() > 1e-18) {
+    if points.len() < 3 || det.abs() <= 1e-18 || det.is_nan() {
         return ([f64::NAN; 3], f64::NAN);
     }
     let b = (sxz * syy - syz * sxy) / det;
