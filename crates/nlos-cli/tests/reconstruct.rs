@@ -398,4 +398,11 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
     assert!(run(&files[0], &[]).contains(own), "a capture with a direct return is fitted through it");
     assert!(!run(&files[0], &["--sensor", "off"]).contains(own), "--sensor off fits by L2");
     assert!(!run(&files[1], &[]).contains(own), "a simulation has no direct return to take");
+    // An L2 run (as older versions made by default) resumed with the new default: refused, saying how.
+    let (f, o) = (files[0].to_string_lossy().into_owned(), dir.join("run-real-2").to_string_lossy().into_owned());
+    let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--stages", "1", "--resolution", "10"];
+    args.extend(["--blocks", "1", "--iterations", "2", "--resume"]);
+    let refused = nlos(&args);
+    assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
+    assert!(text(&refused).contains("--sensor off"), "{}", text(&refused));
 }
