@@ -257,30 +257,39 @@ fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
     }
 }
 
-/// The capture, after the requested rebinning and subsampling.
-fn load_measured(args: &Args) -> Result<Transient, CliError> {
-    let (_, measured, _) = load_capture(args)?;
-    Ok(measured)
+/// A capture as `nlos reconstruct` uses it ([`load_capture`]).
+struct Capture {
+    /// As read and rebinned, before the gate and `--max-depth`: it still holds the direct reflection off the
+    /// wall (the capture's own response, `--sensor direct`) and the background-only bins at the end of the
+    /// axis.
+    read: Transient,
+    /// Whether the gate zeroed the direct light.
+    gated: bool,
+    /// After the gate and `--max-depth` (the volumetric initialisers work on any bins).
+    full: Transient,
+    /// `full` cut at `--max-depth auto` and subsampled: what the optimiser fits.
+    measured: Transient,
+    /// The depth beyond which the initial surface takes no voxel (`--max-depth auto`).
+    surface_depth: Option<f64>,
 }
 
-/// The capture as read (rebinned when asked: the volumetric initialisers work on any bins), the same after
-/// the requested subsampling (what the optimiser fits), and the depth beyond which the initial surface takes
-/// no voxel (`--max-depth auto`).
+/// The capture at each step of its preparation ([`Capture`]).
 ///
 /// `--max-depth auto` drops the late bins from the fitted data only: the initial volume is reconstructed
 /// from the whole axis and its surface is cut at the depth instead. The LCT's volume depends on the
 /// length of the axis it resamples (a simulation of the bunny with 0.01 background counts per bin, cut
 /// after its last return at 0.57 m, gave an initial surface with a mean depth error of 9.6 mm against
 /// 8.5 mm from the whole axis, and a fit of 7.3 against 5.8 mm).
-fn load_capture(args: &Args) -> Result<(Transient, Transient, Option<f64>), CliError> {
-    let mut full = nlos_transient::read(&args.data).map_err(CliError::input)?;
+fn load_capture(args: &Args) -> Result<Capture, CliError> {
+    let mut read = nlos_transient::read(&args.data).map_err(CliError::input)?;
     if let Some(k) = args.rebin {
-        full = full.rebin(k).map_err(CliError::input)?;
+        read = read.rebin(k).map_err(CliError::input)?;
     }
-    let gate = args.gate.path(&full).map_err(bad)?.filter(|g| *g > full.time().t0);
-    if let Some(g) = gate {
-        full = full.gate(g).map_err(CliError::input)?;
-    }
+    let gate = args.gate.path(&read).map_err(bad)?.filter(|g| *g > read.time().t0);
+    let mut full = match gate {
+        Some(g) => read.gate(g).map_err(CliError::input)?,
+        None => read.clone(),
+    };
     let mut fitted = None;
     let mut surface_depth = None;
     match args.max_depth {
@@ -310,7 +319,7 @@ fn load_capture(args: &Args) -> Result<(Transient, Transient, Option<f64>), CliE
         Some(k) => fitted.subsample(k, k).map_err(CliError::input)?,
         None => fitted,
     };
-    Ok((full, measured, surface_depth))
+    Ok(Capture { read, gated: gate.is_some(), full, measured, surface_depth })
 }
 
 /// The ground truth of `--gt` (non-manifold meshes accepted, as by `nlos eval`).
@@ -323,8 +332,9 @@ fn load_gt(args: &Args) -> Result<Option<SurfaceMesh>, CliError> {
 
 /// Runs `nlos reconstruct`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
-    let (full, measured, surface_depth) = load_capture(args)?;
-    let params = params(args, &measured)?;
+    let capture = load_capture(args)?;
+    let params = params(args, &capture)?;
+    let (full, measured, surface_depth) = (capture.full, capture.measured, capture.surface_depth);
     let gt = load_gt(args)?;
     std::fs::create_dir_all(&args.out).map_err(|e| fail(format!("{}: {e}", args.out.display())))?;
     let argv: Vec<String> = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect();
@@ -450,10 +460,10 @@ pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Resu
     if let Some(g) = gt {
         args.gt = Some(g.to_owned());
     }
-    let measured = load_measured(&args)?;
-    let params = params(&args, &measured)?;
+    let capture = load_capture(&args)?;
+    let params = params(&args, &capture)?;
     let gt = load_gt(&args)?;
-    write_report(&args, &measured, &params, gt.as_ref())
+    write_report(&args, &capture.measured, &params, gt.as_ref())
 }
 
 /// The report's settings: the run's renderer settings, data term and sensor fit, and its command line.
@@ -509,7 +519,8 @@ fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
 }
 
 /// The sensor fit of `--sensor` / `--background` on the capture's bins.
-fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, CliError> {
+fn sensor_fit(args: &Args, capture: &Capture) -> Result<Option<SensorFit>, CliError> {
+    let (measured, raw, gated) = (&capture.measured, &capture.read, capture.gated);
     let sensor = args.sensor.as_str();
     if sensor == "off" {
         return Ok(None);
@@ -518,25 +529,14 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
     if sensor == "auto" && (blur || !nlos_transient::sensor::is_integer_counts(measured.data())) {
         return Ok(None);
     }
-    // The capture as read and rebinned, before the gate and --max-depth: it still holds the direct return
-    // (for `direct`) and the background-only bins at the end of the axis.
-    let raw = {
-        let t = nlos_transient::read(&args.data).map_err(CliError::input)?;
-        match args.rebin {
-            Some(k) => t.rebin(k).map_err(CliError::input)?,
-            None => t,
-        }
-    };
-    // The same decision as `load_capture`'s.
-    let gated = args.gate.path(&raw).map_err(bad)?.is_some_and(|g| g > raw.time().t0);
     // `auto`: the capture's own response when it holds one (a direct reflection, which the gate removed).
     let direct = match sensor {
-        "auto" => match gated.then(|| JitterResponse::from_direct_return(&raw).ok()).flatten() {
+        "auto" => match gated.then(|| JitterResponse::from_direct_return(raw).ok()).flatten() {
             Some(r) => Some(r),
             None => return Ok(None),
         },
         "direct" => Some(
-            JitterResponse::from_direct_return(&raw)
+            JitterResponse::from_direct_return(raw)
                 .map_err(|e| bad(format!("--sensor direct: {}: {e}", args.data.display())))?,
         ),
         _ => None,
@@ -546,7 +546,7 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
             // A gated capture's zeroed direct light is not background, and --max-depth may have cut the
             // background-only bins: estimate on the capture as read (`Auto` falls back to the last 10 % of its
             // axis when the direct light leaves no bins before the first return).
-            let est = nlos_transient::sensor::estimate_background(&raw, BackgroundWindow::Auto).map_err(bad)?;
+            let est = nlos_transient::sensor::estimate_background(raw, BackgroundWindow::Auto).map_err(bad)?;
             if !args.quiet {
                 eprintln!(
                     "--background auto: {:.4} counts per bin (bins {}..{} of the capture before the gate)",
@@ -584,7 +584,8 @@ fn sensor_fit(args: &Args, measured: &Transient) -> Result<Option<SensorFit>, Cl
 }
 
 /// The optimiser's parameters from the arguments (documented defaults otherwise).
-fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliError> {
+fn params(args: &Args, capture: &Capture) -> Result<ReconstructParams, CliError> {
+    let measured = &capture.measured;
     let mut p = ReconstructParams { seed: args.seed, out_dir: Some(args.out.clone()), ..ReconstructParams::default() };
     // Checked whatever the model, so a typo never silently runs a long reconstruction with another α.
     if !(1e-3..=1.0).contains(&args.alpha) {
@@ -668,7 +669,7 @@ fn params(args: &Args, measured: &Transient) -> Result<ReconstructParams, CliErr
         r => return Err(bad(format!("--residual `{r}`: expected `on` or `off`"))),
     };
     p.boundary_depth_only = args.depth_only_boundary;
-    p.sensor = sensor_fit(args, measured)?;
+    p.sensor = sensor_fit(args, capture)?;
     p.temporal_blur = match args.temporal_blur.as_deref() {
         None => p.temporal_blur,
         Some(w) if p.sensor.is_some() && w != "off" => {

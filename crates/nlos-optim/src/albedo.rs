@@ -115,6 +115,29 @@ impl AlbedoMap {
         Ok(Self { origin: [lo[0] + 0.5 * cell, lo[1] + 0.5 * cell], cell, nx, ny, log_albedo: vec![0.0; nx * ny] })
     }
 
+    /// Checks a map read back from a file (a checkpoint): at least one cell each way, one value per cell,
+    /// a finite positive cell size, finite origin and values. [`AlbedoMap::covering`] makes only valid maps.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] naming the first bad field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
+        if self.nx == 0 || self.ny == 0 || self.nx.saturating_mul(self.ny) != self.log_albedo.len() {
+            return bad(
+                "albedo.log_albedo",
+                self.log_albedo.len() as f64,
+                "needs nx, ny >= 1 and nx·ny values (value = their count)",
+            );
+        }
+        if !(self.cell.is_finite() && self.cell > 0.0) {
+            return bad("albedo.cell", self.cell, "the cell size must be finite and > 0");
+        }
+        if let Some(v) = self.origin.iter().chain(&self.log_albedo).find(|v| !v.is_finite()) {
+            return bad("albedo", *v, "the origin and the log-albedo values must be finite");
+        }
+        Ok(())
+    }
+
     /// The four bilinear taps `(cell index, weight)` at (x, y), weights summing to 1 (clamped at the edges).
     pub fn taps(&self, x: f64, y: f64) -> [(usize, f64); 4] {
         let axis = |v: f64, o: f64, n: usize| -> (usize, usize, f64) {
@@ -297,5 +320,16 @@ mod tests {
         assert!(AlbedoMap::covering(&p, 1e-5, 0.0).is_err(), "too many cells");
         assert!(AlbedoMapParams { lr: -1.0, ..Default::default() }.validate().is_err());
         assert!(AlbedoMapParams { max_log: 0.0, ..Default::default() }.validate().is_err());
+        // Maps read back from a file: empty, inconsistent or non-finite ones are refused.
+        let good = AlbedoMap::covering(&p, 0.05, 0.0).expect("valid");
+        assert!(good.validate().is_ok());
+        for broken in [
+            AlbedoMap { nx: 0, log_albedo: vec![], ..good.clone() },
+            AlbedoMap { log_albedo: vec![0.0; 1], ..good.clone() },
+            AlbedoMap { cell: 0.0, ..good.clone() },
+            AlbedoMap { origin: [f64::NAN, 0.0], ..good.clone() },
+        ] {
+            assert!(matches!(broken.validate(), Err(OptimError::InvalidParameter { .. })), "{broken:?}");
+        }
     }
 }

@@ -491,10 +491,11 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     if state.shape_adam.len() != state.positions.len()
         || state.triangles.is_empty()
         || state.albedo.is_some() != params.albedo_map.is_some()
-        || state
-            .albedo
-            .as_ref()
-            .is_some_and(|m| m.log_albedo.len() != m.nx * m.ny || state.albedo_adam.m.len() != m.log_albedo.len())
+        || state.albedo.as_ref().is_some_and(|m| {
+            m.validate().is_err()
+                || state.albedo_adam.m.len() != m.log_albedo.len()
+                || state.albedo_adam.v.len() != m.log_albedo.len()
+        })
     {
         return Err(ck("inconsistent mesh and optimiser state".into()));
     }

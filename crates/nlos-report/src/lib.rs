@@ -173,14 +173,7 @@ pub fn read_albedo(dir: &Path) -> Result<Option<nlos_optim::AlbedoMap>> {
         None | Some(serde_json::Value::Null) => Ok(None),
         Some(a) => {
             let map: nlos_optim::AlbedoMap = serde_json::from_value(a.clone()).map_err(|e| json(e.to_string()))?;
-            if map.log_albedo.len() != map.nx * map.ny || map.nx == 0 || map.ny == 0 {
-                return Err(json(format!(
-                    "`albedo` holds {} values for {} x {} cells",
-                    map.log_albedo.len(),
-                    map.nx,
-                    map.ny
-                )));
-            }
+            map.validate().map_err(|e| json(format!("`albedo`: {e}")))?;
             Ok(Some(map))
         }
     }

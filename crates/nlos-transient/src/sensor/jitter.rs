@@ -245,7 +245,9 @@ impl JitterResponse {
         let peak = summed[..head].iter().enumerate().fold(0, |b, (i, &v)| if v > summed[b] { i } else { b });
         if end <= peak + 1 || end > ax.bins {
             return Err(no_direct(format!(
-                "no direct reflection off the wall at the start of the axis (the direct light ends at {end_path:.4}                  m of path, bin {end}; the first 10 % of the axis peaks at bin {peak}): a simulation, or a capture                  already gated, has no response to take"
+                "no direct reflection off the wall at the start of the axis (the direct light ends at {end_path:.4} \
+                 m of path, bin {end}; the first 10 % of the axis peaks at bin {peak}): a simulation, or a capture \
+                 already gated, has no response to take"
             )));
         }
         let edge = (ax.bins / 20).max(1);

@@ -518,4 +518,7 @@ fn response_from_the_direct_return_recovers_the_impulse_response() {
     let gated = t.gate(0.30).unwrap();
     let e = JitterResponse::from_direct_return(&gated).unwrap_err();
     assert!(e.to_string().contains("direct return"), "{e}");
+    // Regression (error_message_of_a_capture_without_direct_light_has_no_blank_run): the message once carried
+    // a run of blanks where a line continuation had been lost.
+    assert!(!e.to_string().contains("  "), "{e}");
 }
