@@ -406,9 +406,112 @@ pub fn relief_figure(maps: &[(&str, &[f32])], view: &DepthView, box_m: f64) -> R
     Ok(fig.render()?)
 }
 
+/// Depth difference (metres) beyond which a pixel hit by both meshes counts as off in [`coverage_figure`].
+pub const COVERAGE_TOLERANCE: f32 = 0.005;
+
+/// Colours of the [`coverage_classes`]: hit by both within the tolerance (near white), hit by both but off
+/// (orange), missed (red), extra (blue). Pixels hit by neither are drawn grey.
+const COVERAGE_COLOURS: [Rgb; 4] = [Rgb::new(235, 235, 235), Rgb::new(240, 150, 20), Rgb::RED, Rgb::BLUE];
+
+/// Classifies the pixels of a reconstruction's depth map against the ground truth's (same grid, NaN where a
+/// ray hits nothing), as the coverage metric of `nlos_mesh::metrics` counts them: 0 hit by both with
+/// `|z_rec − z_gt| ≤ tolerance`, 1 hit by both but further apart, 2 missed (ground truth only), 3 extra
+/// (reconstruction only), NaN hit by neither. Returns the classes and the count of each.
+///
+/// # Panics
+/// When the two maps differ in length.
+pub fn coverage_classes(reconstruction: &[f32], ground_truth: &[f32], tolerance: f32) -> (Vec<f32>, [usize; 4]) {
+    assert_eq!(reconstruction.len(), ground_truth.len(), "depth maps of one grid");
+    let mut counts = [0usize; 4];
+    let classes = reconstruction
+        .iter()
+        .zip(ground_truth)
+        .map(|(r, g)| {
+            let class = match (r.is_finite(), g.is_finite()) {
+                (true, true) if (r - g).abs() <= tolerance => 0,
+                (true, true) => 1,
+                (false, true) => 2,
+                (true, false) => 3,
+                (false, false) => return f32::NAN,
+            };
+            counts[class] += 1;
+            class as f32
+        })
+        .collect();
+    (classes, counts)
+}
+
+/// Where each mesh covers the ground truth, on the evaluation's ray grid (`maps`: a title and the
+/// metrics' depth maps of a reconstruction, `ground_truth` the ground truth's): one panel per mesh, coloured
+/// by [`coverage_classes`] with [`COVERAGE_TOLERANCE`], its coverage and counts in the panel title. The
+/// picture of the coverage metric: what a reconstruction misses (red) and where it adds surface the
+/// ground truth does not have (blue).
+///
+/// # Errors
+/// [`ReportError::InvalidOption`] for no map or maps that do not hold `grid²` values; drawing errors.
+pub fn coverage_figure(maps: &[(&str, &[f32])], ground_truth: &[f32], view: &DepthView) -> Result<RgbImage> {
+    let n = view.grid;
+    if maps.is_empty() || ground_truth.len() != n * n || maps.iter().any(|(_, m)| m.len() != n * n) {
+        return Err(ReportError::InvalidOption { name: "coverage", reason: format!("need maps of {n} x {n} values") });
+    }
+    let ex = Extent::new(f64::from(view.x_range[0]), f64::from(view.x_range[1]))?;
+    let ey = Extent::new(f64::from(view.y_range[0]), f64::from(view.y_range[1]))?;
+    let (w, h) = aspect_size(ex, ey, 360);
+    let mut fig = Figure::new("coverage: the reconstruction against the ground truth, seen from the wall");
+    fig.notes.push(format!(
+        "+z rays from a {n} x {n} grid; white: hit by both within {:.0} mm; orange: hit by both, further apart",
+        COVERAGE_TOLERANCE * 1e3
+    ));
+    fig.notes.push("red: missed (ground truth only); blue: extra (reconstruction only); grey: neither".into());
+    let classes: Vec<(String, Vec<f32>)> = maps
+        .iter()
+        .map(|(title, m)| {
+            let (c, k) = coverage_classes(m, ground_truth, COVERAGE_TOLERANCE);
+            let gt = k[0] + k[1] + k[2];
+            let coverage = if gt > 0 { 100.0 * (k[0] + k[1]) as f64 / gt as f64 } else { f64::NAN };
+            (format!("{title}: {coverage:.1} % covered; {} missed, {} off, {} extra", k[2], k[1], k[3]), c)
+        })
+        .collect();
+    let norm = Norm::linear(0.0, (COVERAGE_COLOURS.len() - 1) as f64)?;
+    for (title, c) in &classes {
+        fig.panels.push(
+            Panel::image(ScalarGrid::new(c, n, n, ex, ey)?, norm)
+                .with_title(title.clone())
+                .with_labels("x (m)", "y (m)")
+                .with_size(w, h)
+                .with_interp(Interp::Nearest)
+                .with_colormap(Colormap::Palette(&COVERAGE_COLOURS)),
+        );
+    }
+    Ok(fig.render()?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn coverage_classes_follow_the_metric() {
+        let nan = f32::NAN;
+        let gt = [0.40, 0.40, 0.40, nan, nan, 0.40];
+        let rec = [0.40, 0.404, 0.42, 0.41, nan, nan];
+        let (c, k) = coverage_classes(&rec, &gt, COVERAGE_TOLERANCE);
+        assert_eq!(&c[..4], &[0.0, 0.0, 1.0, 3.0]);
+        assert!(c[4].is_nan());
+        assert_eq!(c[5], 2.0);
+        assert_eq!(k, [2, 1, 1, 1], "within, off, missed, extra");
+    }
+
+    #[test]
+    fn coverage_figure_needs_maps_of_the_grid() {
+        let view = DepthView { grid: 4, x_range: [-0.1, 0.1], y_range: [-0.1, 0.1] };
+        let gt = vec![0.4f32; 16];
+        assert!(coverage_figure(&[], &gt, &view).is_err());
+        assert!(coverage_figure(&[("short", &gt[..15])], &gt, &view).is_err());
+        assert!(coverage_figure(&[("ok", &gt)], &gt[..15], &view).is_err());
+        let img = coverage_figure(&[("ok", &gt)], &gt, &view).expect("figure");
+        assert!(img.width() > 100 && img.height() > 100);
+    }
 
     #[test]
     fn relief_removes_a_plane_and_keeps_a_step() {

@@ -211,6 +211,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png"],
     );
     section(&mut o, "Relief", &["relief.png"]);
+    section(&mut o, "Coverage against the ground truth", &["coverage.png"]);
     // Any image not placed above still gets shown.
     let placed = [
         "summed.png",
@@ -221,6 +222,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         "depth_gt.png",
         "albedo.png",
         "relief.png",
+        "coverage.png",
     ];
     let others: Vec<&str> = imgs.iter().map(String::as_str).filter(|i| !placed.contains(i)).collect();
     section(&mut o, "Other figures", &others);

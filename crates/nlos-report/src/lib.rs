@@ -13,6 +13,7 @@
 //! | `loss.png` | total loss, data term and weighted regulariser per iteration, stage starts marked |
 //! | `depth_init.png`, `depth_final.png`, `depth_gt.png` | depth maps seen from the wall (+z rays) |
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
+//! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo map where the final mesh is seen (runs with an albedo map only) |
 //! | `report.html` | one self-contained page: run parameters, metrics, per-stage table, the images |
 //!
@@ -323,6 +324,15 @@ pub fn write_report(
         ),
         None => (None, None),
     };
+    if let Some(mf) = &metrics_final {
+        let mut maps: Vec<(&str, &[f32])> = Vec::new();
+        if let Some(mi) = &metrics_init {
+            maps.push(("initial", &mi.depth_reconstruction));
+        }
+        maps.push(("final", &mf.depth_reconstruction));
+        let fig = figures::coverage_figure(&maps, &mf.depth_ground_truth, &DepthView { grid: opts.eval_grid, ..view })?;
+        save(&fig, dir, "coverage.png", &mut images)?;
+    }
 
     let report =
         Report { html: dir.join(REPORT_FILE), images, scale, relative_residual, gate, metrics_init, metrics_final };

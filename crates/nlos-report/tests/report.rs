@@ -111,9 +111,16 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
         ..ReportOptions::default()
     };
     let report = write_report(&dir, &measured, Some(&truth), &opts).expect("report");
-    for name in
-        ["summed.png", "xt_slice.png", "loss.png", "depth_init.png", "depth_final.png", "depth_gt.png", "relief.png"]
-    {
+    for name in [
+        "summed.png",
+        "xt_slice.png",
+        "loss.png",
+        "depth_init.png",
+        "depth_final.png",
+        "depth_gt.png",
+        "relief.png",
+        "coverage.png",
+    ] {
         assert!(report.images.iter().any(|i| i == name), "{name} not in {:?}", report.images);
     }
     let html = std::fs::read_to_string(dir.join("report.html")).expect("html");
@@ -138,6 +145,12 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
     let init = report.metrics_init.expect("initial metrics");
     let init_err = init.depth_error_mean.expect("init mean");
     assert!(init_err > 0.01 && init_err < 0.02, "flat start: {init_err} m (expected ≈ 15 mm)");
+    // The coverage picture: the flat start is off by more than 5 mm over much of the plane (orange), the
+    // final mesh matches (near white).
+    let (_, _, px) = decode(&dir.join("coverage.png"));
+    let count = |c: [u8; 3]| px.chunks_exact(3).filter(|p| *p == c).count();
+    assert!(count([240, 150, 20]) > 1000, "orange (off) pixels: {}", count([240, 150, 20]));
+    assert!(count([235, 235, 235]) > 1000, "white (hit within 5 mm) pixels: {}", count([235, 235, 235]));
 }
 
 /// Nearest viridis parameter of a colour, when the colour is (within rounding) on the colormap.

@@ -15,6 +15,9 @@ pub enum Colormap {
     Magma,
     /// Grey ramp from black to white.
     Grey,
+    /// Discrete colours for categories: `t` picks entry `round(t · (len − 1))`, so that category `k` of
+    /// `len` drawn with `Norm::linear(0, len − 1)` gets colour `k`. An empty palette draws black.
+    Palette(&'static [Rgb]),
 }
 
 impl Colormap {
@@ -27,6 +30,9 @@ impl Colormap {
     /// assert_eq!(Colormap::Grey.map(0.0), Rgb::BLACK);
     /// assert_eq!(Colormap::Grey.map(7.0), Rgb::WHITE);
     /// assert_eq!(Colormap::Viridis.map(0.0), Rgb::new(68, 1, 84));
+    /// const THREE: [Rgb; 3] = [Rgb::RED, Rgb::GREY, Rgb::BLUE];
+    /// assert_eq!(Colormap::Palette(&THREE).map(0.5), Rgb::GREY);
+    /// assert_eq!(Colormap::Palette(&THREE).map(1.0), Rgb::BLUE);
     /// ```
     pub fn map(self, t: f32) -> Rgb {
         let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
@@ -35,15 +41,20 @@ impl Colormap {
             Colormap::Viridis => Rgb(tables::VIRIDIS[i]),
             Colormap::Magma => Rgb(tables::MAGMA[i]),
             Colormap::Grey => Rgb([i as u8; 3]),
+            Colormap::Palette(colours) => match colours.len() {
+                0 => Rgb::BLACK,
+                n => colours[(t * (n - 1) as f32).round() as usize],
+            },
         }
     }
 
-    /// The colormap's name (`viridis`, `magma`, `grey`).
+    /// The colormap's name (`viridis`, `magma`, `grey`, `palette`).
     pub fn name(self) -> &'static str {
         match self {
             Colormap::Viridis => "viridis",
             Colormap::Magma => "magma",
             Colormap::Grey => "grey",
+            Colormap::Palette(_) => "palette",
         }
     }
 }
