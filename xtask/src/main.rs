@@ -93,6 +93,9 @@ fn demo() -> Result<(), String> {
         "15",
         "--seed",
         "1",
+        // Only the report uses it: depth map, metrics and coverage picture against the truth.
+        "--gt",
+        &s(&truth_file),
     ])?;
     println!("      reconstruction took {:.0} s", started.elapsed().as_secs_f64());
     println!("[5/5] nlos eval against the ground truth (coverage, depth error in metres, Chamfer, normal error)");
