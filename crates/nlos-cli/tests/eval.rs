@@ -72,6 +72,30 @@ fn planes_one_centimetre_apart() {
 }
 
 #[test]
+fn map_draws_the_coverage_picture() {
+    let dir = scratch("map");
+    let (rec, gt, png) = (dir.join("rec.obj"), dir.join("gt.obj"), dir.join("coverage.png"));
+    // A 0.2 m plane 1 cm behind a 0.6 m one: hit by both within 5 mm in the middle, missed around it.
+    let mut small = shapes::plane_grid(0.2, 0.2, 4, 4);
+    for p in small.positions_mut() {
+        *p += Vec3::new(-0.1, -0.1, 0.403);
+    }
+    nlos_mesh::io::save(&small, &rec).expect("write rec");
+    nlos_mesh::io::save(&plane(5, 0.40), &gt).expect("write gt");
+    let (r, g, m) = (rec.to_str().expect("utf-8"), gt.to_str().expect("utf-8"), png.to_str().expect("utf-8"));
+    let v = eval_json(&["eval", r, "--gt", g, "--map", m]);
+    let coverage = num(&v, "coverage");
+    assert!((coverage - 0.16).abs() < 0.02, "coverage {coverage}");
+    let bytes = std::fs::read(&png).expect("coverage picture written");
+    assert_eq!(&bytes[1..4], b"PNG");
+    // An unwritable path is an error that names it.
+    let bad = dir.join("no/such/dir/c.png");
+    let o = nlos(&["eval", r, "--gt", g, "--map", bad.to_str().expect("utf-8")]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no/such/dir"), "{}", stderr(&o));
+}
+
+#[test]
 fn soap_against_itself() {
     if !Path::new(SOAP).exists() {
         eprintln!("skipping: {SOAP} is absent (shared data not checked out)");
