@@ -526,14 +526,24 @@ fn sensor_fit(args: &Args, capture: &Capture) -> Result<Option<SensorFit>, CliEr
         return Ok(None);
     }
     let blur = args.temporal_blur.as_deref().is_some_and(|w| w != "off");
+    // `auto` resolved to L2: an explicit --background would be silently dropped, so it is an error.
+    let l2 = || match &args.background {
+        Some(b) => Err(bad(format!(
+            "--background {b} with --sensor auto: {} is fitted by L2 here (not photon counts with a direct \
+             reflection, or --temporal-blur), which has no background; give --sensor ideal, direct or a \
+             response file for a sensor fit",
+            args.data.display()
+        ))),
+        None => Ok(None),
+    };
     if sensor == "auto" && (blur || !nlos_transient::sensor::is_integer_counts(measured.data())) {
-        return Ok(None);
+        return l2();
     }
     // `auto`: the capture's own response when it holds one (a direct reflection, which the gate removed).
     let direct = match sensor {
         "auto" => match gated.then(|| JitterResponse::from_direct_return(raw).ok()).flatten() {
             Some(r) => Some(r),
-            None => return Ok(None),
+            None => return l2(),
         },
         "direct" => Some(
             JitterResponse::from_direct_return(raw)

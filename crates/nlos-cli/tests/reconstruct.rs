@@ -176,6 +176,7 @@ fn bad_arguments_are_input_errors() {
         vec!["--temporal-blur", "0.02,nan"],
         vec!["--sensor", "ideal", "--temporal-blur", "0.02"],
         vec!["--sensor", "direct"],
+        vec!["--sensor", "auto", "--background", "0.5"],
         vec!["--albedo-map", "fine"],
         vec!["--albedo-map", "0"],
         vec!["--albedo-map=-0.01"],
