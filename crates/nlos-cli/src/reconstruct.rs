@@ -364,9 +364,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         nlos_optim::resume(&measured, &params, hooks).map_err(|e| match e {
             // Real captures default to their own response since `--sensor auto` (2026-11-25): a run started
             // before, by L2, resumes with `--sensor off`.
-            nlos_optim::OptimError::Checkpoint { ref message, .. }
-                if message.contains("settings") && args.sensor == "auto" && params.sensor.is_some() =>
-            {
+            nlos_optim::OptimError::SettingsChanged { .. } if args.sensor == "auto" && params.sensor.is_some() => {
                 bad(format!(
                     "{e} (this capture is fitted through its own response by default, `--sensor auto`; a run \
                      started by an earlier version fitted it by L2 and resumes with `--sensor off`)"

@@ -83,6 +83,18 @@ pub enum OptimError {
         /// What is wrong.
         message: String,
     },
+    /// `resume` found a checkpoint written with other reconstruction settings than the ones given (the
+    /// fingerprint of the parameters differs): continuing would silently mix two different runs.
+    #[error(
+        "checkpoint {}: it was written with different reconstruction settings; resume with the options of the \
+         original run (`nlos reconstruct` keeps them in command.json beside the checkpoint), or start afresh in \
+         another directory",
+        path.display()
+    )]
+    SettingsChanged {
+        /// The checkpoint file.
+        path: PathBuf,
+    },
     /// The sensor model of the noise-aware fit (jitter kernel, background window, histogram layout) is
     /// unusable.
     #[error("sensor fit: {0}; check the jitter response, the background window and the capture's bins")]

@@ -483,10 +483,7 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
         return Err(ck("it was written for a different measurement".into()));
     }
     if state.settings.is_some_and(|s| s != settings_fingerprint(params)) {
-        return Err(ck("it was written with different reconstruction settings; resume with the options of the \
-                       original run (`nlos reconstruct` keeps them in command.json beside the checkpoint), or \
-                       start afresh in another directory"
-            .into()));
+        return Err(OptimError::SettingsChanged { path: path.clone() });
     }
     if state.shape_adam.len() != state.positions.len()
         || state.triangles.is_empty()

@@ -239,7 +239,7 @@ fn check_resume(albedo_map: Option<nlos_optim::AlbedoMapParams>) {
         // So are other settings (here: no pruning), which would continue a different run.
         let changed = ReconstructParams { prune: None, ..params.clone() };
         match resume(&measured, &changed, Hooks::default()) {
-            Err(OptimError::Checkpoint { message, .. }) => assert!(message.contains("settings"), "{message}"),
+            Err(OptimError::SettingsChanged { path }) => assert!(path.ends_with("checkpoint.json"), "{path:?}"),
             other => panic!("resumed with other settings: {other:?}"),
         }
         let _ = std::fs::remove_dir_all(&dir);
