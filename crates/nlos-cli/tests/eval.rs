@@ -58,7 +58,14 @@ fn planes_one_centimetre_apart() {
     assert_eq!(num(&v, "coverage"), 1.0);
     assert_eq!(v["grid"], 128);
     assert_eq!(v["gt_pixels"], 128 * 128);
-    for key in ["depth_error_mean", "depth_error_median", "depth_error_rms", "depth_error_max"] {
+    for key in [
+        "depth_error_mean",
+        "depth_error_median",
+        "depth_error_rms",
+        "depth_error_max",
+        "depth_error_mean_interior",
+        "depth_error_mean_silhouette",
+    ] {
         assert!((num(&v, key) - 0.01).abs() < 1e-6, "{key} = {}", v[key]);
     }
     assert!((num(&v, "chamfer") - 0.02).abs() < 1e-6);

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use nlos_mesh::bvh::ray_triangle;
-use nlos_mesh::metrics::{EvalParams, depth_map, evaluate};
+use nlos_mesh::metrics::{EvalParams, SILHOUETTE_BAND, depth_map, evaluate, interior_mask};
 use nlos_mesh::{MeshError, SurfaceMesh, TriangleBvh, shapes};
 
 struct Rng(u64);
@@ -247,4 +247,55 @@ fn non_manifold_ground_truth_is_evaluated_unwelded() {
     assert_eq!(gt.n_faces(), 3);
     assert!(matches!(nlos_mesh::metrics::load_for_eval(dir.join("missing.obj")), Err(MeshError::Io { .. })));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn interior_mask_erodes_the_hits_by_the_band_and_at_the_grid_border() {
+    // 7 × 7 map, hits in the 5 × 5 block of rows and columns 1..=5, and one lone hit at the corner (0, 0).
+    let n = 7;
+    let mut depth = vec![f32::NAN; n * n];
+    for iy in 1..=5 {
+        for ix in 1..=5 {
+            depth[ix + n * iy] = 0.4;
+        }
+    }
+    depth[0] = 0.4;
+    let count = |band| interior_mask(&depth, n, band).iter().filter(|&&k| k).count();
+    assert_eq!(count(0), 26, "band 0 marks the hits");
+    assert_eq!(count(1), 9, "one pixel in from each side of the block: 3 × 3");
+    let two = interior_mask(&depth, n, 2);
+    assert_eq!(two.iter().filter(|&&k| k).count(), 1);
+    assert!(two[3 + n * 3], "the block's centre is its only pixel two in from every side");
+    // A full map loses only the grid's border.
+    let full = vec![0.4f32; n * n];
+    assert_eq!(interior_mask(&full, n, 1).iter().filter(|&&k| k).count(), 25);
+    assert_eq!(interior_mask(&full, n, 3).iter().filter(|&&k| k).count(), 1);
+}
+
+#[test]
+fn depth_error_splits_into_interior_and_silhouette_band() {
+    // A plate of side 0.2 m at 0.4 m, seen by a reconstruction 1 cm behind it that covers the whole grid.
+    let gt = plane(0.2, 4, 0.4);
+    let rec = plane(0.6, 6, 0.41);
+    let m = evaluate(&rec, &gt, &EvalParams::default()).expect("evaluate");
+    let side = (m.gt_pixels as f64).sqrt().round() as usize;
+    assert_eq!(side * side, m.gt_pixels, "the plate hits a square of pixels");
+    assert_eq!(m.interior_pixels, (side - 2 * SILHOUETTE_BAND).pow(2));
+    for e in [m.depth_error_mean_interior, m.depth_error_mean_silhouette] {
+        assert!((e.expect("pixels on both") - 0.01).abs() < 1e-6, "{e:?}");
+    }
+    // The reconstruction's ring outside the plate is no error: the split covers the pixels hit on both.
+    let weighted = m.depth_error_mean_interior.unwrap() * m.interior_pixels as f64
+        + m.depth_error_mean_silhouette.unwrap() * (m.both_pixels - m.interior_pixels) as f64;
+    assert!((weighted / m.both_pixels as f64 - m.depth_error_mean.unwrap()).abs() < 1e-9);
+
+    // The ground truth against itself: no error on either side.
+    let exact = evaluate(&gt, &gt, &EvalParams::default()).expect("evaluate");
+    assert_eq!(exact.depth_error_mean_interior, Some(0.0));
+    assert_eq!(exact.depth_error_mean_silhouette, Some(0.0));
+    // A small plate at the centre hits interior pixels only: no silhouette band error to report.
+    let small = plane(0.02, 1, 0.4);
+    let inner = evaluate(&small, &gt, &EvalParams::default()).expect("evaluate");
+    assert_eq!(inner.depth_error_mean_silhouette, None, "no band pixel is hit by the small plate");
+    assert_eq!(inner.depth_error_mean_interior, Some(0.0));
 }

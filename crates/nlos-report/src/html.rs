@@ -70,6 +70,8 @@ fn metric_rows(out: &mut String, init: Option<&Metrics>, fin: &Metrics) {
     let rows: Vec<(&str, Vec<String>)> = vec![
         ("coverage", cols(&|m| format!("{:.1} %", 100.0 * m.coverage))),
         ("depth error, mean", cols(&|m| mm(m.depth_error_mean))),
+        ("depth error, mean inside (≥ 3 pixels from the silhouette)", cols(&|m| mm(m.depth_error_mean_interior))),
+        ("depth error, mean on the silhouette band", cols(&|m| mm(m.depth_error_mean_silhouette))),
         ("depth error, median", cols(&|m| mm(m.depth_error_median))),
         ("depth error, RMS", cols(&|m| mm(m.depth_error_rms))),
         ("depth error, max", cols(&|m| mm(m.depth_error_max))),
