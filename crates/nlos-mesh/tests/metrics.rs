@@ -285,9 +285,13 @@ fn depth_error_splits_into_interior_and_silhouette_band() {
         assert!((e.expect("pixels on both") - 0.01).abs() < 1e-6, "{e:?}");
     }
     // The reconstruction's ring outside the plate is no error: the split covers the pixels hit on both.
-    let weighted = m.depth_error_mean_interior.unwrap() * m.interior_pixels as f64
-        + m.depth_error_mean_silhouette.unwrap() * (m.both_pixels - m.interior_pixels) as f64;
-    assert!((weighted / m.both_pixels as f64 - m.depth_error_mean.unwrap()).abs() < 1e-9);
+    let (Some(inside), Some(band), Some(mean)) =
+        (m.depth_error_mean_interior, m.depth_error_mean_silhouette, m.depth_error_mean)
+    else {
+        panic!("pixels on both: {m:?}")
+    };
+    let weighted = inside * m.interior_pixels as f64 + band * (m.both_pixels - m.interior_pixels) as f64;
+    assert!((weighted / m.both_pixels as f64 - mean).abs() < 1e-9);
 
     // The ground truth against itself: no error on either side.
     let exact = evaluate(&gt, &gt, &EvalParams::default()).expect("evaluate");
