@@ -183,10 +183,11 @@ pub struct ReconstructParams {
     pub prune: Option<PruneParams>,
     /// Loss-driven boundary growth after every block, after pruning ([`crate::grow`]): faces across boundary
     /// edges are added where they lower the data term (default `None`: off). It trades depth accuracy for
-    /// coverage: on the seed-setup bunny (as for [`Self::prune`], with pruning) coverage 85.1 → 92.6 % and
-    /// Chamfer 34.6 → 27.2 mm, but mean depth error 1.39 → 3.58 mm and normal error 27 → 52°: strips that
-    /// explain unexplained light at the right path length but the wrong place (the NLOS ambiguity). (Measured
-    /// before the growth margin was corrected to the full curvature of the data term, `crate::prune`.)
+    /// coverage: on the seed-setup bunny at 1000 photons (3 stages × 4 blocks × 20 steps, `--subsample 2
+    /// --max-level 3 --resolution 48`, 2026-11-25) coverage 85.0 → 87.4 %, but mean depth error 1.32 →
+    /// 2.18 mm (0.54 → 0.74 mm inside the silhouette, 5.1 → 8.4 mm on its band) and normal error 26 → 48°;
+    /// it added 300–2,400 faces per block: strips that explain unexplained light at the right path length but
+    /// the wrong place (the NLOS ambiguity). Steep angles only (70°, 80°): 86.8 %, 1.65 mm, 51° (docs/coverage.md).
     pub grow: Option<GrowParams>,
     /// Residual back-projection at the end of the first stage ([`crate::residual`]): the LCT of the fit's
     /// residual proposes surface patches away from the mesh, added where they lower the data term (default
