@@ -78,6 +78,11 @@ pub(crate) struct Args {
     /// Remesh isotropically to this edge length (metres).
     #[arg(long, value_name = "METRES")]
     edge: Option<f64>,
+    /// Turn the surface back toward its boundary: vertices within this distance (metres) of it recede by a
+    /// quarter circle of this radius, as a smooth object's surface does at its silhouette
+    /// (`nlos_init::rim`). Off by default.
+    #[arg(long, value_name = "METRES")]
+    rim_radius: Option<f64>,
 }
 
 pub(crate) fn parse_gate(s: &str) -> Result<Gate, String> {
@@ -146,6 +151,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         smoothing_iterations: args.smooth,
         target_edge_length: args.edge,
         grow_threshold: args.grow.or(base.grow_threshold),
+        rim_radius: args.rim_radius,
         ..base
     };
     let surface = volume_to_surface(&vol, &params).map_err(init_error)?;

@@ -38,6 +38,12 @@ pub(crate) struct Args {
     /// wall.
     #[arg(long, default_value = "lct", value_name = "lct|fk|carve|MESH")]
     init: String,
+    /// With `--init lct|fk|carve`: turn the initial surface back toward its boundary, vertices within this
+    /// distance (metres) of it receding by a quarter circle of this radius (`nlos_init::rim`; as `nlos init
+    /// --rim-radius`). Off by default: on the seed-setup bunny 0.02 raised coverage 85.0 → 87.7 % and 86.1 →
+    /// 87.2 % over two photon draws but also the mean depth error (1.32 → 1.47, 1.56 → 1.67 mm).
+    #[arg(long, value_name = "METRES")]
+    rim_radius: Option<f64>,
     /// Reflectance model to fit: `lambert` or `ggx` (α starts at --alpha).
     #[arg(long, default_value = "lambert", value_name = "lambert|ggx")]
     brdf: String,
@@ -721,12 +727,19 @@ fn initial_surface(
         "lct" => lct(measured, &LctParams::default()).map_err(bad)?,
         "fk" => fk(measured, &FkParams::default()).map_err(bad)?,
         "carve" => carve(measured, &CarveParams::default()).map_err(bad)?,
+        file if args.rim_radius.is_some() => {
+            return Err(bad(format!(
+                "--rim-radius shapes the initial surface that --init lct|fk|carve extracts; the mesh {file} is \
+                 used as given (round its rim with `nlos init --rim-radius` or leave the option out)"
+            )));
+        }
         file => return nlos_mesh::io::load(file).map_err(bad),
     };
     // LCT's volume gets the settings for compact objects, as `nlos init --method lct` without a threshold:
     // Otsu's threshold alone keeps only the brightest columns (about half the bunny's silhouette).
     let mut surface_params = if args.init == "lct" { SurfaceParams::object() } else { SurfaceParams::default() };
     surface_params.max_depth = surface_params.max_depth.or(max_depth);
+    surface_params.rim_radius = args.rim_radius;
     let surface = volume_to_surface(&volume, &surface_params).map_err(bad)?;
     Ok(surface.mesh)
 }

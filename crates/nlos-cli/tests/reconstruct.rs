@@ -133,6 +133,11 @@ fn bad_arguments_are_input_errors() {
     let data = capture(&dir);
     let d = data.to_string_lossy().into_owned();
     let o = dir.join("run").to_string_lossy().into_owned();
+    // A mesh to start from (valid: --rim-radius is refused with it, not the mesh).
+    let plate = nlos_mesh::shapes::plane_grid(0.2, 0.2, 2, 2);
+    let start = dir.join("start.obj");
+    nlos_mesh::io::save(&plate, &start).expect("save");
+    let start = start.to_string_lossy().into_owned();
     for extra in [
         vec!["--brdf", "phong"],
         vec!["--init", "no-such-mesh.obj"],
@@ -181,6 +186,10 @@ fn bad_arguments_are_input_errors() {
         vec!["--albedo-map", "0"],
         vec!["--albedo-map=-0.01"],
         vec!["--albedo-map", "nan"],
+        vec!["--rim-radius", "0"],
+        vec!["--rim-radius=-0.02"],
+        vec!["--rim-radius", "nan"],
+        vec!["--init", start.as_str(), "--rim-radius", "0.02"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
         let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
@@ -406,4 +415,40 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
     let refused = nlos(&args);
     assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
     assert!(text(&refused).contains("--sensor off"), "{}", text(&refused));
+}
+
+/// `--rim-radius` on `nlos init` (and, through the same `SurfaceParams`, on `nlos reconstruct --init lct`):
+/// the boundary vertices recede by the radius, the rest stays where it was, nothing moves sideways.
+#[test]
+fn rim_radius_turns_the_initial_surface_back_at_its_boundary() {
+    let dir = scratch("rim");
+    let data = capture(&dir);
+    let d = data.to_string_lossy().into_owned();
+    let (plain, rounded) = (dir.join("plain.obj"), dir.join("rounded.obj"));
+    let (p, r) = (plain.to_string_lossy().into_owned(), rounded.to_string_lossy().into_owned());
+    let run = |extra: &[&str]| {
+        let o = nlos(&[&["init", d.as_str(), "--method", "lct"], extra].concat());
+        assert!(o.status.success(), "{extra:?}: {}", text(&o));
+    };
+    run(&["--out", &p]);
+    // Below the 4.5 cm column spacing: only the boundary moves, by the full radius.
+    run(&["--out", &r, "--rim-radius", "0.03"]);
+    let a = nlos_mesh::io::load(&plain).expect("plain");
+    let b = nlos_mesh::io::load(&rounded).expect("rounded");
+    assert_eq!(a.n_vertices(), b.n_vertices());
+    let mut moved = 0;
+    for (u, v) in a.positions().iter().zip(b.positions()) {
+        assert_eq!((u.x, u.y), (v.x, v.y), "no vertex moves sideways");
+        let dz = v.z - u.z;
+        assert!(dz.abs() < 1e-5 || (dz - 0.03).abs() < 1e-5, "moved by {dz}");
+        moved += usize::from(dz > 0.015);
+    }
+    let boundary = b.vertices().filter(|&v| b.is_boundary_vertex(v)).count();
+    assert_eq!(moved, boundary, "exactly the boundary vertices recede");
+    assert!(moved > 0);
+    for bad in ["0", "-1", "inf"] {
+        let o = nlos(&["init", d.as_str(), "--method", "lct", "--out", &r, &format!("--rim-radius={bad}")]);
+        assert_eq!(o.status.code(), Some(2), "--rim-radius {bad}: {}", text(&o));
+        assert!(text(&o).contains("rim_radius"), "{}", text(&o));
+    }
 }

@@ -40,6 +40,7 @@ mod fft;
 pub mod fk;
 pub mod lct;
 mod prep;
+pub mod rim;
 pub mod surface;
 pub mod volume;
 
@@ -49,6 +50,7 @@ pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};
 pub use lct::{LctParams, Material, lct};
 pub use prep::Gate;
+pub use rim::round_rim;
 pub use surface::{
     Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface, volume_to_surface_where,
 };
