@@ -129,7 +129,9 @@ pub struct Metrics {
     pub depth_error_rms: Option<f64>,
     /// Largest |z_rec − z_gt|, metres.
     pub depth_error_max: Option<f64>,
-    /// Ground-truth pixels that are interior (module docs, [`SILHOUETTE_BAND`]).
+    /// Ground-truth pixels that are interior (module docs, [`SILHOUETTE_BAND`]). 0 when read from a record
+    /// written before it existed (as the two means below are then `None`).
+    #[serde(default)]
     pub interior_pixels: usize,
     /// Mean of |z_rec − z_gt| over the interior pixels hit on both, metres; `None` when there are none.
     pub depth_error_mean_interior: Option<f64>,

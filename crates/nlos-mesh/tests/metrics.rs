@@ -303,3 +303,16 @@ fn depth_error_splits_into_interior_and_silhouette_band() {
     assert_eq!(inner.depth_error_mean_silhouette, None, "no band pixel is hit by the small plate");
     assert_eq!(inner.depth_error_mean_interior, Some(0.0));
 }
+
+/// `nlos eval` lines written before the interior/band split still read back (the new fields default).
+#[test]
+fn records_without_the_silhouette_split_still_deserialise() {
+    let line = r#"{"grid":128,"x_range":[-0.25,0.25],"y_range":[-0.25,0.25],"gt_pixels":10,"reconstruction_pixels":9,
+        "both_pixels":8,"coverage":0.8,"depth_error_mean":0.001,"depth_error_median":0.001,"depth_error_rms":0.001,
+        "depth_error_max":0.002,"chamfer":0.01,"mean_reconstruction_to_gt":0.005,"mean_gt_to_reconstruction":0.005,
+        "hausdorff":0.02,"normal_error_mean_deg":10.0,"normal_error_rms_deg":12.0}"#;
+    let m: nlos_mesh::metrics::Metrics = serde_json::from_str(line).expect("an earlier record");
+    assert_eq!(m.interior_pixels, 0);
+    assert_eq!((m.depth_error_mean_interior, m.depth_error_mean_silhouette), (None, None));
+    assert_eq!(m.both_pixels, 8);
+}
