@@ -136,6 +136,9 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
     }
     assert!(html.contains("tilted &lt;plane&gt;"));
     assert!(html.contains("stage_00.obj"));
+    // The depth error split at the ground truth's silhouette (nlos_mesh::metrics::SILHOUETTE_BAND = 2).
+    assert!(html.contains("depth error, mean inside (≥ 3 pixels from the silhouette)"));
+    assert!(html.contains("depth error, mean on the silhouette band"));
     // The final mesh is the truth and rendered the same way: scale 1, no residual, perfect metrics, while
     // the flat initial surface is off by up to 30 mm.
     assert!((report.scale - 1.0).abs() < 1e-4, "scale {}", report.scale);
