@@ -410,7 +410,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         }
     );
     if outcome.stop != StopReason::Interrupted && !args.no_report {
-        write_report(args, &measured, &params, gt.as_ref()).map_err(|e| match e {
+        write_report(args, &measured, wall_area(&full), &params, gt.as_ref()).map_err(|e| match e {
             CliError::Input(m) | CliError::Failure(m) => {
                 CliError::Failure(format!("the mesh is written, but not the report: {m}"))
             }
@@ -423,10 +423,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
 fn write_report(
     args: &Args,
     measured: &Transient,
+    area: Option<([f32; 2], [f32; 2])>,
     params: &ReconstructParams,
     gt: Option<&SurfaceMesh>,
 ) -> Result<(), CliError> {
-    let opts = report_options(args, params);
+    let opts = ReportOptions { area, ..report_options(args, params) };
     let report = nlos_report::write_report(&args.out, measured, gt, &opts).map_err(|e| match e {
         nlos_report::ReportError::MissingFile { .. } | nlos_report::ReportError::Json { .. } => bad(e),
         other => fail(other),
@@ -467,7 +468,15 @@ pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Resu
     let capture = load_capture(&args)?;
     let params = params(&args, &capture)?;
     let gt = load_gt(&args)?;
-    write_report(&args, &capture.measured, &params, gt.as_ref())
+    write_report(&args, &capture.measured, wall_area(&capture.full), &params, gt.as_ref())
+}
+
+/// The wall rectangle of the report's depth maps and metrics: the bounding rectangle of the whole capture's
+/// sensor points, before `--subsample` (the seed setup's [−0.25, 0.25]², as `nlos eval`); `None` when they
+/// span no rectangle (the report then falls back to the fitted grid's, and says why it cannot).
+fn wall_area(full: &Transient) -> Option<([f32; 2], [f32; 2])> {
+    let (lo, hi) = full.scan().sensors().bounds()?;
+    (hi.x > lo.x && hi.y > lo.y).then_some(([lo.x, hi.x], [lo.y, hi.y]))
 }
 
 /// The report's settings: the run's renderer settings, data term and sensor fit, and its command line.

@@ -265,6 +265,8 @@ fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
         "1",
         "--iterations",
         "2",
+        "--subsample",
+        "2",
         "--quiet",
     ]);
     assert!(run.status.success(), "{}", text(&run));
@@ -274,6 +276,12 @@ fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
     let html = std::fs::read_to_string(out.join("report.html")).expect("report");
     assert!(html.contains("Metrics against the ground truth") && html.contains("coverage"));
     assert!(out.join("depth_gt.png").is_file());
+    // Regression (the report's metrics were taken over the subsampled grid's rectangle, [−0.25, 0.159]² m
+    // here, so they differed from `nlos eval`'s): the metrics cover the whole capture's scan area.
+    assert!(
+        html.contains("x ∈ [-0.250, 0.250] m, y ∈ [-0.250, 0.250] m"),
+        "the report's ray grid is not the whole scan area [−0.25, 0.25]²"
+    );
 }
 
 #[test]

@@ -213,6 +213,21 @@ impl DepthView {
         Ok(Self { grid, x_range: [x0, x1], y_range: [y0, y1] })
     }
 
+    /// The view over the rectangle `x_range × y_range` of the wall (metres).
+    ///
+    /// # Errors
+    /// [`ReportError::InvalidOption`] (`area`) unless both ranges are finite with `min < max`.
+    pub fn over_area(x_range: [f32; 2], y_range: [f32; 2], grid: usize) -> Result<Self> {
+        let ok = |r: [f32; 2]| r[0].is_finite() && r[1].is_finite() && r[0] < r[1];
+        if !(ok(x_range) && ok(y_range)) {
+            return Err(ReportError::InvalidOption {
+                name: "area",
+                reason: format!("x {x_range:?}, y {y_range:?} m: each range must be finite with min < max"),
+            });
+        }
+        Ok(Self { grid, x_range, y_range })
+    }
+
     /// The ray-grid parameters of `nlos_mesh::metrics` for this view.
     pub fn eval_params(&self) -> EvalParams {
         EvalParams { grid: self.grid, x_range: self.x_range, y_range: self.y_range, ..EvalParams::default() }

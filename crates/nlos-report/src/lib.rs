@@ -24,7 +24,7 @@
 //! `s* = ⟨I, Ĩ⟩/⟨I, I⟩`, eq. 7 of Tsai et al. 2019 minimised over s), computed on the bins after the
 //! direct-light gate — the bins the figures show.
 //!
-//! **Depth maps.** +z rays from a grid over the scan's bounding rectangle, first hits through
+//! **Depth maps.** +z rays from a grid over the scan's bounding rectangle (or [`ReportOptions::area`]), first hits through
 //! `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one colour range, the 2nd–95th
 //! percentile of the ground truth's depths (else the final mesh's), so millimetre relief stays visible.
 //!
@@ -76,6 +76,12 @@ pub struct ReportOptions {
     pub gate: Option<f64>,
     /// Sensor row of the x–t slices (default: the middle row).
     pub slice_row: Option<usize>,
+    /// The rectangle of the wall (`[x0, x1]`, `[y0, y1]`, metres) under the depth maps and the metrics' ray
+    /// grid. `None` (default): the bounding rectangle of `measured`'s sensor points. A run fitted on a
+    /// subsampled grid passes the whole capture's rectangle, so that the metrics are those of `nlos eval`
+    /// (the seed setup's 64 × 64 grid spans [−0.25, 0.25]² m, its every-other-point subsample only
+    /// [−0.25, 0.242]²).
+    pub area: Option<([f32; 2], [f32; 2])>,
     /// Pixels per side of the depth maps (default 256; 1..=4096).
     pub depth_grid: usize,
     /// Pixels per side of the metrics' ray grid (default 128, as `nlos eval`; 1..=4096).
@@ -94,6 +100,7 @@ impl Default for ReportOptions {
             sensor: None,
             gate: None,
             slice_row: None,
+            area: None,
             depth_grid: 256,
             eval_grid: 128,
             relief_box: 0.025,
@@ -286,7 +293,10 @@ pub fn write_report(
     if !log.iterations.is_empty() {
         save(&figures::loss_figure(&log)?, dir, "loss.png", &mut images)?;
     }
-    let view = DepthView::over_scan(measured, opts.depth_grid)?;
+    let view = match opts.area {
+        Some((x_range, y_range)) => DepthView::over_area(x_range, y_range, opts.depth_grid)?,
+        None => DepthView::over_scan(measured, opts.depth_grid)?,
+    };
     let d_final = figures::depth_map(&final_mesh, &view)?;
     let d_init = init_mesh.as_ref().map(|m| figures::depth_map(m, &view)).transpose()?;
     let d_gt = ground_truth.map(|m| figures::depth_map(m, &view)).transpose()?;

@@ -204,6 +204,11 @@ fn missing_files_and_bad_options_are_typed_errors() {
     let (dir, measured, _) = run_dir("bad");
     let opts = ReportOptions { depth_grid: 0, ..ReportOptions::default() };
     assert!(matches!(write_report(&dir, &measured, None, &opts), Err(ReportError::InvalidOption { .. })));
+    for area in [([0.1, -0.1], [-0.1, 0.1]), ([-0.1, 0.1], [f32::NAN, 0.1]), ([0.0, 0.0], [-0.1, 0.1])] {
+        let opts = ReportOptions { area: Some(area), ..ReportOptions::default() };
+        let e = write_report(&dir, &measured, None, &opts).expect_err("bad area");
+        assert!(matches!(e, ReportError::InvalidOption { name: "area", .. }), "{area:?}: {e}");
+    }
     std::fs::remove_file(dir.join("mesh.obj")).expect("rm");
     let e = write_report(&dir, &measured, None, &ReportOptions::default()).expect_err("no mesh");
     assert!(matches!(e, ReportError::MissingFile { .. }) && e.to_string().contains("mesh.obj"), "{e}");
