@@ -24,9 +24,10 @@
 //! `s* = ⟨I, Ĩ⟩/⟨I, I⟩`, eq. 7 of Tsai et al. 2019 minimised over s), computed on the bins after the
 //! direct-light gate — the bins the figures show.
 //!
-//! **Depth maps.** +z rays from a grid over the scan's bounding rectangle (or [`ReportOptions::area`]), first hits through
-//! `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one colour range, the 2nd–95th
-//! percentile of the ground truth's depths (else the final mesh's), so millimetre relief stays visible.
+//! **Depth maps.** +z rays from a grid over [`ReportOptions::area`] (default: the scan's bounding
+//! rectangle), first hits through `nlos_mesh`'s BVH ([`figures::depth_map`]); all depth maps share one
+//! colour range, the 2nd–95th percentile of the ground truth's depths (else the final mesh's), so
+//! millimetre relief stays visible.
 //!
 //! **Metrics** (with a ground truth): `nlos_mesh::metrics::evaluate` of the initial and final meshes,
 //! on a [`ReportOptions::eval_grid`]² grid over the same rectangle.
