@@ -472,11 +472,11 @@ pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Resu
 }
 
 /// The wall rectangle of the report's depth maps and metrics: the bounding rectangle of the whole capture's
-/// sensor points, before `--subsample` (the seed setup's [−0.25, 0.25]², as `nlos eval`); `None` when they
-/// span no rectangle (the report then takes the fitted grid's, `DepthView::over_scan`, or says why not).
+/// sensor points, before `--subsample` (the seed setup's [−0.25, 0.25]², as `nlos eval`), as
+/// [`nlos_report::DepthView::over_scan`] takes it; `None` when they span no rectangle (the report then
+/// tries the fitted grid's, and says why it cannot).
 fn wall_area(full: &Transient) -> Option<([f32; 2], [f32; 2])> {
-    let (lo, hi) = full.scan().sensors().bounds()?;
-    (hi.x > lo.x && hi.y > lo.y).then_some(([lo.x, hi.x], [lo.y, hi.y]))
+    nlos_report::DepthView::over_scan(full, 1).ok().map(|v| (v.x_range, v.y_range))
 }
 
 /// The report's settings: the run's renderer settings, data term and sensor fit, and its command line.
