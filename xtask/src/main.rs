@@ -8,6 +8,7 @@
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs of issues 8 and 9 (see `accept.rs`), appended to `docs/acceptance.md`.
+//! - `cargo xtask fixtures`: regenerates `fixtures/` from `../shared/data` (see `fixtures/README.md`).
 //! - `cargo xtask help`.
 
 mod accept;
@@ -22,6 +23,7 @@ fn main() -> ExitCode {
         Some("reconstruct") if args.len() > 1 => nlos(&args.iter().map(String::as_str).collect::<Vec<_>>()),
         Some("reconstruct") => demo(),
         Some("accept") => accept::accept(&workspace_root(), &args[1..]),
+        Some("fixtures") => fixtures(),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
@@ -30,6 +32,7 @@ fn main() -> ExitCode {
             );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, sensor or all; docs/acceptance.md");
+            println!("       cargo xtask fixtures                regenerate fixtures/ from ../shared/data");
             Ok(())
         }
         Some(other) => Err(format!("unknown task `{other}`; try `cargo xtask help`")),
@@ -109,6 +112,32 @@ fn demo() -> Result<(), String> {
 }
 
 /// Runs the `nlos` CLI (built in release mode) with `args`.
+/// `fixtures/bunny_lct_start.obj`: the LCT start of the shared bunny at the seed's setup, as `nlos reconstruct`
+/// makes it — the ground truth rendered by `nlos render` (confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins
+/// of 1.2 mm), 1000 photons per measurement (Poisson, seed 1), `nlos init` (LCT, default settings). The
+/// renderer's loop benchmark (`crates/nlos-render/benches/loop_cost.rs`) remeshes it as the optimiser does.
+fn fixtures() -> Result<(), String> {
+    let root = workspace_root();
+    let bunny = root.join("../shared/data/meshes/bunny_centered.obj");
+    if !bunny.exists() {
+        return Err(format!("{} not found: the fixtures are made from the shared data", bunny.display()));
+    }
+    let tmp = root.join("out/fixtures");
+    std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    let capture = tmp.join("bunny_1000ph.hdf5");
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    println!("[1/2] nlos render (the shared bunny, seed setup, 1000 photons, seed 1; a few minutes)");
+    nlos(&["render", &s(&bunny), "--out", &s(&capture), "--photons", "1000", "--seed", "1"])?;
+    let dir = root.join("fixtures");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let start = dir.join("bunny_lct_start.obj");
+    println!("[2/2] nlos init → {}", start.display());
+    nlos(&["init", &s(&capture), "--out", &s(&start)])?;
+    // `nlos init` writes a figure beside the mesh; the fixture is the mesh alone.
+    let _ = std::fs::remove_file(start.with_extension("png"));
+    Ok(())
+}
+
 fn nlos(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)

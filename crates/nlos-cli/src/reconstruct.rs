@@ -17,7 +17,7 @@ use nlos_optim::{
     Hooks, Progress, ProgressEvent, ReconstructParams, Reflectance, SamplingSchedule, SensorBackground, SensorFit,
     StopReason,
 };
-use nlos_render::{DeterministicRule, RenderParams, Sampling, Visibility};
+use nlos_render::{RenderParams, Sampling, SplatRule, Visibility};
 use nlos_report::ReportOptions;
 use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
@@ -95,8 +95,9 @@ pub(crate) struct Args {
     /// occlusion: right for height fields only).
     #[arg(long, default_value = "cached", value_name = "cached|live|off")]
     visibility: String,
-    /// Largest subdivision level of the noise-free quadrature (n² samples per triangle and measurement at
-    /// most; default 8). Higher is more accurate and slower.
+    /// Largest subdivision level of the renderer's closed-form time integration (`nlos_render::SplatRule`):
+    /// a face is cut into at most N² sub-triangles, as many as its path length's curvature needs (large faces
+    /// only; default 8).
     #[arg(long, default_value_t = 8, value_name = "N")]
     max_level: u32,
     /// Also write the final mesh as binary glTF, `mesh.glb`.
@@ -482,6 +483,7 @@ fn wall_area(full: &Transient) -> Option<([f32; 2], [f32; 2])> {
 /// The report's settings: the run's renderer settings, data term and sensor fit, and its command line.
 fn report_options(args: &Args, params: &ReconstructParams) -> ReportOptions {
     let sampling = match params.sampling {
+        SamplingSchedule::Splat(rule) => Sampling::Splat(rule),
         SamplingSchedule::Deterministic(rule) => Sampling::Deterministic(rule),
         SamplingSchedule::Stratified { initial_samples, .. } => {
             Sampling::Stratified { samples_per_measurement: initial_samples, seed: params.seed }
@@ -628,10 +630,10 @@ fn params(args: &Args, capture: &Capture) -> Result<ReconstructParams, CliError>
     if args.max_level == 0 {
         return Err(bad("--max-level must be at least 1"));
     }
-    p.sampling = SamplingSchedule::Deterministic(DeterministicRule {
-        max_level: args.max_level,
-        ..DeterministicRule::default()
-    });
+    if args.max_level > 64 {
+        return Err(bad(format!("--max-level {}: at most 64", args.max_level)));
+    }
+    p.sampling = SamplingSchedule::Splat(SplatRule { max_level: args.max_level, ..SplatRule::default() });
     if let Some(s) = args.stages {
         p.schedule.max_stages = s;
     }

@@ -35,7 +35,9 @@ fn main() {
     let data = measured.data().to_vec();
     let scale = term.optimal_scale(&rendered, &data).unwrap();
     let bins = measured.bins();
-    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &data[m * bins..(m + 1) * bins], m * bins, scale);
+    let row_loss = |m: usize, row: &[f32], w: std::ops::Range<usize>| {
+        term.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, w)
+    };
     let residual: Vec<f32> = data.iter().zip(&rendered).map(|(&d, &r)| d - (scale * f64::from(r)) as f32).collect();
     let params = ResidualParams { margin, separation, ..ResidualParams::default() };
     let p =

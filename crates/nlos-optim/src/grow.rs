@@ -28,7 +28,7 @@ use nlos_render::{RenderParams, Renderer, RowSpan, Visibility};
 use nlos_transient::{Scan, TimeAxis};
 
 use crate::error::{OptimError, Result};
-use crate::prune::{apply_spans, delta};
+use crate::prune::{RowLoss, apply_spans, delta};
 use crate::reflectance::ConcreteBrdf;
 
 /// Settings of boundary growth ([`crate::ReconstructParams::grow`]).
@@ -120,7 +120,7 @@ pub struct Grown {
 /// Proposes and adds faces across the boundary edges of the mesh `positions`/`triangles` (module docs).
 ///
 /// `rendered` is the mesh's forward pass with `brdf` (measurement-major, `bins` per histogram; updated in
-/// place: the added faces' shares are added), `row_loss(m, row)` the data term of histogram `m` at the
+/// place: the added faces' shares are added), `row_loss` the data term of histogram `m` ([`RowLoss`]) at the
 /// block's scale, `render` the block's render settings (visibility is switched off for the proposals).
 ///
 /// # Errors
@@ -137,7 +137,7 @@ pub fn grow_boundary(
     brdf: &ConcreteBrdf,
     rendered: &mut [f32],
     bins: usize,
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    row_loss: &RowLoss<'_>,
     params: &GrowParams,
 ) -> Result<Grown> {
     params.validate()?;
@@ -228,8 +228,6 @@ pub fn grow_boundary(
         spans.extend(brdf.forward_triangle(&r, 1)?);
         Ok(merge(spans))
     };
-    let mut base: Vec<f64> =
-        rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
     let snapshot: &[f32] = rendered;
     // The best angle per edge (both ends turned alike), if it passes.
     let scored: Vec<Option<(f64, f64)>> = edges
@@ -241,7 +239,7 @@ pub fn grow_boundary(
                 if spans.is_empty() {
                     continue;
                 }
-                let (test, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin, true)?;
+                let (test, _) = delta(&spans, snapshot, bins, row_loss, params.margin, true)?;
                 if test < 0.0 && best.is_none_or(|(t, _)| test < t) {
                     best = Some((test, theta));
                 }
@@ -262,11 +260,11 @@ pub fn grow_boundary(
         let pb = placed.get(&e.b).map_or_else(|| offset(e.b, theta), |p| p.1);
         // Re-test at the placed positions against the rendering the additions so far have left.
         let spans = quad(e, pa, pb)?;
-        let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin, true)?;
+        let (test, d) = delta(&spans, rendered, bins, row_loss, params.margin, true)?;
         if !(test < 0.0) {
             continue;
         }
-        apply_spans(&spans, rendered, &mut base, bins, row_loss, true)?;
+        apply_spans(&spans, rendered, bins, true);
         let mut id = |v: u32, p: Vec3| {
             placed
                 .entry(v)

@@ -60,7 +60,7 @@ pub use grow::{GrowParams, GrowRecord, Grown, grow_boundary};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};
-pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
+pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IterationRecord, Outcome, Progress, ProgressEvent,
     ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,

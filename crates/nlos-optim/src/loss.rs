@@ -141,6 +141,23 @@ impl DataTerm {
     /// # Errors
     /// [`OptimError::LengthMismatch`] for rows of different lengths or weights that do not cover the row.
     pub fn row_value(&self, rendered_row: &[f32], measured_row: &[f32], offset: usize, scale: f64) -> Result<f64> {
+        self.row_value_in(rendered_row, measured_row, offset, scale, 0..rendered_row.len())
+    }
+
+    /// [`DataTerm::row_value`] summed over the bins `window` of the row only (clamped to the row): the data
+    /// term is a sum over bins, so two rows that differ only inside `window` differ by exactly the
+    /// difference of these values (`crate::prune::RowLoss`).
+    ///
+    /// # Errors
+    /// As [`DataTerm::row_value`].
+    pub fn row_value_in(
+        &self,
+        rendered_row: &[f32],
+        measured_row: &[f32],
+        offset: usize,
+        scale: f64,
+        window: std::ops::Range<usize>,
+    ) -> Result<f64> {
         if measured_row.len() != rendered_row.len() {
             return Err(OptimError::LengthMismatch {
                 what: "measured row",
@@ -156,10 +173,15 @@ impl DataTerm {
             })?),
             None => None,
         };
-        // Exactly as `evaluate`: scaled in f32, then the renderer's loss.
-        let s32 = scale as f32;
-        let scaled: Vec<f32> = rendered_row.iter().map(|r| s32 * r).collect();
-        Ok(self.loss.evaluate(&scaled, measured_row, weights)?.0)
+        let w = window.start.min(rendered_row.len())..window.end.min(rendered_row.len());
+        let w = w.start.min(w.end)..w.end;
+        // Exactly as `evaluate`: scaled in f32, then the renderer's loss (without allocating).
+        Ok(self.loss.value_scaled(
+            &rendered_row[w.clone()],
+            scale as f32,
+            &measured_row[w.clone()],
+            weights.map(|x| &x[w]),
+        )?)
     }
 
     /// The expected data term if the measurement were Poisson counts with means `μ = scale·rendered`

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use nlos_mesh::evolve::EvolveParams;
 use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
-use nlos_render::{DeterministicRule, RenderParams};
+use nlos_render::{DeterministicRule, RenderParams, SplatRule};
 
 use crate::adam::AdamParams;
 use crate::albedo::AlbedoMapParams;
@@ -72,8 +72,13 @@ impl Schedule {
 /// How the renderer samples the surface, stage by stage ("the sample budget grows").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SamplingSchedule {
-    /// Noise-free quadrature with an adaptive level per (triangle, measurement); the budget grows with the
-    /// face count. The default (`DeterministicRule::default()`).
+    /// Closed-form time integration of each (sub-)triangle against the tent kernel
+    /// (`nlos_render::Sampling::Splat`): noise-free, exact in time whatever the bins a face spans. The
+    /// default (`SplatRule::default()`): at the seed's setup one forward + adjoint on the bunny's 3.2k-face
+    /// first stage takes about 1.2 s on 2 cores, against 20 s for the adaptive quadrature below at
+    /// `max_level` 8, with a smaller error against the exact quadrature (docs/performance.md).
+    Splat(SplatRule),
+    /// Noise-free quadrature with an adaptive level per (triangle, measurement) (`DeterministicRule`).
     Deterministic(DeterministicRule),
     /// The seed's stratified area sampling, `initial_samples · growthᵏ` samples per measurement in stage k;
     /// the sampling seed is drawn once per block from the run's RNG (so a run is reproducible).
@@ -87,7 +92,7 @@ pub enum SamplingSchedule {
 
 impl Default for SamplingSchedule {
     fn default() -> Self {
-        SamplingSchedule::Deterministic(DeterministicRule::default())
+        SamplingSchedule::Splat(SplatRule::default())
     }
 }
 

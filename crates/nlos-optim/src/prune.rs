@@ -149,8 +149,8 @@ pub struct Pruned {
 ///
 /// `renderer` holds the mesh `triangles` at the current positions, `rendered` its forward pass with `brdf`
 /// (measurement-major, `bins` per histogram; updated in place: the deleted faces' shares are subtracted),
-/// and `row_loss(m, row)` the data term of histogram `m` for the rendered histogram `row` at the block's
-/// scale (`DataTerm::row_value`, `SensorFit::row_value`). `noise`, when the measurement's noise is known,
+/// and `row_loss` the data term of histogram `m` ([`RowLoss`]) at the block's
+/// scale (`DataTerm::row_value_in`, `SensorFit::row_value_in`). `noise`, when the measurement's noise is known,
 /// holds per bin (same layout as `rendered`) the weight `ν_k` with `Var(ΔE_f) = Σ_k I_f,k² ν_k`: for the L2
 /// term `½ Σ w_k (s I_k − Ĩ_k)²` of Poisson counts, `ν_k = w_k² s² · s I_k` (`∂ΔE_f/∂Ĩ_k = w_k s I_f,k`,
 /// `Var Ĩ_k = s I_k`); the test then adds [`PruneParams::significance`] `· √Var(ΔE_f)` (module docs).
@@ -165,7 +165,7 @@ pub fn prune_boundary(
     brdf: &ConcreteBrdf,
     rendered: &mut [f32],
     bins: usize,
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    row_loss: &RowLoss<'_>,
     noise: Option<&[f32]>,
     params: &PruneParams,
 ) -> Result<Pruned> {
@@ -194,9 +194,6 @@ pub fn prune_boundary(
             vertex_faces[t[k] as usize].push(f);
         }
     }
-    // The data term of every histogram now (updated as faces go).
-    let mut base: Vec<f64> =
-        rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
     let (mut tested, mut removed, mut change) = (0usize, 0usize, 0.0f64);
 
     for _ in 0..params.rounds {
@@ -215,7 +212,7 @@ pub fn prune_boundary(
             .par_iter()
             .map(|&f| {
                 let spans = brdf.forward_triangle(renderer, f)?;
-                let (d, _) = delta(&spans, snapshot, &base, bins, row_loss, params.margin, false)?;
+                let (d, _) = delta(&spans, snapshot, bins, row_loss, params.margin, false)?;
                 Ok((d + z_sigma(&spans), f, spans))
             })
             .collect::<Result<_>>()?;
@@ -227,11 +224,11 @@ pub fn prune_boundary(
                 break;
             }
             // Re-test against the rendering the deletions so far have left.
-            let (test, d) = delta(&spans, rendered, &base, bins, row_loss, params.margin, false)?;
+            let (test, d) = delta(&spans, rendered, bins, row_loss, params.margin, false)?;
             if !(test + z_sigma(&spans) < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
-            apply_spans(&spans, rendered, &mut base, bins, row_loss, false)?;
+            apply_spans(&spans, rendered, bins, false);
             keep[f] = false;
             let t = triangles[f];
             for k in 0..3 {
@@ -249,6 +246,15 @@ pub fn prune_boundary(
     Ok(Pruned { keep, tested, removed, data_change: change })
 }
 
+/// The data term of one histogram as boundary pruning and growth see it: `row_loss(m, row, window)` is
+/// histogram m's data term for the rendered histogram `row` (all of it, at the block's scale), summed over
+/// the bins whose terms a change of the bins `window` can reach — the window itself for a term that is a
+/// sum over bins (`DataTerm`), widened by the timing response's support for the sensor fit — so that for
+/// two renderings that differ only inside `window`, the difference of the two values is the change of the
+/// whole data term. `0..bins` gives the whole term. A face's share spans a few dozen of the bins: the tests
+/// of [`prune_boundary`] cost that, not the histograms' length.
+pub type RowLoss<'a> = dyn Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync + 'a;
+
 /// `σ_f = √(Σ_k I_f,k² ν_k)` over a face's share (the standard deviation of its `ΔE_f` under the
 /// measurement's noise, [`prune_boundary`]).
 fn noise_sigma(spans: &[RowSpan], nu: &[f32], bins: usize) -> f64 {
@@ -262,25 +268,15 @@ fn noise_sigma(spans: &[RowSpan], nu: &[f32], bins: usize) -> f64 {
         .sqrt()
 }
 
-/// Subtracts (`add` false) or adds a face's share `spans` to `rendered` and updates the data term `base` of
-/// every histogram it touches.
-pub(crate) fn apply_spans(
-    spans: &[RowSpan],
-    rendered: &mut [f32],
-    base: &mut [f64],
-    bins: usize,
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
-    add: bool,
-) -> Result<()> {
+/// Subtracts (`add` false) or adds a face's share `spans` to `rendered`.
+pub(crate) fn apply_spans(spans: &[RowSpan], rendered: &mut [f32], bins: usize, add: bool) {
     for s in spans {
         let row = &mut rendered[s.measurement * bins..(s.measurement + 1) * bins];
         for (x, v) in row[s.first_bin..].iter_mut().zip(&s.values) {
             // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
             *x = if add { *x + v } else { (*x - v).max(0.0) };
         }
-        base[s.measurement] = row_loss(s.measurement, row)?;
     }
-    Ok(())
 }
 
 /// The test value and the change of the data term of deleting (`add` false: `ΔE = E(I − I_f) − E(I)`) or
@@ -295,9 +291,8 @@ pub(crate) fn apply_spans(
 pub(crate) fn delta(
     spans: &[RowSpan],
     rendered: &[f32],
-    base: &[f64],
     bins: usize,
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    row_loss: &RowLoss<'_>,
     margin: f64,
     add: bool,
 ) -> Result<(f64, f64)> {
@@ -305,20 +300,22 @@ pub(crate) fn delta(
     // `once`: ΔE of the move; `other`: the second point of the second difference (E(I + I_f) − E(I) for a
     // deletion, E(I + 2I_f) − E(I) for an addition).
     let (mut once, mut other) = (0.0, 0.0);
-    let mut shifted = |src: &[f32], first: usize, values: &[f32], k: f32, m: usize| -> Result<f64> {
-        row.copy_from_slice(src);
-        for (x, v) in row[first..].iter_mut().zip(values) {
-            // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
-            *x = (*x + k * v).max(0.0);
-        }
-        Ok(row_loss(m, &row)? - base[m])
-    };
     for s in spans {
         let m = s.measurement;
         let src = &rendered[m * bins..(m + 1) * bins];
-        once += shifted(src, s.first_bin, &s.values, if add { 1.0 } else { -1.0 }, m)?;
+        let window = s.first_bin..(s.first_bin + s.values.len()).min(bins);
+        let now = row_loss(m, src, window.clone())?;
+        let mut shifted = |k: f32| -> Result<f64> {
+            row.copy_from_slice(src);
+            for (x, v) in row[window.clone()].iter_mut().zip(&s.values) {
+                // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
+                *x = (*x + k * v).max(0.0);
+            }
+            Ok(row_loss(m, &row, window.clone())? - now)
+        };
+        once += shifted(if add { 1.0 } else { -1.0 })?;
         if margin > 0.0 {
-            other += shifted(src, s.first_bin, &s.values, if add { 2.0 } else { 1.0 }, m)?;
+            other += shifted(if add { 2.0 } else { 1.0 })?;
         }
     }
     // c_f from the three points (0, once, other) of the data term along the share.
@@ -371,9 +368,13 @@ mod tests {
     }
 
     /// L2 row loss ½ Σ (s·r − m)² against a fixed measured row, scale `s`.
-    fn l2(measured: Vec<f32>, s: f64) -> impl Fn(usize, &[f32]) -> Result<f64> + Sync {
-        move |_, row: &[f32]| {
-            Ok(row.iter().zip(&measured).map(|(&r, &m)| 0.5 * (s * f64::from(r) - f64::from(m)).powi(2)).sum())
+    fn l2(measured: Vec<f32>, s: f64) -> impl Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync {
+        move |_, row: &[f32], w: std::ops::Range<usize>| {
+            Ok(row[w.clone()]
+                .iter()
+                .zip(&measured[w])
+                .map(|(&r, &m)| 0.5 * (s * f64::from(r) - f64::from(m)).powi(2))
+                .sum())
         }
     }
 
@@ -385,16 +386,16 @@ mod tests {
         let rendered = vec![0.0, 0.0, 0.5, 0.0, 0.0, 0.0];
         let measured = vec![0.0, 0.3, 1.0, 0.2, 0.0, 0.0];
         let row_loss = l2(measured, s);
-        let base = vec![row_loss(0, &rendered).unwrap()];
+        let base = [row_loss(0, &rendered, 0..rendered.len()).unwrap()];
         let spans = [RowSpan { measurement: 0, first_bin: 1, values: vec![0.1, 0.4, 0.2] }];
         let norm2: f64 = spans[0].values.iter().map(|&v| f64::from(v).powi(2)).sum();
         for margin in [0.0, 0.5, 1.0] {
-            let (test, change) = delta(&spans, &rendered, &base, bins, &row_loss, margin, true).unwrap();
+            let (test, change) = delta(&spans, &rendered, bins, &row_loss, margin, true).unwrap();
             let mut added = rendered.clone();
             for (x, v) in added[1..].iter_mut().zip(&spans[0].values) {
                 *x += v;
             }
-            let exact = row_loss(0, &added).unwrap() - base[0];
+            let exact = row_loss(0, &added, 0..added.len()).unwrap() - base[0];
             assert!((change - exact).abs() < 1e-9, "{change} vs {exact}");
             let want = exact + margin * 0.5 * s * s * norm2;
             assert!((test - want).abs() < 1e-6, "margin {margin}: test {test}, want {want}");
@@ -404,8 +405,7 @@ mod tests {
         for (x, v) in holding[1..].iter_mut().zip(&spans[0].values) {
             *x += v;
         }
-        let base = vec![row_loss(0, &holding).unwrap()];
-        let (test, change) = delta(&spans, &holding, &base, bins, &row_loss, 1.0, false).unwrap();
+        let (test, change) = delta(&spans, &holding, bins, &row_loss, 1.0, false).unwrap();
         assert!((test - change - 0.5 * s * s * norm2).abs() < 1e-6);
     }
 

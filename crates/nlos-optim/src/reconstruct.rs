@@ -502,6 +502,7 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
 /// Render parameters of a block.
 fn render_params(params: &ReconstructParams, stage: u32, rng: &mut u64) -> RenderParams {
     let sampling = match params.sampling {
+        SamplingSchedule::Splat(rule) => Sampling::Splat(rule),
         SamplingSchedule::Deterministic(rule) => Sampling::Deterministic(rule),
         SamplingSchedule::Stratified { initial_samples, growth } => {
             let n = (f64::from(initial_samples) * growth.powi(stage as i32)).min(f64::from(u32::MAX / 2));
@@ -978,11 +979,11 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
-            let row_loss = |m: usize, row: &[f32]| -> Result<f64> {
+            let row_loss = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
                 let measured_row = &data[m * bins..(m + 1) * bins];
                 match &params.sensor {
-                    Some(sensor) => sensor.row_value(row, measured_row, background, scale),
-                    None => params.data.row_value(row, measured_row, m * bins, scale),
+                    Some(sensor) => sensor.row_value_in(row, measured_row, background, scale, window),
+                    None => params.data.row_value_in(row, measured_row, m * bins, scale, window),
                 }
             };
             if let Some(pp) = &params.prune {
@@ -1265,7 +1266,14 @@ mod tests {
     /// ("different reconstruction settings"). The values below were printed by that version (9145556).
     #[test]
     fn settings_fingerprint_of_older_checkpoints_is_unchanged() {
-        let p = ReconstructParams::default();
+        // The defaults of that version rendered with the adaptive quadrature; the splat rule that replaced
+        // it renders differently, so a checkpoint of the old default must not resume under the new one.
+        let old_default = ReconstructParams {
+            sampling: crate::SamplingSchedule::Deterministic(nlos_render::DeterministicRule::default()),
+            ..ReconstructParams::default()
+        };
+        assert_ne!(settings_fingerprint(&old_default), settings_fingerprint(&ReconstructParams::default()));
+        let p = old_default;
         assert_eq!(settings_fingerprint(&p), 2_629_228_410_015_569_325);
         let q = ReconstructParams { seed: 7, prune: None, ..p.clone() };
         assert_eq!(settings_fingerprint(&q), 4_625_969_404_322_523_965);

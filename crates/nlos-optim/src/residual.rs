@@ -51,7 +51,7 @@ use nlos_render::{RenderParams, Renderer, RowSpan};
 use nlos_transient::Transient;
 
 use crate::error::{OptimError, Result};
-use crate::prune::{apply_spans, delta};
+use crate::prune::{RowLoss, apply_spans, delta};
 use crate::reflectance::ConcreteBrdf;
 
 /// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).
@@ -158,7 +158,7 @@ pub struct Patches {
 /// `positions`/`triangles` are the current mesh, `measured` the measurement (for its scan and time axis),
 /// `residual` the measurement minus the data term's model (one value per measurement and bin), `rendered`
 /// the mesh's forward pass with `brdf` (updated in place with the accepted patches' shares) and
-/// `row_loss(m, row)` the data term of histogram `m` for a rendered row at the block's scale.
+/// `row_loss` the data term of histogram `m` ([`RowLoss`]) at the block's scale.
 ///
 /// # Errors
 /// Invalid parameters, a residual of the wrong length, and renderer or LCT failures other than an
@@ -173,7 +173,7 @@ pub fn residual_patches(
     render: RenderParams,
     brdf: &ConcreteBrdf,
     rendered: &mut [f32],
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    row_loss: &RowLoss<'_>,
     params: &ResidualParams,
 ) -> Result<Patches> {
     params.validate()?;
@@ -215,8 +215,6 @@ pub fn residual_patches(
     let columns = surface.mask.iter().filter(|&&k| k).count();
     let (patch_pos, patch_tri) = surface.mesh.to_triangles();
     let (regions, neighbours) = regions_of(&surface.mesh);
-    let mut base: Vec<f64> =
-        rendered.par_chunks(bins).enumerate().map(|(m, row)| row_loss(m, row)).collect::<Result<_>>()?;
     let mut out = Patches { columns, regions: regions.len(), ..Patches::default() };
     let n_old = positions.len() as u32;
     for faces in &regions {
@@ -245,16 +243,14 @@ pub fn residual_patches(
             let shares: Vec<Vec<RowSpan>> =
                 (0..tri.len()).into_par_iter().map(|f| brdf.forward_triangle(&r, f)).collect::<Result<_>>()?;
             let mut trial = rendered.to_vec();
-            let mut trial_base = base.clone();
-            let (chosen, change) =
-                grow_connected(&shares, &adjacency, &mut trial, &mut trial_base, bins, row_loss, params.margin)?;
+            let (chosen, change) = grow_connected(&shares, &adjacency, &mut trial, bins, row_loss, params.margin)?;
             if chosen.len() >= params.min_faces && best.as_ref().is_none_or(|b| change < b.0) {
                 best = Some((change, turned, chosen, shares));
             }
         }
         let Some((change, turned, chosen, shares)) = best else { continue };
         for &f in &chosen {
-            apply_spans(&shares[f], rendered, &mut base, bins, row_loss, true)?;
+            apply_spans(&shares[f], rendered, bins, true);
         }
         out.accepted += 1;
         out.data_change += change;
@@ -296,15 +292,13 @@ fn orientations(tilts: &[f64]) -> Vec<(f64, f64)> {
 
 /// Greedy connected selection: the face whose addition passes the test by the most, then, repeatedly, the
 /// best of the faces sharing an edge with those chosen, each tested against the rendering the choices so
-/// far have left, until none passes. Returns the chosen faces and `Σ ΔE`; `rendered` and `base` are
-/// updated.
+/// far have left, until none passes. Returns the chosen faces and `Σ ΔE`; `rendered` is updated.
 fn grow_connected(
     shares: &[Vec<RowSpan>],
     adjacency: &[Vec<usize>],
     rendered: &mut [f32],
-    base: &mut [f64],
     bins: usize,
-    row_loss: &(dyn Fn(usize, &[f32]) -> Result<f64> + Sync),
+    row_loss: &RowLoss<'_>,
     margin: f64,
 ) -> Result<(Vec<usize>, f64)> {
     let mut chosen: Vec<usize> = Vec::new();
@@ -321,11 +315,10 @@ fn grow_connected(
             f
         };
         let snapshot: &[f32] = rendered;
-        let snap_base: &[f64] = base;
         let tests: Vec<(f64, f64, usize)> = frontier
             .par_iter()
             .filter(|&&f| !shares[f].is_empty())
-            .map(|&f| delta(&shares[f], snapshot, snap_base, bins, row_loss, margin, true).map(|(t, d)| (t, d, f)))
+            .map(|&f| delta(&shares[f], snapshot, bins, row_loss, margin, true).map(|(t, d)| (t, d, f)))
             .collect::<Result<_>>()?;
         let Some(&(test, d, f)) = tests.iter().min_by(|a, b| a.0.total_cmp(&b.0).then(a.2.cmp(&b.2))) else {
             break;
@@ -333,7 +326,7 @@ fn grow_connected(
         if !(test < 0.0) {
             break;
         }
-        apply_spans(&shares[f], rendered, base, bins, row_loss, true)?;
+        apply_spans(&shares[f], rendered, bins, true);
         taken[f] = true;
         chosen.push(f);
         change += d;

@@ -292,6 +292,24 @@ impl SensorFit {
     /// # Errors
     /// [`OptimError::LengthMismatch`] for rows of different lengths, [`OptimError::Sensor`] for an empty row.
     pub fn row_value(&self, rendered_row: &[f32], counts_row: &[f32], background: f64, scale: f64) -> Result<f64> {
+        self.row_value_in(rendered_row, counts_row, background, scale, 0..rendered_row.len())
+    }
+
+    /// [`SensorFit::row_value`] summed over the bins that a change of the bins `window` can reach through the
+    /// timing response (`window` widened by the kernel's support on both sides, clamped to the row): two
+    /// rows that differ only inside `window` differ by exactly the difference of these values
+    /// (`crate::prune::RowLoss`).
+    ///
+    /// # Errors
+    /// As [`SensorFit::row_value`].
+    pub fn row_value_in(
+        &self,
+        rendered_row: &[f32],
+        counts_row: &[f32],
+        background: f64,
+        scale: f64,
+        window: std::ops::Range<usize>,
+    ) -> Result<f64> {
         if counts_row.len() != rendered_row.len() {
             return Err(OptimError::LengthMismatch {
                 what: "measured row",
@@ -300,8 +318,12 @@ impl SensorFit {
             });
         }
         let a = self.jitter(rendered_row, rendered_row.len())?;
-        Ok(a.iter()
-            .zip(counts_row)
+        let reach = self.kernel.first().unsigned_abs() as usize + self.kernel.weights().len();
+        let (lo, hi) = (window.start.saturating_sub(reach), window.end.saturating_add(reach).min(a.len()));
+        let lo = lo.min(hi);
+        Ok(a[lo..hi]
+            .iter()
+            .zip(&counts_row[lo..hi])
             .map(|(&ak, &nk)| half_deviance((scale * ak + background).max(MU_FLOOR), f64::from(nk)))
             .sum())
     }

@@ -78,7 +78,7 @@ fn run(init_half: i32, params: PruneParams) -> (Vec<Vec3>, Vec<[u32; 3]>, nlos_o
     let (p, t) = (&fx.positions, &fx.triangles);
     let r = Renderer::new(p, t, &fx.scan, &fx.time, fx.render).unwrap();
     let before = fx.total(&rendered);
-    let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
+    let row_loss = |m: usize, row: &[f32], _: std::ops::Range<usize>| fx.row_loss(m, row);
     let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, fx.time.bins, &row_loss, None, &params).unwrap();
     let after = fx.total(&rendered);
     // The updated rendering is the forward pass of the kept faces.
@@ -153,7 +153,9 @@ fn run_counts(init_half: i32, params: PruneParams, photons: f64, seed: u64, nois
     let (p, t) = (&fx.positions, &fx.triangles);
     let r = Renderer::new(p, t, &fx.scan, &fx.time, fx.render).unwrap();
     let bins = fx.time.bins;
-    let row_loss = |k: usize, row: &[f32]| fx.term.row_value(row, &fx.measured[k * bins..(k + 1) * bins], k * bins, s);
+    let row_loss = |k: usize, row: &[f32], w: std::ops::Range<usize>| {
+        fx.term.row_value_in(row, &fx.measured[k * bins..(k + 1) * bins], k * bins, s, w)
+    };
     let nu: Vec<f32> = rendered.iter().map(|&x| (s * s * s * f64::from(x)) as f32).collect();
     let noise = noisy.then_some(nu.as_slice());
     let pruned = prune_boundary(t, &r, &brdf(), &mut rendered, bins, &row_loss, noise, &params).unwrap();
@@ -235,7 +237,7 @@ fn grow_run(init_half: i32, params: &GrowParams) -> (Vec<Vec3>, Vec<[u32; 3]>, n
     let (fx, mut rendered) = Fixture::new(init_half);
     let (p, t) = (&fx.positions, &fx.triangles);
     let before = fx.total(&rendered);
-    let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
+    let row_loss = |m: usize, row: &[f32], _: std::ops::Range<usize>| fx.row_loss(m, row);
     let (bins, b) = (fx.time.bins, brdf());
     let grown = grow_boundary(p, t, &fx.scan, &fx.time, fx.render, &b, &mut rendered, bins, &row_loss, params).unwrap();
     let after = fx.total(&rendered);
@@ -289,7 +291,7 @@ fn growth_of_a_mesh_with_a_bad_vertex_index_is_a_typed_error() {
     let (fx, mut rendered) = Fixture::new(3);
     let mut t = fx.triangles.clone();
     t[0][1] = fx.positions.len() as u32 + 7;
-    let row_loss = |m: usize, row: &[f32]| fx.row_loss(m, row);
+    let row_loss = |m: usize, row: &[f32], _: std::ops::Range<usize>| fx.row_loss(m, row);
     let r = grow_boundary(
         &fx.positions,
         &t,

@@ -60,9 +60,11 @@ fn brdf() -> ConcreteBrdf {
 fn run(s: &Setup, mesh: &(Vec<Vec3>, Vec<[u32; 3]>), measured: &[f32]) -> (nlos_optim::Patches, f64, f64) {
     let bins = s.time.bins;
     let term = DataTerm::default();
-    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0);
+    let row_loss = |m: usize, row: &[f32], w: std::ops::Range<usize>| {
+        term.row_value_in(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0, w)
+    };
     let total = |r: &[f32]| -> f64 {
-        (0..s.scan.measurements()).map(|m| row_loss(m, &r[m * bins..(m + 1) * bins]).unwrap()).sum()
+        (0..s.scan.measurements()).map(|m| row_loss(m, &r[m * bins..(m + 1) * bins], 0..bins).unwrap()).sum()
     };
     let mut rendered = render(s, mesh);
     let before = total(&rendered);
@@ -144,7 +146,9 @@ fn a_residual_of_the_wrong_length_is_a_typed_error() {
     let t = Transient::new(s.scan.clone(), s.time, measured.clone()).unwrap();
     let term = DataTerm::default();
     let bins = s.time.bins;
-    let row_loss = |m: usize, row: &[f32]| term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0);
+    let row_loss = |m: usize, row: &[f32], w: std::ops::Range<usize>| {
+        term.row_value_in(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0, w)
+    };
     let e = residual_patches(
         &mesh.0,
         &mesh.1,

@@ -79,6 +79,21 @@
 //! the raw vectors, so they chain straight into `a, b, N`. The original implementation dropped the
 //! `∂/∂N` term and used different kernels in the two passes; both are fixed here.
 //!
+//! ## The optimiser's rule: closed-form time integration ([`Sampling::Splat`])
+//! A point rule must cut a face until each piece spans a fraction of a bin: on the optimiser's first stage
+//! (8 mm faces at 0.4 m, 1.2 mm bins, spans of about 10 bins) that is up to 64 samples per (face,
+//! measurement). The splat rule instead takes the integrand at the centroid and τ linear over the face, whose
+//! area density over τ is a hat (rising from the smallest corner value to the middle one, falling to the
+//! largest), and integrates it against the tent kernel in closed form (`splat.rs`: a piecewise cubic, its
+//! second differences are the bin weights; their derivatives with respect to the three corner path lengths
+//! are closed form too). Two first-order corrections shift the hat: τ's convexity (the face's exact mean
+//! path length for a quadratic τ) and the fall-off of the distance factor across the face. A face is cut
+//! further only where τ's curvature needs it ([`SplatRule`]). The vector kernels compute each pair's centroid
+//! value, corner path lengths and closed-form constants; a scalar loop adds the weights over the bins the
+//! pair spans (about span + 2 of them). The adjoint's gather sums the adjoint rows' second differences
+//! against the same piecewise cubic. `benches/loop_cost.rs` times the optimiser's exact configuration;
+//! docs/performance.md has the figures (per-step time and bin-level error of every rule).
+//!
 //! ## Performance
 //! Triangles are stored as structure of arrays (`f32` per coordinate), grouped by normal direction into
 //! blocks of 256; a block whose bounds (componentwise range of the unit normals, smallest plane offset)
@@ -108,8 +123,9 @@
 //! order: forward, adjoint and loss are bit-identical whatever rayon's schedule (`tests/determinism.rs`
 //! compares pools of 1, 2 and 3 threads).
 //!
-//! Measured at the seed's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel,
-//! `fixed(1)`; `benches/render.rs`, `examples/profile.rs`) on this project's machine: 2 cores of an AMD EPYC
+//! The fixed rule at the seed's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent
+//! kernel, `fixed(1)`, which the optimiser does not run; `benches/render.rs`, `examples/profile.rs`) on this
+//! project's machine: 2 cores of an AMD EPYC
 //! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, idle (load average below 2), criterion medians:
 //!
 //! | mesh (faces), visibility | forward | forward + adjoint | pairs / s (f + a) | CPU-s (f + a) |
@@ -158,10 +174,13 @@ pub mod loss;
 pub mod render;
 mod rng;
 mod soa;
+mod splat;
 mod visibility;
 
 pub use brdf::RenderBrdf;
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;
-pub use render::{DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, Visibility};
+pub use render::{
+    DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule, Visibility,
+};

@@ -11,6 +11,7 @@ use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::rng::SplitMix64;
 use crate::soa::{self, Acc, BLOCK, Block, Frame, Isa, Packed, Scratch, Soa, SpotBox, TentAxis};
+use crate::splat::{self, Knots};
 use crate::visibility::Bvh;
 
 /// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
@@ -51,6 +52,31 @@ impl DeterministicRule {
     }
 }
 
+/// Closed-form time integration per (triangle, measurement) ([`Sampling::Splat`]): triangle t is cut into
+/// `n²` congruent sub-triangles (n per edge, the same cut as [`DeterministicRule`]); on each, the integrand
+/// `f_s Q` is taken at the centroid and the path length τ as linear between the three corners, whose area
+/// density over τ (rising from the smallest corner value to the middle one, falling to the largest) is
+/// integrated against the tent kernel in closed form (`splat.rs`). The time integral is then exact however
+/// many bins a sub-triangle spans; the level only has to resolve τ's curvature: `n` is the smallest level
+/// at which τ departs from linear by at most `max_deviation` bins over a sub-triangle, bounded as
+/// `(2/r) e²/(6 n²)` (τ's Hessian has norm ≤ 1/|x − l| + 1/|x − s| ≤ 2/r, r a lower bound of the distance
+/// from the triangle to every wall spot; the linear interpolant's error on a triangle of longest edge e is
+/// at most `M e²/6` for a Hessian norm ≤ M), taken as the largest over each block of 256 triangles and
+/// clamped to `[1, max_level]`. Tent kernel only.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplatRule {
+    /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.2.
+    pub max_deviation: f32,
+    /// Largest subdivision level (1..=64). Default 8.
+    pub max_level: u32,
+}
+
+impl Default for SplatRule {
+    fn default() -> Self {
+        Self { max_deviation: 0.2, max_level: 8 }
+    }
+}
+
 /// How the surface integral of eq. (1) is estimated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Sampling {
@@ -66,6 +92,11 @@ pub enum Sampling {
         /// Seed.
         seed: u64,
     },
+    /// Closed-form time integration of each (sub-)triangle against the tent kernel (see [`SplatRule`]):
+    /// noise-free, and about (span in bins + 2) operations per pair instead of the n² samples a point rule
+    /// needs to resolve the same span. The optimiser's default. Needs [`Kernel::Tent`]; the steady-state
+    /// passes use the same sub-triangle centroids (time does not matter there).
+    Splat(SplatRule),
 }
 
 impl Default for Sampling {
@@ -195,6 +226,12 @@ pub struct Renderer {
     lobe_fraction: f32,
     /// Per-triangle reflectance factors (mesh triangle order), None = all 1.
     face_weights: Option<Vec<f32>>,
+    /// Bounding box of every laser and sensor spot (the splat rule's distance bound).
+    spots: (Vec3, Vec3),
+    /// Splat rule: the subdivision level of each block of `BLOCK` storage slots, and of each mesh triangle
+    /// (its block's level); empty for the other rules.
+    block_levels: Vec<u32>,
+    tri_levels: Vec<u32>,
 }
 
 impl Renderer {
@@ -255,6 +292,9 @@ impl Renderer {
             isa: Isa::detect(),
             lobe_fraction: 0.0,
             face_weights: None,
+            spots: spot_box(scan),
+            block_levels: Vec::new(),
+            tri_levels: Vec::new(),
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -312,7 +352,40 @@ impl Renderer {
         if self.params.visibility == Visibility::Live {
             self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
         }
+        self.update_levels();
         Ok(())
+    }
+
+    /// The splat rule's levels ([`SplatRule`]) for the current positions and block order.
+    fn update_levels(&mut self) {
+        let Sampling::Splat(rule) = self.params.sampling else { return };
+        let tol = rule.max_deviation * self.time.bin_width as f32;
+        let (lo, hi) = self.spots;
+        let t = &self.tris;
+        let level = |i: usize| -> u32 {
+            if !t.valid[i] {
+                return 1;
+            }
+            let e = t.e_max[i];
+            let r = [t.v0[i], t.v0[i] + t.e1[i], t.v0[i] + t.e2[i]]
+                .iter()
+                .map(|p| (lo - *p).max(*p - hi).max(Vec3::ZERO).length())
+                .fold(f32::INFINITY, f32::min)
+                - e;
+            // Guard: a triangle touching a spot's box has no useful bound: the finest level (1e-4 m keeps the
+            // arithmetic finite).
+            let deviation = (2.0 / r.max(1e-4)) * e * e / 6.0;
+            let n = (deviation / tol).sqrt().ceil();
+            if n < rule.max_level as f32 { (n as u32).max(1) } else { rule.max_level }
+        };
+        let order = &t.soa.order;
+        self.block_levels =
+            order.chunks(BLOCK).map(|blk| blk.iter().map(|&i| level(i as usize)).max().unwrap_or(1)).collect();
+        let mut tri = vec![1u32; order.len()];
+        for (slot, &i) in order.iter().enumerate() {
+            tri[i as usize] = self.block_levels[slot / BLOCK];
+        }
+        self.tri_levels = tri;
     }
 
     /// Rebuilds the BVH at the current positions and, in [`Visibility::Cached`] mode, recomputes the cache.
@@ -326,6 +399,7 @@ impl Renderer {
         // mesh triangle order[i]), so the block kernels read it contiguously.
         let t = &self.tris;
         self.tris.soa = Soa::new(&t.v0, &t.e1, &t.e2, &t.n, &t.valid, None);
+        self.update_levels();
         let nt = self.tris.v0.len();
         let mut cache = vec![0u8; nt * self.wall.l.len()];
         let this = &*self;
@@ -461,11 +535,13 @@ impl Renderer {
         let bins = k.bins();
         let nt = self.tris.v0.len();
         let mut data = vec![0.0f32; self.wall.l.len() * bins];
-        // The tent fast path of the fixed rule splats into histograms padded by one bin at each end.
-        let pad = usize::from(self.tent_path(k).is_some());
+        // The tent fast path of the fixed rule and the splat rule write into histograms padded by one bin at
+        // each end.
+        let splat = self.splat_axis(k);
+        let pad = usize::from(self.tent_path(k).is_some() || splat.is_some());
         // Tiles of M_CHUNK measurements × BLOCK triangles: each task owns its histograms (no lock, no
         // reduction) and sweeps every block of triangles over them while the block is in cache.
-        let fixed = self.fixed_level();
+        let packed = self.packed_rule();
         data.par_chunks_mut(bins * M_CHUNK).enumerate().for_each(|(c, out)| {
             let (mut sc, mut pk) = (Scratch::new(), Packed::new());
             let rows = out.len() / bins;
@@ -473,13 +549,17 @@ impl Renderer {
             let ms: Vec<usize> = (c * M_CHUNK..c * M_CHUNK + rows).collect();
             for t0 in (0..nt).step_by(BLOCK) {
                 let t1 = (t0 + BLOCK).min(nt);
-                if let Some(n) = fixed {
-                    // The fixed rule: the tile's potentially active triangles of the block packed once, then
-                    // swept over its measurements.
+                if packed {
+                    // Fixed and splat rules: the tile's potentially active triangles of the block packed once,
+                    // then swept over its measurements.
+                    let n = self.block_level(t0);
                     let (hists, row_len) = if pad == 1 { (&mut local[..], bins + 2) } else { (&mut out[..], bins) };
                     if self.pack(&ms, t0, t1, &mut pk) {
                         for (&m, hist) in ms.iter().zip(hists.chunks_mut(row_len)) {
-                            self.forward_packed(brdf, k, n, m, t0, &pk, hist, &mut sc);
+                            match &splat {
+                                Some(axis) => self.forward_splat(brdf, axis, n, m, t0, &pk, hist, &mut sc),
+                                None => self.forward_packed(brdf, k, n, m, t0, &pk, hist, &mut sc),
+                            }
                         }
                     }
                 } else if pad == 1 {
@@ -536,7 +616,10 @@ impl Renderer {
                 continue;
             }
             hist.fill(0.0);
-            self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist);
+            match self.splat_axis(&self.kernel) {
+                Some(axis) => self.forward_tm_splat(brdf, &axis, triangle, &fr, sign, vis, &mut hist),
+                None => self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist),
+            }
             if let (Some(first), Some(last)) =
                 (hist.iter().position(|x| *x != 0.0), hist.iter().rposition(|x| *x != 0.0))
             {
@@ -581,13 +664,27 @@ impl Renderer {
         // triangle: the 12 geometric sums of `Acc::flush`.
         let per_task = nt.div_ceil(32).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
         // The tent fast path gathers from rows padded by a zero bin at each end (bin k at k + 1).
-        let (padded, row_len) = if self.tent_path(k).is_some() {
+        let splat = self.splat_axis(k);
+        let (padded, row_len) = if self.tent_path(k).is_some() || splat.is_some() {
             let mut p = vec![0.0f32; d_loss.len() / bins * (bins + 2)];
             p.par_chunks_mut(bins + 2).zip(d_loss.par_chunks(bins)).for_each(|(p, a)| p[1..=bins].copy_from_slice(a));
             (std::borrow::Cow::Owned(p), bins + 2)
         } else {
             (std::borrow::Cow::Borrowed(d_loss), bins)
         };
+        // The splat's gather sums the padded rows' second differences (`Knots::gather_d2`).
+        let second: Vec<f32> = if splat.is_some() {
+            let mut d = vec![0.0f32; padded.len()];
+            d.par_chunks_mut(row_len).zip(padded.par_chunks(row_len)).for_each(|(d, r)| {
+                for p in 1..row_len - 1 {
+                    d[p] = r[p - 1] - 2.0 * r[p] + r[p + 1];
+                }
+            });
+            d
+        } else {
+            Vec::new()
+        };
+        let packed = self.packed_rule();
         let mut per_tri = vec![[0.0f64; 12]; nt];
         let per_task_params: Vec<[f64; 4]> = per_tri
             .par_chunks_mut(per_task)
@@ -596,40 +693,51 @@ impl Renderer {
                 let (r0, r1) = (ci * per_task, ci * per_task + out.len());
                 let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
                 let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
-                let rows = || d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]);
-                match self.fixed_level() {
-                    Some(n) => {
-                        // Sample points outermost: the f32 accumulators then hold plain sums of dE/dx, and
-                        // the barycentric weights are applied once per flush.
-                        // Groups of FLUSH measurements × blocks: the group's potentially active triangles of
-                        // the block are packed once and swept over the group's measurements, accumulating in
-                        // f32 (packed order), then flushed into f64. Per triangle the additions come in the
-                        // same order whatever the packing: measurements ascending, flushed every FLUSH rows.
-                        let (mut acc, mut pk) = (Acc::new(BLOCK), Packed::new());
-                        let ms: Vec<usize> = (0..nonzero.len()).filter(|m| nonzero[*m]).collect();
-                        self.centroids(n, |u, v, w| {
-                            for group in ms.chunks(FLUSH) {
-                                for (b0, b1) in blocks() {
-                                    if !self.pack(group, b0, b1, &mut pk) {
-                                        continue;
+                if !packed {
+                    for (m, adj) in d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]) {
+                        for (b0, b1) in blocks() {
+                            let o = &mut out[b0 - r0..b1 - r0];
+                            self.adjoint_pairs(brdf, k, m, b0, b1, adj, o, &mut params, &mut sc);
+                        }
+                    }
+                    return params;
+                }
+                // Fixed and splat rules. Groups of FLUSH measurements × blocks: the group's potentially active
+                // triangles of the block are packed once; per sample point (sub-triangle) they are swept over
+                // the group's measurements, accumulating in f32 (packed order), then flushed into f64 (the
+                // f32 accumulators hold plain sums of dE/dx, the barycentric weights are applied at the
+                // flush). Per triangle the additions come in the same order whatever the packing and the
+                // thread count.
+                let (mut acc, mut pk) = (Acc::new(BLOCK), Packed::new());
+                let ms: Vec<usize> = (0..nonzero.len()).filter(|m| nonzero[*m]).collect();
+                for group in ms.chunks(FLUSH) {
+                    for (b0, b1) in blocks() {
+                        if !self.pack(group, b0, b1, &mut pk) {
+                            continue;
+                        }
+                        let n = self.block_level(b0);
+                        let o = &mut out[b0 - r0..b1 - r0];
+                        let slots = &pk.slots[..pk.len];
+                        subtriangles(n, |sub| {
+                            for &m in group {
+                                let adj = &padded[m * row_len..(m + 1) * row_len];
+                                match &splat {
+                                    Some(axis) => {
+                                        let d2 = &second[m * row_len..(m + 1) * row_len];
+                                        self.adjoint_splat(brdf, axis, m, b0, &pk, adj, d2, &sub, &mut acc, &mut sc);
                                     }
-                                    for &m in group {
-                                        let adj = &padded[m * row_len..(m + 1) * row_len];
-                                        self.adjoint_packed(brdf, k, m, b0, &pk, adj, (u, v, w), &mut acc, &mut sc);
+                                    None => {
+                                        let (u, v) = sub.centroid;
+                                        self.adjoint_packed(brdf, k, m, b0, &pk, adj, (u, v, sub.w), &mut acc, &mut sc);
                                     }
-                                    let o = &mut out[b0 - r0..b1 - r0];
-                                    acc.flush_packed((u, v), &pk.slots[..pk.len], o, &mut params);
                                 }
                             }
-                        });
-                    }
-                    None => {
-                        for (m, adj) in rows() {
-                            for (b0, b1) in blocks() {
-                                let o = &mut out[b0 - r0..b1 - r0];
-                                self.adjoint_pairs(brdf, k, m, b0, b1, adj, o, &mut params, &mut sc);
+                            if splat.is_some() {
+                                acc.flush_splat(sub.centroid, sub.corners, slots, o, &mut params);
+                            } else {
+                                acc.flush_packed(sub.centroid, slots, o, &mut params);
                             }
-                        }
+                        });
                     }
                 }
                 params
@@ -813,6 +921,9 @@ impl Renderer {
                 let n = self.level(&rule, t, fr);
                 self.centroids(n, f);
             }
+            // The splat rule's sub-triangle centroids (reached only with a kernel the closed form does not
+            // cover, where it is the fixed centroid rule of the triangle's level).
+            Sampling::Splat(_) => self.centroids(self.tri_levels.get(t).copied().unwrap_or(1), f),
             Sampling::Stratified { samples_per_measurement, seed } => {
                 let area = 0.5 * self.tris.n[t].length();
                 let c = samples_per_measurement as f32 * area / self.total_area;
@@ -922,6 +1033,194 @@ impl Renderer {
             Sampling::Deterministic(rule) if rule.min_level >= rule.max_level => Some(rule.max_level),
             _ => None,
         }
+    }
+
+    /// Whether the sampling runs the packed block kernels: the fixed deterministic rule and the splat rule.
+    #[inline(always)]
+    fn packed_rule(&self) -> bool {
+        self.fixed_level().is_some() || matches!(self.params.sampling, Sampling::Splat(_))
+    }
+
+    /// The subdivision level of the block starting at slot `t0` for the packed rules (1 for the others).
+    #[inline(always)]
+    fn block_level(&self, t0: usize) -> u32 {
+        match self.params.sampling {
+            Sampling::Splat(_) => self.block_levels.get(t0 / BLOCK).copied().unwrap_or(1),
+            _ => self.fixed_level().unwrap_or(1),
+        }
+    }
+
+    /// The tent kernel's constants when the splat rule applies (splat sampling and the tent kernel `k`).
+    #[inline(always)]
+    fn splat_axis(&self, k: &KernelEval) -> Option<TentAxis> {
+        match self.params.sampling {
+            Sampling::Splat(_) => k.tent(),
+            _ => None,
+        }
+    }
+
+    /// Forward pass of measurement m over the packed triangles `pk` of the block starting at slot `t0` into its
+    /// padded histogram (bin k at k + 1), splat rule of level n: per sub-triangle, the vector kernel gives
+    /// each triangle's centroid value and corner path lengths, then each active pair's closed-form tent
+    /// weights are added over the bins it spans.
+    #[allow(clippy::too_many_arguments)]
+    fn forward_splat<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        axis: &TentAxis,
+        n: u32,
+        m: usize,
+        t0: usize,
+        pk: &Packed,
+        hist: &mut [f32],
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        if !self.packed_factors(m, t0, pk, &fr, sc) {
+            return;
+        }
+        let blk = pk.block();
+        let len = blk.len;
+        let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
+        let last = hist.len() as i64 - 2;
+        subtriangles(n, |sub| {
+            if self.wall.confocal {
+                soa::splat_samples::<B, true>(self.isa, brdf, &blk, &fr, &sub, axis, sc);
+            } else {
+                soa::splat_samples::<B, false>(self.isa, brdf, &blk, &fr, &sub, axis, sc);
+            }
+            let (u, v) = sub.centroid;
+            for i in 0..len {
+                let g = sc.g[i];
+                if g == 0.0 {
+                    continue;
+                }
+                if live && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr) {
+                    continue;
+                }
+                if let Some(kn) =
+                    Knots::lane(&sc.lanes, i).or_else(|| Knots::new([sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]]))
+                {
+                    // Bins −1 and `bins` are the padding (index 0 and bins + 1): dropped afterwards.
+                    kn.weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+                }
+            }
+        });
+    }
+
+    /// The splat rule for one pair (t, m) into an unpadded histogram (the per-triangle forward pass): the same
+    /// sub-triangles, values and weights as [`Renderer::forward_splat`].
+    #[allow(clippy::too_many_arguments)]
+    fn forward_tm_splat<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        axis: &TentAxis,
+        t: usize,
+        fr: &Frame,
+        sign: f32,
+        vis_c: f32,
+        hist: &mut [f32],
+    ) {
+        let live = self.params.visibility == Visibility::Live;
+        let n = sign * self.tris.n[t];
+        let inv_2n = 0.5 / n.length();
+        let node = |x: Vec3| ((fr.l - x).length() + (fr.s - x).length() - axis.t0) * axis.inv_dt - 0.5;
+        let last = hist.len() as i64 - 1;
+        subtriangles(self.tri_levels.get(t).copied().unwrap_or(1), |sub| {
+            let (u, v) = sub.centroid;
+            let x = self.point(t, u, v);
+            let (a, b) = (fr.l - x, fr.s - x);
+            let (cl, cs) = (-fr.n_l.dot(a), -fr.n_s.dot(b));
+            let (pl, ps) = (n.dot(a), n.dot(b));
+            if !(cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0) {
+                return;
+            }
+            if live && !self.visible_live(x, t, fr) {
+                return;
+            }
+            let (ra2, rb2) = (a.length_squared(), b.length_squared());
+            let fs = if self.wall.confocal { brdf.eval_confocal(a, n) } else { brdf.eval(a, b, n) };
+            let g = sub.w * vis_c * fs * (cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2));
+            let c = sub.corners.map(|(cu, cv)| node(self.point(t, cu, cv)));
+            let (c0, c1, c2) = splat::centred(c[0], c[1], c[2], node(x), (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt);
+            if let Some(kn) = Knots::new([c0, c1, c2]) {
+                kn.weights(0, last, |k, w| hist[k as usize] += g * w);
+            }
+        });
+    }
+
+    /// Adjoint pass of measurement m (padded adjoint row `adj`) for sub-triangle `sub` of the splat rule over
+    /// the packed triangles `pk` of the block starting at slot `t0`, into `acc` (packed order). Stage 1
+    /// (vector): centroid lengths and cosine tests, corner path lengths and their gradients; stage 2: each
+    /// active pair's closed-form gather `Σ_k r_k w_k` and `Σ_k r_k ∂w_k/∂τ_j`, split through the centring
+    /// shift into corner terms and a centroid path-length term; stage 3 (vector): the centroid value's
+    /// gradient and the centroid term; stage 4 (vector): the corners' path-length terms.
+    #[allow(clippy::too_many_arguments)]
+    fn adjoint_splat<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        axis: &TentAxis,
+        m: usize,
+        t0: usize,
+        pk: &Packed,
+        adj: &[f32],
+        d2: &[f32],
+        sub: &soa::Sub,
+        acc: &mut Acc,
+        sc: &mut Scratch,
+    ) {
+        let fr = self.frame(m);
+        if !self.packed_factors(m, t0, pk, &fr, sc) {
+            return;
+        }
+        let blk = pk.block();
+        let len = blk.len;
+        let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
+        let (confocal, isa) = (self.wall.confocal, self.isa);
+        if confocal {
+            soa::splat_lengths::<true>(isa, &blk, &fr, sub, axis, sc);
+        } else {
+            soa::splat_lengths::<false>(isa, &blk, &fr, sub, axis, sc);
+        }
+        let last = adj.len() as i64 - 2;
+        let (u, v) = sub.centroid;
+        for i in 0..len {
+            let mut out = (0.0f32, [0.0f32; 3]);
+            let corners = [sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]];
+            if sc.ok[i] != 0.0
+                && let Some(kn) = Knots::lane(&sc.lanes, i).or_else(|| Knots::new(corners))
+            {
+                let (val, d) = kn.gather_d2(
+                    -1,
+                    last,
+                    |k| adj[(k + 1) as usize],
+                    |j| d2.get((j + 1) as usize).copied().unwrap_or(0.0),
+                );
+                out = (val, splat::to_corners(corners, d));
+            }
+            if live
+                && sc.ok[i] != 0.0
+                && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr)
+            {
+                sc.ok[i] = 0.0;
+                out = (0.0, [0.0; 3]);
+            }
+            sc.a_val[i] = out.0;
+            // Through the shift of `splat::centred` (∂s/∂u_j, ∂s/∂τ_c): the corners carry ∂/∂u_j + Σ ∂s/∂u_j,
+            // the centroid Σ ∂s/∂τ_c (its path-length term of stage 3); node units → metres of path.
+            let sum = out.1[0] + out.1[1] + out.1[2];
+            let (ds_du, ds_dtc) = splat::centred_grad(corners, (sc.tau[i] + sc.g[i]) * axis.inv_dt);
+            sc.a_der[i] = sum * ds_dtc * axis.inv_dt;
+            for ((ct, d), ds) in sc.ct.iter_mut().zip(out.1).zip(ds_du) {
+                ct[i] = (d + sum * ds) * axis.inv_dt;
+            }
+        }
+        if confocal {
+            soa::adjoint_samples::<B, true, true>(isa, brdf, &blk, &fr, (u, v, sub.w), sc, acc);
+        } else {
+            soa::adjoint_samples::<B, false, true>(isa, brdf, &blk, &fr, (u, v, sub.w), sc, acc);
+        }
+        soa::splat_corner_terms(isa, len, sc, acc);
     }
 
     /// Forward pass of measurement m over the triangles `t0..t1` into its histogram, pair by pair (any
@@ -1113,9 +1412,9 @@ impl Renderer {
         }
         // Stage 3 (vector): the gradient terms, accumulated per triangle.
         if confocal {
-            soa::adjoint_samples::<B, true>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
+            soa::adjoint_samples::<B, true, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
         } else {
-            soa::adjoint_samples::<B, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
+            soa::adjoint_samples::<B, false, false>(isa, brdf, &blk, &fr, (u, v, w), sc, acc);
         }
     }
 
@@ -1265,6 +1564,25 @@ impl Renderer {
     }
 }
 
+/// Calls `f` for the `n²` sub-triangles of level n (the cut of [`Renderer::centroids`], same order): corners,
+/// centroid and weight `1/n²`.
+#[inline(always)]
+fn subtriangles(n: u32, mut f: impl FnMut(soa::Sub)) {
+    let inv = 1.0 / n as f32;
+    let w = inv * inv;
+    let p = |i: u32, j: u32| (i as f32 * inv, j as f32 * inv);
+    for i in 0..n {
+        for j in 0..n - i {
+            let centroid = ((i as f32 + 1.0 / 3.0) * inv, (j as f32 + 1.0 / 3.0) * inv);
+            f(soa::Sub { corners: [p(i, j), p(i + 1, j), p(i, j + 1)], centroid, w });
+            if j + 1 < n - i {
+                let centroid = ((i as f32 + 2.0 / 3.0) * inv, (j as f32 + 2.0 / 3.0) * inv);
+                f(soa::Sub { corners: [p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)], centroid, w });
+            }
+        }
+    }
+}
+
 /// The GGX lobe sampler of [`Renderer::set_lobe_sampling`] for one (triangle, confocal spot): microfacet
 /// normals `m ~ D(m)(m·n)` about the oriented unit normal `n`, mapped to the plane through the ray from `l`
 /// along `−m`.
@@ -1330,6 +1648,14 @@ impl Lobe {
     }
 }
 
+/// Componentwise bounding box of every laser and sensor spot of the scan.
+fn spot_box(scan: &Scan) -> (Vec3, Vec3) {
+    (0..scan.measurements()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), i| {
+        let g = scan.measurement(i);
+        (lo.min(g.laser).min(g.sensor), hi.max(g.laser).max(g.sensor))
+    })
+}
+
 fn check_params(p: &RenderParams) -> Result<()> {
     let bad = |name, value: f64, reason| Err(RenderError::InvalidParameter { name, value, reason });
     if let Kernel::Gaussian { fwhm_bins } = p.kernel
@@ -1349,6 +1675,21 @@ fn check_params(p: &RenderParams) -> Result<()> {
         Sampling::Stratified { samples_per_measurement, .. } => {
             if samples_per_measurement == 0 {
                 return bad("samples_per_measurement", 0.0, "must be > 0");
+            }
+        }
+        Sampling::Splat(r) => {
+            if !(r.max_deviation > 0.0 && r.max_deviation.is_finite()) {
+                return bad("SplatRule.max_deviation", f64::from(r.max_deviation), "must be finite and > 0 bins");
+            }
+            if !(1..=64).contains(&r.max_level) {
+                return bad("SplatRule.max_level", f64::from(r.max_level), "must be in 1..=64");
+            }
+            if p.kernel != Kernel::Tent {
+                return bad(
+                    "Sampling::Splat",
+                    0.0,
+                    "integrates the tent kernel in closed form: use Kernel::Tent (or a Deterministic rule)",
+                );
             }
         }
     }

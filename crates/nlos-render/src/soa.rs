@@ -362,6 +362,16 @@ pub(crate) struct Scratch {
     pub(crate) w0: Vec<f32>,
     /// Tent fast path: weight of the upper bin times the sample value (forward).
     pub(crate) w1: Vec<f32>,
+    /// Splat: the sub-triangle's corner path lengths in node units (`(τ − t0)/Δ − ½`), corner order.
+    pub(crate) kn: [Vec<f32>; 3],
+    /// Splat (adjoint): `∂τ/∂(corner j)` = `−(a_j/|a_j| + b_j/|b_j|)`, coordinate c at index `3j + c`.
+    pub(crate) dir: [Vec<f32>; 9],
+    /// Splat (adjoint): `Σ_k r_k ∂w_k/∂τ_j` per corner j (per metre of path).
+    pub(crate) ct: [Vec<f32>; 3],
+    /// Splat (adjoint): the sample value `w·vis·f_s·Q` of active pairs (stage 3 writes it, stage 4 reads it).
+    pub(crate) hs: Vec<f32>,
+    /// Splat: the per-pair constants of the closed form (`splat::prepare`).
+    pub(crate) lanes: crate::splat::Lanes,
 }
 
 impl Scratch {
@@ -378,6 +388,11 @@ impl Scratch {
             idx: vec![0; BLOCK],
             w0: z(),
             w1: z(),
+            kn: [z(), z(), z()],
+            dir: [z(), z(), z(), z(), z(), z(), z(), z(), z()],
+            ct: [z(), z(), z()],
+            hs: z(),
+            lanes: crate::splat::Lanes::new(BLOCK),
         }
     }
 }
@@ -631,12 +646,49 @@ pub(crate) struct Acc {
     pub(crate) gx: [Vec<f32>; 3],
     pub(crate) gn: [Vec<f32>; 3],
     pub(crate) p: [Vec<f32>; 4],
+    /// Splat: Σ dE/d(corner j) of the sub-triangle through its path length, coordinate c at `3j + c`
+    /// (distributed to the vertices by the corners' barycentric coordinates at the flush).
+    pub(crate) gc: [Vec<f32>; 9],
 }
 
 impl Acc {
     pub(crate) fn new(len: usize) -> Self {
         let z = || vec![0.0f32; len];
-        Self { gx: [z(), z(), z()], gn: [z(), z(), z()], p: [z(), z(), z(), z()] }
+        Self {
+            gx: [z(), z(), z()],
+            gn: [z(), z(), z()],
+            p: [z(), z(), z(), z()],
+            gc: [z(), z(), z(), z(), z(), z(), z(), z(), z()],
+        }
+    }
+
+    /// [`Acc::flush_packed`] of a splat sub-triangle: also adds the corner accumulators, corner j (barycentric
+    /// `corners[j]`) to the three vertices with weights `(1 − u_j − v_j, u_j, v_j)`, and zeroes them.
+    pub(crate) fn flush_splat(
+        &mut self,
+        centroid: (f32, f32),
+        corners: [(f32, f32); 3],
+        slots: &[u32],
+        out: &mut [[f64; 12]],
+        params: &mut [f64; 4],
+    ) {
+        self.flush_packed(centroid, slots, out, params);
+        for (j, &(u, v)) in corners.iter().enumerate() {
+            let bw = [f64::from(1.0 - u - v), f64::from(u), f64::from(v)];
+            for (c, &t) in slots.iter().enumerate() {
+                let o = &mut out[t as usize];
+                for k in 0..3 {
+                    let g = f64::from(self.gc[3 * j + k][c]);
+                    o[k] += bw[0] * g;
+                    o[3 + k] += bw[1] * g;
+                    o[6 + k] += bw[2] * g;
+                }
+            }
+        }
+        let n = slots.len();
+        for g in &mut self.gc {
+            g[..n].fill(0.0);
+        }
     }
 
     /// Adds the packed accumulators of sample point (u, v) into `out` and `params`, in f64, and zeroes them:
@@ -677,13 +729,13 @@ impl Acc {
 /// `a_val[i]` or `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
+pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
     uvw: (f32, f32, f32),
-    sc: &Scratch,
+    sc: &mut Scratch,
     acc: &mut Acc,
 ) {
     let [gx0, gx1, gx2] = &mut acc.gx;
@@ -691,12 +743,14 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool>(
     let [p0, p1, p2, p3] = &mut acc.p;
     let g = [&mut gx0[..], &mut gx1[..], &mut gx2[..], &mut gn0[..], &mut gn1[..], &mut gn2[..]];
     let p = [&mut p0[..], &mut p1[..], &mut p2[..], &mut p3[..]];
-    adjoint_samples_acc::<B, CONFOCAL>(isa, brdf, b, fr, uvw, sc, g, p);
+    let mut hs = std::mem::take(&mut sc.hs);
+    adjoint_samples_acc::<B, CONFOCAL, SPLAT>(isa, brdf, b, fr, uvw, sc, g, p, &mut hs);
+    sc.hs = hs;
 }
 
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
-fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
+fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
     brdf: &B,
     b: &Block<'_>,
@@ -705,6 +759,7 @@ fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
     sc: &Scratch,
     [gx0, gx1, gx2, gn0, gn1, gn2]: [&mut [f32]; 6],
     [p0, p1, p2, p3]: [&mut [f32]; 4],
+    hs: &mut [f32],
 ) {
     // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
     // vectorises without runtime overlap checks. (Not through `dispatch!`: slices captured by a closure lose
@@ -715,18 +770,20 @@ fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool>(
         // and `("fma")` both returned true on this CPU.
         #[allow(unsafe_code)]
         unsafe {
-            adjoint_samples_avx2::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+            adjoint_samples_avx2::<B, CONFOCAL, SPLAT>(
+                brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3, hs,
+            )
         };
         return;
     }
-    adjoint_samples_body::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+    adjoint_samples_body::<B, CONFOCAL, SPLAT>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3, hs)
 }
 
 /// [`adjoint_samples_body`] compiled for AVX2 + FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(clippy::too_many_arguments)]
-fn adjoint_samples_avx2<B: RenderBrdf, const CONFOCAL: bool>(
+fn adjoint_samples_avx2<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
@@ -742,13 +799,14 @@ fn adjoint_samples_avx2<B: RenderBrdf, const CONFOCAL: bool>(
     p1: &mut [f32],
     p2: &mut [f32],
     p3: &mut [f32],
+    hs: &mut [f32],
 ) {
-    adjoint_samples_body::<B, CONFOCAL>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3)
+    adjoint_samples_body::<B, CONFOCAL, SPLAT>(brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3, hs)
 }
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
+fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
@@ -764,8 +822,10 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
     p1: &mut [f32],
     p2: &mut [f32],
     p3: &mut [f32],
+    hs: &mut [f32],
 ) {
     let len = b.len;
+    let (ok, hs) = (&sc.ok[..len], &mut hs[..len]);
     let (sign, vis, ra_s, rb_s, a_val, a_der) =
         (&sc.sign[..len], &sc.vis[..len], &sc.tau[..len], &sc.g[..len], &sc.a_val[..len], &sc.a_der[..len]);
     let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
@@ -779,7 +839,8 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
     let (p0, p1, p2, p3) = (&mut p0[..len], &mut p1[..len], &mut p2[..len], &mut p3[..len]);
     for i in 0..len {
         let (av, ad) = (a_val[i], a_der[i]);
-        let active = (av != 0.0) | (ad != 0.0);
+        // Splat: the corner terms (stage 4) need the sample value even where A_val vanishes.
+        let active = if SPLAT { ok[i] != 0.0 } else { (av != 0.0) | (ad != 0.0) };
         let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
         let sg = sign[i];
         let n = sg * at(&nn, i);
@@ -789,7 +850,7 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
         let (ra, rb) = (ra_s[i], rb_s[i]);
         let s = w * vis[i];
         // One division per pair: 1/|a|² (and 1/|b|²) from 1/(|a|²|b|²); 1/|a| = |a|/|a|².
-        let (gx, gn, sp, df_p) = if CONFOCAL {
+        let (gx, gn, sp, df_p, sh) = if CONFOCAL {
             // b = a, c_s = c_l, p_s = p_l, n_s = n_l: dE/da + dE/db in one expression.
             let ra2 = a.length_squared();
             let inv_ra2 = 1.0 / ra2;
@@ -807,7 +868,7 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
             // g.d_omega is the total derivative along the shared direction (∂/∂a + ∂/∂b).
             let gab = s * (av * (2.0 * fs * dq_a + q * g.d_omega) + (2.0 * h * ad * (ra * inv_ra2)) * a);
             let gn = sg * (s * av * (fs * dq_n + q * g.d_n));
-            (-gab, gn, s * av * q, B::param_grad_array(&g.d_params))
+            (-gab, gn, s * av * q, B::param_grad_array(&g.d_params), s * h)
         } else {
             let bb = fr.s - x;
             let cs = -fr.n_s.dot(bb);
@@ -827,13 +888,16 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
             let ga = s * (av * (fs * dq_a + q * g.d_omega_l) + (h * ad * (ra * inv_ra2)) * a);
             let gb = s * (av * (fs * dq_b + q * g.d_omega_s) + (h * ad * (rb * inv_rb2)) * bb);
             let gn = sg * (s * av * (fs * dq_n + q * g.d_n));
-            (-(ga + gb), gn, s * av * q, B::param_grad_array(&g.d_params))
+            (-(ga + gb), gn, s * av * q, B::param_grad_array(&g.d_params), s * h)
         };
         // x = v0 + u e1 + v e2 and a = l − x, b = s − x ⇒ dE/dx = −(ga + gb) (gx above).
         // A bit mask, not a branch or a select (which the compiler turns back into a conditional store that
         // blocks vectorisation): inactive lanes (possibly non-finite) add exactly +0.
         let mask = 0u32.wrapping_sub(u32::from(active));
         let pick = |z: f32| f32::from_bits(z.to_bits() & mask);
+        if SPLAT {
+            hs[i] = pick(sh);
+        }
         gx0[i] += pick(gx.x);
         gx1[i] += pick(gx.y);
         gx2[i] += pick(gx.z);
@@ -850,5 +914,225 @@ fn adjoint_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
         if np > 3 {
             p3[i] += pick(sp * df_p[3]);
         }
+    }
+}
+
+/// One splat sub-triangle of the triangles of a block: its three corners and centroid in barycentric
+/// coordinates `(u, v)` (u along e1, v along e2) and its weight `w` (fraction of the triangle's area).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sub {
+    pub(crate) corners: [(f32, f32); 3],
+    pub(crate) centroid: (f32, f32),
+    pub(crate) w: f32,
+}
+
+/// Path length of corner `(u, v)` of triangle i in node units, `(τ − t0)/Δ − ½`, and `∂τ/∂x` there.
+#[inline(always)]
+fn corner<const CONFOCAL: bool>(
+    b: &Block<'_>,
+    fr: &Frame,
+    i: usize,
+    (u, v): (f32, f32),
+    tent: &TentAxis,
+) -> (f32, Vec3) {
+    let x = b.point(i, u, v);
+    let a = fr.l - x;
+    let ra = a.length();
+    let (tau, d) = if CONFOCAL {
+        (ra + ra, a * (-2.0 / ra))
+    } else {
+        let bb = fr.s - x;
+        let rb = bb.length();
+        (ra + rb, -(a / ra + bb / rb))
+    };
+    ((tau - tent.t0) * tent.inv_dt - 0.5, d)
+}
+
+/// Forward, one splat sub-triangle per triangle of the block: `g[i]` = w × visibility × f_s × Q at the
+/// centroid (0 where the pair or the centroid's cosine tests fail, as in [`forward_samples`]) and the corner
+/// path lengths `kn[j][i]` in node units.
+#[inline(never)]
+pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
+    isa: Isa,
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    sub: &Sub,
+    tent: &TentAxis,
+    sc: &mut Scratch,
+) {
+    dispatch!(isa, splat_samples_body::<B, CONFOCAL>(brdf, b, fr, sub, tent, sc))
+}
+
+#[inline(always)]
+fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
+    brdf: &B,
+    b: &Block<'_>,
+    fr: &Frame,
+    sub: &Sub,
+    tent: &TentAxis,
+    sc: &mut Scratch,
+) {
+    let len = b.len;
+    let (sign, vis, g) = (&sc.sign[..len], &sc.vis[..len], &mut sc.g[..len]);
+    let [k0, k1, k2] = &mut sc.kn;
+    let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
+    let [l0, l1, l2, l3, l4, l5, l6, l7, l8, l9] = &mut sc.lanes.v;
+    let lanes = [
+        &mut l0[..len],
+        &mut l1[..len],
+        &mut l2[..len],
+        &mut l3[..len],
+        &mut l4[..len],
+        &mut l5[..len],
+        &mut l6[..len],
+        &mut l7[..len],
+        &mut l8[..len],
+        &mut l9[..len],
+    ];
+    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let inv_2n = &b.inv_2n[..len];
+    let (u, v) = sub.centroid;
+    for i in 0..len {
+        let x = b.point(i, u, v);
+        let n = sign[i] * at(&nn, i);
+        let a = fr.l - x;
+        let bb = if CONFOCAL { a } else { fr.s - x };
+        let cl = -fr.n_l.dot(a);
+        let pl = n.dot(a);
+        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
+        let ok = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        let ra2 = a.length_squared();
+        let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
+        let fs = if CONFOCAL { brdf.eval_confocal(a, n) } else { brdf.eval(a, bb, n) };
+        let q = cl * pl * cs * ps * inv_2n[i] / (ra2 * ra2 * rb2 * rb2);
+        let val = sub.w * vis[i] * fs * q;
+        g[i] = if ok { val } else { 0.0 };
+        let tc = if CONFOCAL { 2.0 * ra2.sqrt() } else { ra2.sqrt() + rb2.sqrt() };
+        let (t0, t1, t2) = crate::splat::centred(
+            corner::<CONFOCAL>(b, fr, i, sub.corners[0], tent).0,
+            corner::<CONFOCAL>(b, fr, i, sub.corners[1], tent).0,
+            corner::<CONFOCAL>(b, fr, i, sub.corners[2], tent).0,
+            (tc - tent.t0) * tent.inv_dt - 0.5,
+            tc * tent.inv_dt,
+        );
+        (k0[i], k1[i], k2[i]) = (t0, t1, t2);
+        let p = crate::splat::prepare(t0, t1, t2);
+        for k in 0..10 {
+            lanes[k][i] = p[k];
+        }
+    }
+}
+
+/// Adjoint, stage 1 of a splat sub-triangle per triangle: `|a|`, `|b|` and the cosine tests at the centroid
+/// (as [`adjoint_lengths`] without a kernel), the corner path lengths `kn` (node units) and their gradients
+/// `dir` with respect to the corner positions.
+#[inline(never)]
+pub(crate) fn splat_lengths<const CONFOCAL: bool>(
+    isa: Isa,
+    b: &Block<'_>,
+    fr: &Frame,
+    sub: &Sub,
+    tent: &TentAxis,
+    sc: &mut Scratch,
+) {
+    dispatch!(isa, splat_lengths_body::<CONFOCAL>(b, fr, sub, tent, sc))
+}
+
+#[inline(always)]
+fn splat_lengths_body<const CONFOCAL: bool>(b: &Block<'_>, fr: &Frame, sub: &Sub, tent: &TentAxis, sc: &mut Scratch) {
+    let len = b.len;
+    let (sign, vis, ra, rb, ok) =
+        (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len], &mut sc.ok[..len]);
+    let [k0, k1, k2] = &mut sc.kn;
+    let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
+    let [d0, d1, d2, d3, d4, d5, d6, d7, d8] = &mut sc.dir;
+    let (d0, d1, d2, d3, d4, d5, d6, d7, d8) = (
+        &mut d0[..len],
+        &mut d1[..len],
+        &mut d2[..len],
+        &mut d3[..len],
+        &mut d4[..len],
+        &mut d5[..len],
+        &mut d6[..len],
+        &mut d7[..len],
+        &mut d8[..len],
+    );
+    let [l0, l1, l2, l3, l4, l5, l6, l7, l8, l9] = &mut sc.lanes.v;
+    let lanes = [
+        &mut l0[..len],
+        &mut l1[..len],
+        &mut l2[..len],
+        &mut l3[..len],
+        &mut l4[..len],
+        &mut l5[..len],
+        &mut l6[..len],
+        &mut l7[..len],
+        &mut l8[..len],
+        &mut l9[..len],
+    ];
+    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let (u, v) = sub.centroid;
+    for i in 0..len {
+        let x = b.point(i, u, v);
+        let n = sign[i] * at(&nn, i);
+        let a = fr.l - x;
+        let bb = if CONFOCAL { a } else { fr.s - x };
+        let cl = -fr.n_l.dot(a);
+        let pl = n.dot(a);
+        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
+        let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        let r = a.length_squared().sqrt();
+        ra[i] = r;
+        rb[i] = if CONFOCAL { r } else { bb.length_squared().sqrt() };
+        ok[i] = f32::from(u8::from(pass));
+        let (t0, g0) = corner::<CONFOCAL>(b, fr, i, sub.corners[0], tent);
+        let (t1, g1) = corner::<CONFOCAL>(b, fr, i, sub.corners[1], tent);
+        let (t2, g2) = corner::<CONFOCAL>(b, fr, i, sub.corners[2], tent);
+        let tc = r + rb[i];
+        let (t0, t1, t2) = crate::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt);
+        (k0[i], k1[i], k2[i]) = (t0, t1, t2);
+        let p = crate::splat::prepare(t0, t1, t2);
+        for k in 0..10 {
+            lanes[k][i] = p[k];
+        }
+        (d0[i], d1[i], d2[i]) = (g0.x, g0.y, g0.z);
+        (d3[i], d4[i], d5[i]) = (g1.x, g1.y, g1.z);
+        (d6[i], d7[i], d8[i]) = (g2.x, g2.y, g2.z);
+    }
+}
+
+/// Adjoint, stage 4 of a splat sub-triangle: the path-length terms `dE/d(corner j) = h_i · ct_j · ∂τ/∂x_j`
+/// (h the sample value stage 3 left in `hs`, zero for inactive pairs), accumulated into `acc.gc`.
+#[inline(never)]
+pub(crate) fn splat_corner_terms(isa: Isa, len: usize, sc: &Scratch, acc: &mut Acc) {
+    for j in 0..3 {
+        let [gx, gy, gz] = &mut acc.gc[3 * j..3 * j + 3] else { return };
+        let (dx, dy, dz) = (&sc.dir[3 * j][..len], &sc.dir[3 * j + 1][..len], &sc.dir[3 * j + 2][..len]);
+        let (ct, hs) = (&sc.ct[j][..len], &sc.hs[..len]);
+        dispatch!(isa, corner_terms_body(hs, ct, dx, dy, dz, &mut gx[..len], &mut gy[..len], &mut gz[..len]));
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn corner_terms_body(
+    hs: &[f32],
+    ct: &[f32],
+    dx: &[f32],
+    dy: &[f32],
+    dz: &[f32],
+    gx: &mut [f32],
+    gy: &mut [f32],
+    gz: &mut [f32],
+) {
+    let len = hs.len();
+    let (ct, dx, dy, dz) = (&ct[..len], &dx[..len], &dy[..len], &dz[..len]);
+    let (gx, gy, gz) = (&mut gx[..len], &mut gy[..len], &mut gz[..len]);
+    for i in 0..len {
+        let c = hs[i] * ct[i];
+        gx[i] += c * dx[i];
+        gy[i] += c * dy[i];
+        gz[i] += c * dz[i];
     }
 }

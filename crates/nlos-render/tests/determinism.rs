@@ -7,7 +7,9 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{
+    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// The shared bumpy height field with an occluder; enough triangles for several adjoint tasks (256-triangle
@@ -86,6 +88,12 @@ fn results_do_not_depend_on_the_thread_count() {
     };
     check(fixed, &lambert, false);
     check(fixed, &ggx, true);
+    // The optimiser's rule: closed-form time integration, levels per block.
+    let splat = RenderParams { sampling: Sampling::Splat(SplatRule::default()), ..fixed };
+    check(splat, &lambert, false);
+    check(splat, &ggx, true);
+    let fine = RenderParams { sampling: Sampling::Splat(SplatRule { max_deviation: 0.005, max_level: 3 }), ..fixed };
+    check(fine, &ggx, false);
     // Live shadow rays, adaptive rule (the pair-by-pair path), Gaussian kernel.
     let adaptive = RenderParams {
         kernel: Kernel::Gaussian { fwhm_bins: 2.0 },

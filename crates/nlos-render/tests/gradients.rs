@@ -3,7 +3,9 @@
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{
+    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1).
@@ -59,19 +61,32 @@ fn fd5(h: f32, mut e: impl FnMut(f32) -> f64) -> f64 {
 }
 
 fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, exhaustive: bool, seed: u64) {
-    check_gradients_with(brdf, occluder, exhaustive, seed, Kernel::Tent);
-    check_gradients_with(brdf, occluder, exhaustive, seed, Kernel::Gaussian { fwhm_bins: 2.0 });
+    let fixed = Sampling::Deterministic(DeterministicRule::fixed(6));
+    check_gradients_with(brdf, occluder, exhaustive, seed, Kernel::Tent, fixed);
+    check_gradients_with(brdf, occluder, exhaustive, seed, Kernel::Gaussian { fwhm_bins: 2.0 }, fixed);
+    check_gradients_with(brdf, occluder, exhaustive, seed, Kernel::Tent, Sampling::Splat(SplatRule::default()));
 }
 
 /// With the tent kernel the adjoint weights are a random linear ramp in k per measurement: then
 /// `Σ_k a_k K_k(τ)` is linear in τ (no kinks at bin centres, where a finite difference of the piecewise-linear
 /// kernel is not a derivative). With the smooth Gaussian they are random smooth oscillations.
-fn check_gradients_with<B: RenderBrdf>(brdf: &B, occluder: bool, exhaustive: bool, seed: u64, kernel: Kernel) {
+///
+/// The splat rule integrates the kernel over each sub-triangle's path lengths in closed form: its
+/// transient is smooth in the vertices whatever the adjoint weights, so they are random oscillations too.
+fn check_gradients_with<B: RenderBrdf>(
+    brdf: &B,
+    occluder: bool,
+    exhaustive: bool,
+    seed: u64,
+    kernel: Kernel,
+    sampling: Sampling,
+) {
     let (p, f) = random_mesh(seed, occluder);
     let (scan, time) = setup(exhaustive);
+    let splat = matches!(sampling, Sampling::Splat(_));
     let params = RenderParams {
         kernel,
-        sampling: Sampling::Deterministic(DeterministicRule::fixed(6)),
+        sampling,
         visibility: if occluder { Visibility::Cached { level: 4 } } else { Visibility::Off },
         two_sided: false,
     };
@@ -83,7 +98,7 @@ fn check_gradients_with<B: RenderBrdf>(brdf: &B, occluder: bool, exhaustive: boo
         .map(|i| {
             let (m, k) = (i / bins, (i % bins) as f32);
             match kernel {
-                Kernel::Tent => ramps[m].0 + ramps[m].1 * k,
+                Kernel::Tent if !splat => ramps[m].0 + ramps[m].1 * k,
                 _ => (k * 0.21 + m as f32 * 1.3).cos() + 0.3,
             }
         })
@@ -134,7 +149,7 @@ fn check_gradients_with<B: RenderBrdf>(brdf: &B, occluder: bool, exhaustive: boo
         }
     }
     eprintln!(
-        "vertex gradient: vector rel error {vec_rel:.2e}, worst component {worst:.2e} ({kernel:?}, occluder {occluder}, exhaustive {exhaustive})"
+        "vertex gradient: vector rel error {vec_rel:.2e}, worst component {worst:.2e} ({kernel:?}, {sampling:?}, occluder {occluder}, exhaustive {exhaustive})"
     );
 }
 

@@ -1,0 +1,60 @@
+//! The renderer as the optimiser runs it (`nlos_optim::ReconstructParams::default()`): one forward + adjoint
+//! (`loss_and_gradient`, L2) at the seed's setup — confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins of
+//! 1.2 mm — with the tent kernel, `Sampling::Splat(SplatRule::default())` and cached visibility (level 1,
+//! built outside the timed loop, as the optimiser does once per remeshing), on the LCT start of the shared
+//! bunny (`fixtures/bunny_lct_start.obj`, from `cargo xtask fixtures`) remeshed isotropically as the
+//! optimiser's stages do: (a) 7.8 mm edges (stage 0, about 3.2k faces), (b) about 20k faces, (c) about 200k
+//! faces (100k vertices, the seed's scale; visibility off there, as its cache alone would be 0.8 GB). Also,
+//! for comparison, the adaptive quadrature the optimiser ran before (half a bin, level ≤ 8) on (a).
+//! Figures: docs/performance.md.
+#![allow(missing_docs)]
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use nlos_brdf::Lambertian;
+use nlos_mesh::remeshing::{BoundaryMode, RemeshParams, uniform_remeshing};
+use nlos_render::{DeterministicRule, Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_transient::{PointSet, Scan, TimeAxis};
+
+fn bench(c: &mut Criterion) {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/bunny_lct_start.obj");
+    let start = match nlos_mesh::io::load(path) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("skipping: {e} (run `cargo xtask fixtures`)");
+            return;
+        }
+    };
+    let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.25, 0.25).expect("grid"));
+    let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
+    let brdf = Lambertian::new(1.0f32).expect("valid");
+    let splat = Sampling::Splat(SplatRule::default());
+    let adaptive = Sampling::Deterministic(DeterministicRule { max_level: 8, ..DeterministicRule::default() });
+    let cached = Visibility::Cached { level: 1 };
+    let cases = [
+        ("stage0_3k", 0.5 / 64.0, splat, cached),
+        ("stage0_3k_adaptive8", 0.5 / 64.0, adaptive, cached),
+        ("remeshed_20k", 0.0031, splat, cached),
+        ("remeshed_200k", 0.00099, splat, Visibility::Off),
+    ];
+    for (name, edge, sampling, visibility) in cases {
+        let mut mesh = start.clone();
+        let rp = RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() };
+        uniform_remeshing(&mut mesh, edge, &rp).expect("remesh");
+        let (v, f) = mesh.to_triangles();
+        let params = RenderParams { kernel: Kernel::Tent, sampling, visibility, two_sided: false };
+        let r = Renderer::new(&v, &f, &scan, &time, params).expect("valid");
+        eprintln!("{name}: {} faces, {} vertices", f.len(), v.len());
+        // A measurement that differs from the render, so the adjoint is non-zero wherever the signal is.
+        let measured: Vec<f32> = r.forward(&brdf).iter().map(|x| 0.8 * x).collect();
+        let mut g = c.benchmark_group(name);
+        g.sample_size(10).measurement_time(std::time::Duration::from_secs(if name.contains("200k") { 60 } else { 20 }));
+        g.throughput(Throughput::Elements((f.len() * scan.measurements()) as u64));
+        g.bench_function("forward+adjoint", |b| {
+            b.iter(|| r.loss_and_gradient(&brdf, &measured, Loss::L2, None).expect("ok"))
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
