@@ -926,16 +926,18 @@ pub(crate) struct Sub {
     pub(crate) w: f32,
 }
 
-/// Path length of corner `(u, v)` of triangle i in node units, `(τ − t0)/Δ − ½`, and `∂τ/∂x` there.
+/// Path length of the point `(u, v)` of the triangle `(p0, e1, e2)` in node units, `(τ − t0)/Δ − ½`, and
+/// `∂τ/∂x` there.
 #[inline(always)]
 fn corner<const CONFOCAL: bool>(
-    b: &Block<'_>,
+    p0: Vec3,
+    e1: Vec3,
+    e2: Vec3,
     fr: &Frame,
-    i: usize,
     (u, v): (f32, f32),
     tent: &TentAxis,
 ) -> (f32, Vec3) {
-    let x = b.point(i, u, v);
+    let x = p0 + u * e1 + v * e2;
     let a = fr.l - x;
     let ra = a.length();
     let (tau, d) = if CONFOCAL {
@@ -961,7 +963,8 @@ pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
     tent: &TentAxis,
     sc: &mut Scratch,
 ) {
-    dispatch!(isa, splat_samples_body::<B, CONFOCAL>(brdf, b, fr, sub, tent, sc))
+    dispatch!(isa, splat_samples_body::<B, CONFOCAL>(brdf, b, fr, sub, tent, sc));
+    prepare_lanes(isa, b.len, sc);
 }
 
 #[inline(always)]
@@ -977,24 +980,15 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
     let (sign, vis, g) = (&sc.sign[..len], &sc.vis[..len], &mut sc.g[..len]);
     let [k0, k1, k2] = &mut sc.kn;
     let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
-    let [l0, l1, l2, l3, l4, l5, l6, l7, l8, l9] = &mut sc.lanes.v;
-    let lanes = [
-        &mut l0[..len],
-        &mut l1[..len],
-        &mut l2[..len],
-        &mut l3[..len],
-        &mut l4[..len],
-        &mut l5[..len],
-        &mut l6[..len],
-        &mut l7[..len],
-        &mut l8[..len],
-        &mut l9[..len],
-    ];
     let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
+    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
+    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
     let inv_2n = &b.inv_2n[..len];
     let (u, v) = sub.centroid;
     for i in 0..len {
-        let x = b.point(i, u, v);
+        let (p0, d1, d2) = (at(&v0, i), at(&e1, i), at(&e2, i));
+        let x = p0 + u * d1 + v * d2;
         let n = sign[i] * at(&nn, i);
         let a = fr.l - x;
         let bb = if CONFOCAL { a } else { fr.s - x };
@@ -1010,17 +1004,13 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
         g[i] = if ok { val } else { 0.0 };
         let tc = if CONFOCAL { 2.0 * ra2.sqrt() } else { ra2.sqrt() + rb2.sqrt() };
         let (t0, t1, t2) = crate::splat::centred(
-            corner::<CONFOCAL>(b, fr, i, sub.corners[0], tent).0,
-            corner::<CONFOCAL>(b, fr, i, sub.corners[1], tent).0,
-            corner::<CONFOCAL>(b, fr, i, sub.corners[2], tent).0,
+            corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[0], tent).0,
+            corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[1], tent).0,
+            corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[2], tent).0,
             (tc - tent.t0) * tent.inv_dt - 0.5,
             tc * tent.inv_dt,
         );
         (k0[i], k1[i], k2[i]) = (t0, t1, t2);
-        let p = crate::splat::prepare(t0, t1, t2);
-        for k in 0..10 {
-            lanes[k][i] = p[k];
-        }
     }
 }
 
@@ -1036,18 +1026,13 @@ pub(crate) fn splat_lengths<const CONFOCAL: bool>(
     tent: &TentAxis,
     sc: &mut Scratch,
 ) {
-    dispatch!(isa, splat_lengths_body::<CONFOCAL>(b, fr, sub, tent, sc))
-}
-
-#[inline(always)]
-fn splat_lengths_body<const CONFOCAL: bool>(b: &Block<'_>, fr: &Frame, sub: &Sub, tent: &TentAxis, sc: &mut Scratch) {
     let len = b.len;
     let (sign, vis, ra, rb, ok) =
         (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len], &mut sc.ok[..len]);
     let [k0, k1, k2] = &mut sc.kn;
-    let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
     let [d0, d1, d2, d3, d4, d5, d6, d7, d8] = &mut sc.dir;
-    let (d0, d1, d2, d3, d4, d5, d6, d7, d8) = (
+    let out = [ra, rb, ok, &mut k0[..len], &mut k1[..len], &mut k2[..len]];
+    let dirs = [
         &mut d0[..len],
         &mut d1[..len],
         &mut d2[..len],
@@ -1057,24 +1042,100 @@ fn splat_lengths_body<const CONFOCAL: bool>(b: &Block<'_>, fr: &Frame, sub: &Sub
         &mut d6[..len],
         &mut d7[..len],
         &mut d8[..len],
-    );
-    let [l0, l1, l2, l3, l4, l5, l6, l7, l8, l9] = &mut sc.lanes.v;
-    let lanes = [
-        &mut l0[..len],
-        &mut l1[..len],
-        &mut l2[..len],
-        &mut l3[..len],
-        &mut l4[..len],
-        &mut l5[..len],
-        &mut l6[..len],
-        &mut l7[..len],
-        &mut l8[..len],
-        &mut l9[..len],
     ];
+    // Separate `&mut` arguments (not captured by a closure, not an array indexed in the loop): the compiler
+    // then knows the 15 output streams alias nothing, and vectorises the loop.
+    let [ra, rb, ok, k0, k1, k2] = out;
+    let [d0, d1, d2, d3, d4, d5, d6, d7, d8] = dirs;
+    #[cfg(target_arch = "x86_64")]
+    if isa.avx2 {
+        // SAFETY: `Isa { avx2: true }` is only built by `Isa::detect` after `is_x86_feature_detected!("avx2")`
+        // and `("fma")` both returned true on this CPU.
+        #[allow(unsafe_code)]
+        unsafe {
+            splat_lengths_avx2::<CONFOCAL>(
+                b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+            );
+        }
+        prepare_lanes(isa, len, sc);
+        return;
+    }
+    splat_lengths_body::<CONFOCAL>(
+        b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+    );
+    prepare_lanes(isa, len, sc);
+}
+
+/// [`splat_lengths_body`] compiled for AVX2 + FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+fn splat_lengths_avx2<const CONFOCAL: bool>(
+    b: &Block<'_>,
+    fr: &Frame,
+    sub: &Sub,
+    tent: &TentAxis,
+    sign: &[f32],
+    vis: &[f32],
+    ra: &mut [f32],
+    rb: &mut [f32],
+    ok: &mut [f32],
+    k0: &mut [f32],
+    k1: &mut [f32],
+    k2: &mut [f32],
+    d0: &mut [f32],
+    d1: &mut [f32],
+    d2: &mut [f32],
+    d3: &mut [f32],
+    d4: &mut [f32],
+    d5: &mut [f32],
+    d6: &mut [f32],
+    d7: &mut [f32],
+    d8: &mut [f32],
+) {
+    splat_lengths_body::<CONFOCAL>(
+        b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+    );
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn splat_lengths_body<const CONFOCAL: bool>(
+    b: &Block<'_>,
+    fr: &Frame,
+    sub: &Sub,
+    tent: &TentAxis,
+    sign: &[f32],
+    vis: &[f32],
+    ra: &mut [f32],
+    rb: &mut [f32],
+    ok: &mut [f32],
+    k0: &mut [f32],
+    k1: &mut [f32],
+    k2: &mut [f32],
+    d0: &mut [f32],
+    d1: &mut [f32],
+    d2: &mut [f32],
+    d3: &mut [f32],
+    d4: &mut [f32],
+    d5: &mut [f32],
+    d6: &mut [f32],
+    d7: &mut [f32],
+    d8: &mut [f32],
+) {
+    let len = b.len;
+    let (sign, vis, ra, rb, ok) = (&sign[..len], &vis[..len], &mut ra[..len], &mut rb[..len], &mut ok[..len]);
+    let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
+    let (d0, d1, d2, d3, d4) = (&mut d0[..len], &mut d1[..len], &mut d2[..len], &mut d3[..len], &mut d4[..len]);
+    let (d5, d6, d7, d8) = (&mut d5[..len], &mut d6[..len], &mut d7[..len], &mut d8[..len]);
     let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
+    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
+    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
     let (u, v) = sub.centroid;
     for i in 0..len {
-        let x = b.point(i, u, v);
+        let (p0, q1, q2) = (at(&v0, i), at(&e1, i), at(&e2, i));
+        let x = p0 + u * q1 + v * q2;
         let n = sign[i] * at(&nn, i);
         let a = fr.l - x;
         let bb = if CONFOCAL { a } else { fr.s - x };
@@ -1083,22 +1144,88 @@ fn splat_lengths_body<const CONFOCAL: bool>(b: &Block<'_>, fr: &Frame, sub: &Sub
         let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
         let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
         let r = a.length_squared().sqrt();
+        let r2 = if CONFOCAL { r } else { bb.length_squared().sqrt() };
         ra[i] = r;
-        rb[i] = if CONFOCAL { r } else { bb.length_squared().sqrt() };
+        rb[i] = r2;
         ok[i] = f32::from(u8::from(pass));
-        let (t0, g0) = corner::<CONFOCAL>(b, fr, i, sub.corners[0], tent);
-        let (t1, g1) = corner::<CONFOCAL>(b, fr, i, sub.corners[1], tent);
-        let (t2, g2) = corner::<CONFOCAL>(b, fr, i, sub.corners[2], tent);
-        let tc = r + rb[i];
+        let (t0, g0) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[0], tent);
+        let (t1, g1) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[1], tent);
+        let (t2, g2) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[2], tent);
+        let tc = r + r2;
         let (t0, t1, t2) = crate::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt);
         (k0[i], k1[i], k2[i]) = (t0, t1, t2);
-        let p = crate::splat::prepare(t0, t1, t2);
-        for k in 0..10 {
-            lanes[k][i] = p[k];
-        }
         (d0[i], d1[i], d2[i]) = (g0.x, g0.y, g0.z);
         (d3[i], d4[i], d5[i]) = (g1.x, g1.y, g1.z);
         (d6[i], d7[i], d8[i]) = (g2.x, g2.y, g2.z);
+    }
+}
+
+/// The closed form's per-pair constants (`splat::prepare`) of the corner path lengths `kn` into `lanes`,
+/// vectorised (3 input and 10 output streams as separate arguments).
+#[inline(never)]
+pub(crate) fn prepare_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
+    let [k0, k1, k2] = &sc.kn;
+    let [l0, l1, l2, l3, l4, l5, l6, l7, l8, l9] = &mut sc.lanes.v;
+    #[cfg(target_arch = "x86_64")]
+    if isa.avx2 {
+        // SAFETY: as in `splat_lengths`.
+        #[allow(unsafe_code)]
+        unsafe {
+            prepare_lanes_avx2(len, k0, k1, k2, l0, l1, l2, l3, l4, l5, l6, l7, l8, l9);
+        }
+        return;
+    }
+    prepare_lanes_body(len, k0, k1, k2, l0, l1, l2, l3, l4, l5, l6, l7, l8, l9);
+}
+
+/// [`prepare_lanes_body`] compiled for AVX2 + FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+fn prepare_lanes_avx2(
+    len: usize,
+    k0: &[f32],
+    k1: &[f32],
+    k2: &[f32],
+    l0: &mut [f32],
+    l1: &mut [f32],
+    l2: &mut [f32],
+    l3: &mut [f32],
+    l4: &mut [f32],
+    l5: &mut [f32],
+    l6: &mut [f32],
+    l7: &mut [f32],
+    l8: &mut [f32],
+    l9: &mut [f32],
+) {
+    prepare_lanes_body(len, k0, k1, k2, l0, l1, l2, l3, l4, l5, l6, l7, l8, l9);
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn prepare_lanes_body(
+    len: usize,
+    k0: &[f32],
+    k1: &[f32],
+    k2: &[f32],
+    l0: &mut [f32],
+    l1: &mut [f32],
+    l2: &mut [f32],
+    l3: &mut [f32],
+    l4: &mut [f32],
+    l5: &mut [f32],
+    l6: &mut [f32],
+    l7: &mut [f32],
+    l8: &mut [f32],
+    l9: &mut [f32],
+) {
+    let (k0, k1, k2) = (&k0[..len], &k1[..len], &k2[..len]);
+    let (l0, l1, l2, l3, l4) = (&mut l0[..len], &mut l1[..len], &mut l2[..len], &mut l3[..len], &mut l4[..len]);
+    let (l5, l6, l7, l8, l9) = (&mut l5[..len], &mut l6[..len], &mut l7[..len], &mut l8[..len], &mut l9[..len]);
+    for i in 0..len {
+        let p = crate::splat::prepare(k0[i], k1[i], k2[i]);
+        (l0[i], l1[i], l2[i], l3[i], l4[i]) = (p[0], p[1], p[2], p[3], p[4]);
+        (l5[i], l6[i], l7[i], l8[i], l9[i]) = (p[5], p[6], p[7], p[8], p[9]);
     }
 }
 
