@@ -57,10 +57,10 @@ pub(crate) struct Args {
     /// `--out`'s command.json; other settings are an error, not a silently different run).
     #[arg(long)]
     resume: bool,
-    /// Coarse-to-fine stages at most (default: the seed's 4).
+    /// Coarse-to-fine stages at most (default 3; the seed's 4).
     #[arg(long)]
     stages: Option<u32>,
-    /// Resolution of the first stage: target edge length 0.5 m / RES (default: the seed's 64).
+    /// Resolution of the first stage: target edge length 0.5 m / RES (default 48; the seed's 64).
     #[arg(long, value_name = "RES")]
     resolution: Option<f64>,
     /// Blocks per stage at most (default 4).

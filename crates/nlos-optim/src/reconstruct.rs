@@ -1266,10 +1266,11 @@ mod tests {
     /// ("different reconstruction settings"). The values below were printed by that version (9145556).
     #[test]
     fn settings_fingerprint_of_older_checkpoints_is_unchanged() {
-        // The defaults of that version rendered with the adaptive quadrature; the splat rule that replaced
-        // it renders differently, so a checkpoint of the old default must not resume under the new one.
+        // The defaults of that version rendered with the adaptive quadrature and ran 4 stages from resolution
+        // 64; a checkpoint of the old default must not resume under the new one.
         let old_default = ReconstructParams {
             sampling: crate::SamplingSchedule::Deterministic(nlos_render::DeterministicRule::default()),
+            schedule: crate::Schedule { initial_resolution: 64.0, max_stages: 4, ..crate::Schedule::default() },
             ..ReconstructParams::default()
         };
         assert_ne!(settings_fingerprint(&old_default), settings_fingerprint(&ReconstructParams::default()));
