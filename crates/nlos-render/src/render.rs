@@ -1098,6 +1098,17 @@ impl Renderer {
                 if live && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr) {
                     continue;
                 }
+                // Pairs spanning at most four bins: their weights came with the vector kernels.
+                let k0 = sc.lanes.v[0][i];
+                if sc.short[i] != 0.0 && k0 >= -1.0 {
+                    let p = (k0 + 1.0) as usize;
+                    if let Some(h) = hist.get_mut(p..p + 4) {
+                        for (x, w) in h.iter_mut().zip([sc.sw[0][i], sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]]) {
+                            *x += g * w;
+                        }
+                        continue;
+                    }
+                }
                 if let Some(kn) =
                     Knots::lane(&sc.lanes, i).or_else(|| Knots::new([sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]]))
                 {
@@ -1184,10 +1195,15 @@ impl Renderer {
         }
         let last = adj.len() as i64 - 2;
         let (u, v) = sub.centroid;
+        // Pairs spanning at most four bins: their gathers in the vector kernels.
+        soa::short_gathers(isa, len, adj, sc);
         for i in 0..len {
             let mut out = (0.0f32, [0.0f32; 3]);
             let corners = [sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]];
-            if sc.ok[i] != 0.0
+            if sc.ok[i] != 0.0 && sc.short[i] != 0.0 {
+                let d = [sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]];
+                out = (sc.sw[0][i], splat::to_corners(corners, d));
+            } else if sc.ok[i] != 0.0
                 && let Some(kn) = Knots::lane(&sc.lanes, i).or_else(|| Knots::new(corners))
             {
                 let (val, d) = kn.gather_d2(

@@ -372,6 +372,10 @@ pub(crate) struct Scratch {
     pub(crate) hs: Vec<f32>,
     /// Splat: the per-pair constants of the closed form (`splat::prepare`).
     pub(crate) lanes: crate::splat::Lanes,
+    /// Splat (forward): the four bin weights of pairs spanning at most four bins, and 1.0 for those pairs
+    /// (`splat::short_weights`).
+    pub(crate) sw: [Vec<f32>; 4],
+    pub(crate) short: Vec<f32>,
 }
 
 impl Scratch {
@@ -393,6 +397,8 @@ impl Scratch {
             ct: [z(), z(), z()],
             hs: z(),
             lanes: crate::splat::Lanes::new(BLOCK),
+            sw: [z(), z(), z(), z()],
+            short: z(),
         }
     }
 }
@@ -965,6 +971,61 @@ pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
 ) {
     dispatch!(isa, splat_samples_body::<B, CONFOCAL>(brdf, b, fr, sub, tent, sc));
     prepare_lanes(isa, b.len, sc);
+    short_lanes(isa, b.len, sc);
+}
+
+/// The bin weights of the pairs that span at most four bins (`splat::short_weights`) from `lanes` into
+/// `sw` and `short`, vectorised (separate output arguments).
+#[inline(never)]
+fn short_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
+    let lanes = &sc.lanes.v;
+    let [w0, w1, w2, w3] = &mut sc.sw;
+    let short = &mut sc.short;
+    #[cfg(target_arch = "x86_64")]
+    if isa.avx2 {
+        // SAFETY: as in `splat_lengths`.
+        #[allow(unsafe_code)]
+        unsafe {
+            short_lanes_avx2(len, lanes, w0, w1, w2, w3, short);
+        }
+        return;
+    }
+    short_lanes_body(len, lanes, w0, w1, w2, w3, short);
+}
+
+/// [`short_lanes_body`] compiled for AVX2 + FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn short_lanes_avx2(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    w0: &mut [f32],
+    w1: &mut [f32],
+    w2: &mut [f32],
+    w3: &mut [f32],
+    short: &mut [f32],
+) {
+    short_lanes_body(len, lanes, w0, w1, w2, w3, short);
+}
+
+#[inline(always)]
+fn short_lanes_body(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    w0: &mut [f32],
+    w1: &mut [f32],
+    w2: &mut [f32],
+    w3: &mut [f32],
+    short: &mut [f32],
+) {
+    let v: [&[f32]; 10] = std::array::from_fn(|k| &lanes[k][..len]);
+    let (w0, w1, w2, w3, short) = (&mut w0[..len], &mut w1[..len], &mut w2[..len], &mut w3[..len], &mut short[..len]);
+    for i in 0..len {
+        let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
+        let (w, s) = crate::splat::short_weights(&p);
+        (w0[i], w1[i], w2[i], w3[i]) = (w[0], w[1], w[2], w[3]);
+        short[i] = f32::from(u8::from(s));
+    }
 }
 
 #[inline(always)]
@@ -1261,5 +1322,79 @@ fn corner_terms_body(
         gx[i] += c * dx[i];
         gy[i] += c * dy[i];
         gz[i] += c * dz[i];
+    }
+}
+
+/// The adjoint's gathers of the pairs that span at most four bins (`splat::short_gather`) against the padded
+/// adjoint row `adj` (bin k at k + 1): `sw[0..4]` = `(Σ r w, Σ r ∂w/∂a, ∂/∂b, ∂/∂c)` and `short` = 1.0 for
+/// those pairs (inside the row), vectorised.
+#[inline(never)]
+pub(crate) fn short_gathers(isa: Isa, len: usize, adj: &[f32], sc: &mut Scratch) {
+    let lanes = &sc.lanes.v;
+    let [w0, w1, w2, w3] = &mut sc.sw;
+    let short = &mut sc.short;
+    #[cfg(target_arch = "x86_64")]
+    if isa.avx2 {
+        // SAFETY: as in `splat_lengths`.
+        #[allow(unsafe_code)]
+        unsafe {
+            short_gathers_avx2(len, lanes, adj, w0, w1, w2, w3, short);
+        }
+        return;
+    }
+    short_gathers_body(len, lanes, adj, w0, w1, w2, w3, short);
+}
+
+/// [`short_gathers_body`] compiled for AVX2 + FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+fn short_gathers_avx2(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    adj: &[f32],
+    w0: &mut [f32],
+    w1: &mut [f32],
+    w2: &mut [f32],
+    w3: &mut [f32],
+    short: &mut [f32],
+) {
+    short_gathers_body(len, lanes, adj, w0, w1, w2, w3, short);
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn short_gathers_body(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    adj: &[f32],
+    w0: &mut [f32],
+    w1: &mut [f32],
+    w2: &mut [f32],
+    w3: &mut [f32],
+    short: &mut [f32],
+) {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2²³
+    let v: [&[f32]; 10] = std::array::from_fn(|k| &lanes[k][..len]);
+    let (w0, w1, w2, w3, short) = (&mut w0[..len], &mut w1[..len], &mut w2[..len], &mut w3[..len], &mut short[..len]);
+    if adj.len() < 4 {
+        short.fill(0.0);
+        return;
+    }
+    // The padded index of bin k0 is k0 + 1; four bins from there must lie in the row.
+    let top = (adj.len() - 4) as f32;
+    let last = adj.len() - 4;
+    for i in 0..len {
+        let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
+        let (_, s) = crate::splat::short_weights(&p);
+        let pos = p[0] + 1.0;
+        let inside = (pos >= 0.0) & (pos <= top);
+        // An exact small integer read from the bits (no float → int cast, which does not vectorise).
+        let q = (pos.max(0.0).min(top) + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()) as usize;
+        let q = q.min(last);
+        let r = [adj[q], adj[q + 1], adj[q + 2], adj[q + 3]];
+        let o = crate::splat::short_gather(&p, r);
+        (w0[i], w1[i], w2[i], w3[i]) = (o[0], o[1], o[2], o[3]);
+        short[i] = f32::from(u8::from(s & inside));
     }
 }

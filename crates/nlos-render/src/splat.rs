@@ -103,6 +103,66 @@ pub(crate) fn centred_grad(u: [f32; 3], tc: f32) -> ([f32; 3], f32) {
     (u.map(|x| -0.25 - k * (3.0 * x - sum) * (1.0 / 18.0)), 0.75 + k * var / tc)
 }
 
+/// The bin weights of a pair that spans at most four bins (its largest shifted corner value c ≤ 3: bins
+/// `k0 ..= k0 + 3`), branch-free from its [`prepare`] constants `p`, for the vector kernels: `(w, short)`,
+/// `short` false (and `w` unused) for longer or invalid pairs. Shifted nodes 1..=4 all lie above a (a < 1),
+/// so `w_0 = G(1)`, `w_1 = G(2) − 2G(1)`, `w_m = G(m − 1) − 2G(m) + G(m + 1)`.
+#[inline(always)]
+pub(crate) fn short_weights(p: &[f32; 10]) -> ([f32; 4], bool) {
+    let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, ok] = *p;
+    let g = |u: f32| {
+        let d = u - a;
+        let g2 = d * d * d * c2;
+        let t = u - b;
+        let g3 = (l1 * l1 * (1.0 / 3.0) + l1 * t + t * t * (1.0 - t * inv_l2 * (1.0 / 3.0))) * inv_d;
+        if u <= b {
+            g2
+        } else if u <= c {
+            g3
+        } else {
+            u - mean
+        }
+    };
+    let (g1, g2, g3, g4) = (g(1.0), g(2.0), g(3.0), g(4.0));
+    ([g1, g2 - 2.0 * g1, g1 - 2.0 * g2 + g3, g2 - 2.0 * g3 + g4], (ok != 0.0) & (c <= 3.0))
+}
+
+/// The adjoint's gather of a pair spanning at most four bins (as [`short_weights`]), branch-free for the
+/// vector kernels: `Σ_m r_m w_m` and `Σ_m r_m ∂w_m/∂(a, b, c)` over its bins `k0 + m` (m = 0..4, `r` the
+/// adjoint row there), from `(G, ∂G/∂a, ∂G/∂b, ∂G/∂c)` at the shifted nodes 1..=4.
+#[inline(always)]
+pub(crate) fn short_gather(p: &[f32; 10], r: [f32; 4]) -> [f32; 4] {
+    let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, _] = *p;
+    let g = |u: f32| -> [f32; 4] {
+        let d = u - a;
+        let f2 = d * d * (3.0 * c2);
+        let g2 = f2 * d * (1.0 / 3.0);
+        let (gb2, gc2) = (-g2 * (3.0 * c2 * (c - a)), -g2 * inv_d);
+        let t = u - b;
+        let rho = t * inv_l2;
+        let n3 = l1 * l1 * (1.0 / 3.0) + l1 * t + t * t - t * t * rho * (1.0 / 3.0);
+        let g3 = n3 * inv_d;
+        let f3 = (l1 + 2.0 * t - t * rho) * inv_d;
+        let gc3 = (t * rho * rho * (1.0 / 3.0) - g3) * inv_d;
+        let ga3 = (g3 - (2.0 / 3.0) * l1 - t) * inv_d;
+        const THIRD: f32 = -1.0 / 3.0;
+        if u <= b {
+            [g2, -f2 - gb2 - gc2, gb2, gc2]
+        } else if u <= c {
+            [g3, ga3, -f3 - ga3 - gc3, gc3]
+        } else {
+            [u - mean, THIRD, THIRD, THIRD]
+        }
+    };
+    let (g1, g2, g3, g4) = (g(1.0), g(2.0), g(3.0), g(4.0));
+    let mut out = [0.0f32; 4];
+    for k in 0..4 {
+        let w = [g1[k], g2[k] - 2.0 * g1[k], g1[k] - 2.0 * g2[k] + g3[k], g2[k] - 2.0 * g3[k] + g4[k]];
+        out[k] = r[0] * w[0] + r[1] * w[1] + r[2] * w[2] + r[3] * w[3];
+    }
+    out
+}
+
 /// Maps derivatives with respect to the sorted values `(a, b, c)` back to the corners `u`: the smallest
 /// corner gets ∂/∂a, the largest ∂/∂c, the other ∂/∂b. Ties are harmless: G is symmetric in the corner
 /// values and continuously differentiable, so ∂/∂a = ∂/∂b where a = b (likewise b = c).
@@ -440,6 +500,35 @@ mod tests {
             let sum: f32 = d.iter().sum();
             let shifted = Knots::new(u.map(|x| x + 1e-2)).expect("finite").gather(i64::MIN / 4, i64::MAX / 4, row).0;
             assert!(((shifted - v) / 1e-2 - sum).abs() < 2e-2, "{} vs {sum}", (shifted - v) / 1e-2);
+        }
+    }
+
+    #[test]
+    fn short_spans_have_the_same_weights_branch_free() {
+        for u in [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [7.25, 7.5, 7.5], [3.2, 3.3, 3.25], [5.0, 5.0, 5.0]] {
+            let p = prepare(u[0], u[1], u[2]);
+            let (w, short) = short_weights(&p);
+            assert!(short, "{u:?}");
+            let k0 = p[0] as i64;
+            let all = weights(u);
+            for (k, x) in &all {
+                let m = (k - k0) as usize;
+                assert!((w[m] - x).abs() < 1e-6, "{u:?} bin {k}: {} vs {x}", w[m]);
+            }
+            assert!(w.iter().enumerate().all(|(m, x)| all.iter().any(|(k, _)| *k == k0 + m as i64) || x.abs() < 1e-6));
+        }
+        assert!(!short_weights(&prepare(1.0, 2.0, 6.5)).1);
+        // The adjoint's short gather equals the general one.
+        let row = |k: i64| ((k as f32) * 0.37).sin() + 0.2;
+        for u in [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [3.2, 3.3, 3.25]] {
+            let p = prepare(u[0], u[1], u[2]);
+            let k0 = p[0] as i64;
+            let out = short_gather(&p, [row(k0), row(k0 + 1), row(k0 + 2), row(k0 + 3)]);
+            let (v, d) = Knots::new(u).expect("finite").gather(i64::MIN / 4, i64::MAX / 4, row);
+            assert!((out[0] - v).abs() < 1e-5, "{u:?}: {} vs {v}", out[0]);
+            for c in 0..3 {
+                assert!((out[c + 1] - d[c]).abs() < 1e-4 * (1.0 + d[c].abs()), "{u:?}: {out:?} vs {d:?}");
+            }
         }
     }
 
