@@ -17,13 +17,8 @@ pub enum Loss {
 }
 
 impl Loss {
-    /// `E(s·I; Ĩ)` alone, without the adjoint or a scaled copy of `rendered`: the same value, to the bit, as
-    /// [`Loss::evaluate`] of `rendered` scaled by `scale` in f32 (for callers that compare many small
-    /// changes of one histogram, e.g. boundary pruning).
-    ///
-    /// # Errors
-    /// As [`Loss::evaluate`].
-    pub fn value_scaled(&self, rendered: &[f32], scale: f32, measured: &[f32], weights: Option<&[f32]>) -> Result<f64> {
+    /// The checks of [`Loss::evaluate`]: lengths and the Poisson floor.
+    fn check(&self, rendered: &[f32], measured: &[f32], weights: Option<&[f32]>) -> Result<()> {
         if measured.len() != rendered.len() {
             return Err(RenderError::LengthMismatch {
                 what: "measured",
@@ -36,6 +31,26 @@ impl Loss {
         {
             return Err(RenderError::LengthMismatch { what: "weights", expected: rendered.len(), got: w.len() });
         }
+        if let Loss::PoissonNll { floor } = *self
+            && !(floor > 0.0 && floor.is_finite())
+        {
+            return Err(RenderError::InvalidParameter {
+                name: "PoissonNll.floor",
+                value: f64::from(floor),
+                reason: "must be finite and > 0",
+            });
+        }
+        Ok(())
+    }
+
+    /// `E(s·I; Ĩ)` alone, without the adjoint or a scaled copy of `rendered`: the same value, to the bit, as
+    /// [`Loss::evaluate`] of `rendered` scaled by `scale` in f32 (for callers that compare many small
+    /// changes of one histogram, e.g. boundary pruning).
+    ///
+    /// # Errors
+    /// As [`Loss::evaluate`].
+    pub fn value_scaled(&self, rendered: &[f32], scale: f32, measured: &[f32], weights: Option<&[f32]>) -> Result<f64> {
+        self.check(rendered, measured, weights)?;
         let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
         let mut e = 0.0f64;
         match *self {
@@ -46,13 +61,6 @@ impl Loss {
                 }
             }
             Loss::PoissonNll { floor } => {
-                if !(floor > 0.0 && floor.is_finite()) {
-                    return Err(RenderError::InvalidParameter {
-                        name: "PoissonNll.floor",
-                        value: f64::from(floor),
-                        reason: "must be finite and > 0",
-                    });
-                }
                 for i in 0..rendered.len() {
                     let (i_r, i_m) = (scale * rendered[i], measured[i]);
                     let clamped = i_r.max(floor);
@@ -70,18 +78,7 @@ impl Loss {
     /// [`RenderError::LengthMismatch`] if the lengths differ; [`RenderError::InvalidParameter`] for a
     /// non-positive or non-finite Poisson floor.
     pub fn evaluate(&self, rendered: &[f32], measured: &[f32], weights: Option<&[f32]>) -> Result<(f64, Vec<f32>)> {
-        if measured.len() != rendered.len() {
-            return Err(RenderError::LengthMismatch {
-                what: "measured",
-                expected: rendered.len(),
-                got: measured.len(),
-            });
-        }
-        if let Some(w) = weights
-            && w.len() != rendered.len()
-        {
-            return Err(RenderError::LengthMismatch { what: "weights", expected: rendered.len(), got: w.len() });
-        }
+        self.check(rendered, measured, weights)?;
         let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
         let mut e = 0.0f64;
         let mut adj = vec![0.0f32; rendered.len()];
@@ -94,13 +91,6 @@ impl Loss {
                 }
             }
             Loss::PoissonNll { floor } => {
-                if !(floor > 0.0 && floor.is_finite()) {
-                    return Err(RenderError::InvalidParameter {
-                        name: "PoissonNll.floor",
-                        value: f64::from(floor),
-                        reason: "must be finite and > 0",
-                    });
-                }
                 for i in 0..rendered.len() {
                     let (i_r, i_m) = (rendered[i], measured[i]);
                     let clamped = i_r.max(floor);
