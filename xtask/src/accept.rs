@@ -22,17 +22,17 @@ use std::time::Instant;
 
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 
-const BUNNY: &str = "/work/shared/data/meshes/bunny_centered.obj";
-const SOAP: &str = "/work/shared/data/meshes/soap_centered.obj";
-const REFERENCE_DIR: &str = "/work/shared/data/reference";
-const MEASURED_DIR: &str = "/work/shared/data/measured";
-const JITTER: &str = "/work/shared/data/sensor/spad_jitter.mat";
+const BUNNY: &str = "meshes/bunny_centered.obj";
+const SOAP: &str = "meshes/soap_centered.obj";
+const REFERENCE_DIR: &str = "reference";
+const MEASURED_DIR: &str = "measured";
+const JITTER: &str = "sensor/spad_jitter.mat";
 
-/// Where the shared data live: `$NLOS_SHARED_DATA` or the paths above.
+/// Where the shared data live: `$NLOS_SHARED_DATA`, else `../shared/data` beside the workspace.
 fn shared(path: &str) -> PathBuf {
     match std::env::var("NLOS_SHARED_DATA") {
-        Ok(root) => PathBuf::from(root).join(path.trim_start_matches("/work/shared/data/")),
-        Err(_) => PathBuf::from(path),
+        Ok(root) => PathBuf::from(root).join(path),
+        Err(_) => crate::workspace_root().join("../shared/data").join(path),
     }
 }
 

@@ -177,7 +177,7 @@ pub struct ReconstructParams {
     /// are dropped before the Adam step (default false: the boundary moves freely, as in the seed). With
     /// `true` the silhouette of the initial surface is kept and the rim can only curve away from the wall.
     /// Measured on the seed-setup bunny from LCT (`cargo xtask accept bunny`, 3 stages × 4 blocks × 20
-    /// steps, docs/acceptance.md 18:33 and 18:47 UTC): depth-only kept the coverage at 94.6 % but left the
+    /// steps, docs/acceptance.md): depth-only kept the coverage at 94.6 % but left the
     /// LCT skirt in front of the receding rim (mean depth error 5.38 mm, Chamfer 42.7 mm); the free boundary
     /// retracts the skirt (coverage 91.4 %, mean depth error 3.53 mm, Chamfer 37.3 mm).
     pub boundary_depth_only: bool,
@@ -194,7 +194,7 @@ pub struct ReconstructParams {
     /// Loss-driven boundary growth after every block, after pruning ([`crate::grow`]): faces across boundary
     /// edges are added where they lower the data term (default `None`: off). It trades depth accuracy for
     /// coverage: on the seed-setup bunny at 1000 photons (3 stages × 4 blocks × 20 steps, `--subsample 2
-    /// --max-level 3 --resolution 48`, 2026-11-25) coverage 85.0 → 87.4 %, but mean depth error 1.32 →
+    /// --max-level 3 --resolution 48`) coverage 85.0 → 87.4 %, but mean depth error 1.32 →
     /// 2.18 mm (0.54 → 0.74 mm inside the silhouette, 5.1 → 8.4 mm on its band) and normal error 26 → 48°;
     /// it added 300–2,400 faces per block: strips that explain unexplained light at the right path length but
     /// the wrong place (the NLOS ambiguity). Steep angles only (70°, 80°): 86.8 %, 1.65 mm, 51° (docs/coverage.md).

@@ -873,18 +873,7 @@ impl Renderer {
     /// e1, v along e2; weight `w = 1/n²`, the fraction of the triangle's area).
     #[inline(always)]
     fn centroids(&self, n: u32, mut f: impl FnMut(f32, f32, f32)) {
-        let inv = 1.0 / n as f32;
-        let w = inv * inv;
-        for i in 0..n {
-            for j in 0..n - i {
-                // "Up" sub-triangle with corner (i, j), centroid at (i + 1/3, j + 1/3)/n.
-                f((i as f32 + 1.0 / 3.0) * inv, (j as f32 + 1.0 / 3.0) * inv, w);
-                if j + 1 < n - i {
-                    // "Down" sub-triangle, centroid at (i + 2/3, j + 2/3)/n.
-                    f((i as f32 + 2.0 / 3.0) * inv, (j as f32 + 2.0 / 3.0) * inv, w);
-                }
-            }
-        }
+        subtriangles(n, |s| f(s.centroid.0, s.centroid.1, s.w));
     }
 
     /// Deterministic level for (t, m): see [`DeterministicRule`].
@@ -1580,8 +1569,9 @@ impl Renderer {
     }
 }
 
-/// Calls `f` for the `n²` sub-triangles of level n (the cut of [`Renderer::centroids`], same order): corners,
-/// centroid and weight `1/n²`.
+/// Calls `f` for the `n²` congruent sub-triangles of level n (n per edge): the "up" sub-triangle with corner
+/// (i, j) has its centroid at (i + 1/3, j + 1/3)/n, the "down" one at (i + 2/3, j + 2/3)/n; each carries its
+/// corners, centroid and weight `1/n²` (the fraction of the triangle's area).
 #[inline(always)]
 fn subtriangles(n: u32, mut f: impl FnMut(soa::Sub)) {
     let inv = 1.0 / n as f32;
