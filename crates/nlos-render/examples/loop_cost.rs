@@ -2,7 +2,7 @@
 //! 64 × 64 over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel, cached visibility), on the LCT start of
 //! the shared bunny (`fixtures/bunny_lct_start.obj`) remeshed to a target edge length, for each rule:
 //! `cargo run --release -p nlos-render --example loop_cost -- [EDGE_MM] [reps] [rules]`
-//! (rules: comma-separated of `splat`, `splat2` (level 2), `adaptive8` (the former default), `fixed1`, `fixed2`,
+//! (rules: comma-separated of `splat`, `splat@D` (`max_deviation` D bins), `splat2` (level 2), `adaptive8` (the former default), `fixed1`, `fixed2`,
 //! `fixed4`; default `splat,adaptive8`; visibility off with `VIS=off` in the environment).
 #![allow(missing_docs)]
 
@@ -36,7 +36,10 @@ fn main() {
             "fixed1" => Sampling::Deterministic(DeterministicRule::fixed(1)),
             "fixed2" => Sampling::Deterministic(DeterministicRule::fixed(2)),
             "fixed4" => Sampling::Deterministic(DeterministicRule::fixed(4)),
-            other => panic!("unknown rule {other}"),
+            other => match other.strip_prefix("splat@").and_then(|d| d.parse().ok()) {
+                Some(max_deviation) => Sampling::Splat(SplatRule { max_deviation, ..SplatRule::default() }),
+                None => panic!("unknown rule {other}"),
+            },
         };
         let visibility = if std::env::var("VIS").as_deref() == Ok("off") {
             Visibility::Off

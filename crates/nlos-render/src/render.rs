@@ -356,12 +356,12 @@ impl Renderer {
         Ok(())
     }
 
-    /// The splat rule's levels ([`SplatRule`]) for the current positions and block order.
-    fn update_levels(&mut self) {
-        let Sampling::Splat(rule) = self.params.sampling else { return };
+    /// Each triangle's level under the splat rule ([`SplatRule`]) at the positions of `t` (mesh order), None
+    /// for the other rules.
+    fn splat_levels(&self, t: &Tris) -> Option<Vec<u32>> {
+        let Sampling::Splat(rule) = self.params.sampling else { return None };
         let tol = rule.max_deviation * self.time.bin_width as f32;
         let (lo, hi) = self.spots;
-        let t = &self.tris;
         let level = |i: usize| -> u32 {
             if !t.valid[i] {
                 return 1;
@@ -378,9 +378,16 @@ impl Renderer {
             let n = (deviation / tol).sqrt().ceil();
             if n < rule.max_level as f32 { (n as u32).max(1) } else { rule.max_level }
         };
-        let order = &t.soa.order;
+        Some((0..t.valid.len()).map(level).collect())
+    }
+
+    /// The splat rule's levels ([`SplatRule`]) for the current positions and block order: a block runs the
+    /// largest level of its triangles.
+    fn update_levels(&mut self) {
+        let Some(level) = self.splat_levels(&self.tris) else { return };
+        let order = &self.tris.soa.order;
         self.block_levels =
-            order.chunks(BLOCK).map(|blk| blk.iter().map(|&i| level(i as usize)).max().unwrap_or(1)).collect();
+            order.chunks(BLOCK).map(|blk| blk.iter().map(|&i| level[i as usize]).max().unwrap_or(1)).collect();
         let mut tri = vec![1u32; order.len()];
         for (slot, &i) in order.iter().enumerate() {
             tri[i as usize] = self.block_levels[slot / BLOCK];
@@ -1087,13 +1094,20 @@ impl Renderer {
                 if live && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr) {
                     continue;
                 }
-                // Pairs spanning at most four bins: their weights came with the vector kernels.
+                // Pairs spanning at most `sc.span` bins: their weights came with the vector kernels.
                 let k0 = sc.lanes.v[0][i];
                 if sc.short[i] != 0.0 && k0 >= -1.0 {
                     let p = (k0 + 1.0) as usize;
-                    if let Some(h) = hist.get_mut(p..p + 4) {
-                        for (x, w) in h.iter_mut().zip([sc.sw[0][i], sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]]) {
-                            *x += g * w;
+                    if sc.span == 4 {
+                        if let Some(h) = hist.get_mut(p..p + 4) {
+                            for (x, w) in h.iter_mut().zip([sc.sw[0][i], sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]]) {
+                                *x += g * w;
+                            }
+                            continue;
+                        }
+                    } else if let Some(h) = hist.get_mut(p..p + splat::LONG_SPAN) {
+                        for (x, w) in h.iter_mut().zip(&sc.sw) {
+                            *x += g * w[i];
                         }
                         continue;
                     }
@@ -1184,7 +1198,7 @@ impl Renderer {
         }
         let last = adj.len() as i64 - 2;
         let (u, v) = sub.centroid;
-        // Pairs spanning at most four bins: their gathers in the vector kernels.
+        // Pairs spanning at most `sc.span` bins: their gathers in the vector kernels.
         soa::short_gathers(isa, len, adj, sc);
         for i in 0..len {
             let mut out = (0.0f32, [0.0f32; 3]);

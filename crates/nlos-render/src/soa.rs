@@ -372,10 +372,12 @@ pub(crate) struct Scratch {
     pub(crate) hs: Vec<f32>,
     /// Splat: the per-pair constants of the closed form (`splat::prepare`).
     pub(crate) lanes: crate::splat::Lanes,
-    /// Splat (forward): the four bin weights of pairs spanning at most four bins, and 1.0 for those pairs
-    /// (`splat::short_weights`).
-    pub(crate) sw: [Vec<f32>; 4],
+    /// Splat (forward): the bin weights of pairs spanning at most `span` bins, and 1.0 for those pairs
+    /// (`splat::short_weights`); the adjoint's short gathers in the first four.
+    pub(crate) sw: [Vec<f32>; crate::splat::LONG_SPAN],
     pub(crate) short: Vec<f32>,
+    /// The span (4 or `splat::LONG_SPAN` bins) the vector kernels ran with for this block ([`short_span`]).
+    pub(crate) span: usize,
 }
 
 impl Scratch {
@@ -397,8 +399,9 @@ impl Scratch {
             ct: [z(), z(), z()],
             hs: z(),
             lanes: crate::splat::Lanes::new(BLOCK),
-            sw: [z(), z(), z(), z()],
+            sw: std::array::from_fn(|_| z()),
             short: z(),
+            span: 4,
         }
     }
 }
@@ -974,56 +977,82 @@ pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
     short_lanes(isa, b.len, sc);
 }
 
-/// The bin weights of the pairs that span at most four bins (`splat::short_weights`) from `lanes` into
+/// The span the vector kernels run with over a block's pairs: `splat::LONG_SPAN` bins where more than one
+/// pair in eight of the valid ones spans more than four (coarse faces, or faces seen edge-on), else four (the
+/// longer kernel costs about twice as much per pair, a pair left to the scalar loop about ten times).
+fn short_span(len: usize, sc: &Scratch) -> usize {
+    let (c, ok) = (&sc.lanes.v[3][..len], &sc.lanes.v[9][..len]);
+    let top = (crate::splat::LONG_SPAN - 1) as f32;
+    let long: u32 = c.iter().zip(ok).map(|(&c, &ok)| u32::from((ok != 0.0) & (c > 3.0) & (c <= top))).sum();
+    if long as usize * 8 > len { crate::splat::LONG_SPAN } else { 4 }
+}
+
+/// The bin weights of the pairs that span at most `sc.span` bins (`splat::short_weights`) from `lanes` into
 /// `sw` and `short`, vectorised (separate output arguments).
 #[inline(never)]
 fn short_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
+    sc.span = short_span(len, sc);
     let lanes = &sc.lanes.v;
-    let [w0, w1, w2, w3] = &mut sc.sw;
+    let [w0, w1, w2, w3, w4, w5, w6, w7] = &mut sc.sw;
     let short = &mut sc.short;
+    let w = (&mut w0[..], &mut w1[..], &mut w2[..], &mut w3[..], &mut w4[..], &mut w5[..], &mut w6[..], &mut w7[..]);
     #[cfg(target_arch = "x86_64")]
     if isa.avx2 {
         // SAFETY: as in `splat_lengths`.
         #[allow(unsafe_code)]
         unsafe {
-            short_lanes_avx2(len, lanes, w0, w1, w2, w3, short);
+            if sc.span == 4 {
+                short_lanes_avx2::<4>(len, lanes, w, short);
+            } else {
+                short_lanes_avx2::<{ crate::splat::LONG_SPAN }>(len, lanes, w, short);
+            }
         }
         return;
     }
-    short_lanes_body(len, lanes, w0, w1, w2, w3, short);
+    if sc.span == 4 {
+        short_lanes_body::<4>(len, lanes, w, short);
+    } else {
+        short_lanes_body::<{ crate::splat::LONG_SPAN }>(len, lanes, w, short);
+    }
 }
+
+/// Eight weight streams, passed as separate `&mut` (so the compiler knows they alias nothing).
+type Lanes8<'a> = (
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+    &'a mut [f32],
+);
 
 /// [`short_lanes_body`] compiled for AVX2 + FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn short_lanes_avx2(
-    len: usize,
-    lanes: &[Vec<f32>; 10],
-    w0: &mut [f32],
-    w1: &mut [f32],
-    w2: &mut [f32],
-    w3: &mut [f32],
-    short: &mut [f32],
-) {
-    short_lanes_body(len, lanes, w0, w1, w2, w3, short);
+fn short_lanes_avx2<const N: usize>(len: usize, lanes: &[Vec<f32>; 10], w: Lanes8<'_>, short: &mut [f32]) {
+    let (w0, w1, w2, w3, w4, w5, w6, w7) = w;
+    short_lanes_body::<N>(len, lanes, (w0, w1, w2, w3, w4, w5, w6, w7), short);
 }
 
 #[inline(always)]
-fn short_lanes_body(
-    len: usize,
-    lanes: &[Vec<f32>; 10],
-    w0: &mut [f32],
-    w1: &mut [f32],
-    w2: &mut [f32],
-    w3: &mut [f32],
-    short: &mut [f32],
-) {
+fn short_lanes_body<const N: usize>(len: usize, lanes: &[Vec<f32>; 10], w: Lanes8<'_>, short: &mut [f32]) {
     let v: [&[f32]; 10] = std::array::from_fn(|k| &lanes[k][..len]);
+    let (w0, w1, w2, w3, w4, w5, w6, w7) = w;
     let (w0, w1, w2, w3, short) = (&mut w0[..len], &mut w1[..len], &mut w2[..len], &mut w3[..len], &mut short[..len]);
+    let (w4, w5, w6, w7) = if N > 4 {
+        (&mut w4[..len], &mut w5[..len], &mut w6[..len], &mut w7[..len])
+    } else {
+        (&mut w4[..0], &mut w5[..0], &mut w6[..0], &mut w7[..0])
+    };
     for i in 0..len {
         let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
-        let (w, s) = crate::splat::short_weights(&p);
+        let (w, s) = crate::splat::short_weights::<N>(&p);
         (w0[i], w1[i], w2[i], w3[i]) = (w[0], w[1], w[2], w[3]);
+        if N > 4 {
+            (w4[i], w5[i], w6[i], w7[i]) = (w[4], w[5], w[6], w[7]);
+        }
         short[i] = f32::from(u8::from(s));
     }
 }
@@ -1325,31 +1354,40 @@ fn corner_terms_body(
     }
 }
 
-/// The adjoint's gathers of the pairs that span at most four bins (`splat::short_gather`) against the padded
-/// adjoint row `adj` (bin k at k + 1): `sw[0..4]` = `(Σ r w, Σ r ∂w/∂a, ∂/∂b, ∂/∂c)` and `short` = 1.0 for
-/// those pairs (inside the row), vectorised.
+/// The adjoint's gathers of the pairs that span at most `sc.span` bins (`splat::short_gather`; the span
+/// chosen as in the forward pass) against the padded adjoint row `adj` (bin k at k + 1): `sw[0..4]` =
+/// `(Σ r w, Σ r ∂w/∂a, ∂/∂b, ∂/∂c)` and `short` = 1.0 for those pairs (inside the row), vectorised.
 #[inline(never)]
 pub(crate) fn short_gathers(isa: Isa, len: usize, adj: &[f32], sc: &mut Scratch) {
+    sc.span = short_span(len, sc);
     let lanes = &sc.lanes.v;
-    let [w0, w1, w2, w3] = &mut sc.sw;
+    let [w0, w1, w2, w3, ..] = &mut sc.sw;
     let short = &mut sc.short;
     #[cfg(target_arch = "x86_64")]
     if isa.avx2 {
         // SAFETY: as in `splat_lengths`.
         #[allow(unsafe_code)]
         unsafe {
-            short_gathers_avx2(len, lanes, adj, w0, w1, w2, w3, short);
+            if sc.span == 4 {
+                short_gathers_avx2::<4>(len, lanes, adj, w0, w1, w2, w3, short);
+            } else {
+                short_gathers_avx2::<{ crate::splat::LONG_SPAN }>(len, lanes, adj, w0, w1, w2, w3, short);
+            }
         }
         return;
     }
-    short_gathers_body(len, lanes, adj, w0, w1, w2, w3, short);
+    if sc.span == 4 {
+        short_gathers_body::<4>(len, lanes, adj, w0, w1, w2, w3, short);
+    } else {
+        short_gathers_body::<{ crate::splat::LONG_SPAN }>(len, lanes, adj, w0, w1, w2, w3, short);
+    }
 }
 
 /// [`short_gathers_body`] compiled for AVX2 + FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(clippy::too_many_arguments)]
-fn short_gathers_avx2(
+fn short_gathers_avx2<const N: usize>(
     len: usize,
     lanes: &[Vec<f32>; 10],
     adj: &[f32],
@@ -1359,12 +1397,12 @@ fn short_gathers_avx2(
     w3: &mut [f32],
     short: &mut [f32],
 ) {
-    short_gathers_body(len, lanes, adj, w0, w1, w2, w3, short);
+    short_gathers_body::<N>(len, lanes, adj, w0, w1, w2, w3, short);
 }
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn short_gathers_body(
+fn short_gathers_body<const N: usize>(
     len: usize,
     lanes: &[Vec<f32>; 10],
     adj: &[f32],
@@ -1377,23 +1415,24 @@ fn short_gathers_body(
     const MAGIC: f32 = 12_582_912.0; // 1.5 · 2²³
     let v: [&[f32]; 10] = std::array::from_fn(|k| &lanes[k][..len]);
     let (w0, w1, w2, w3, short) = (&mut w0[..len], &mut w1[..len], &mut w2[..len], &mut w3[..len], &mut short[..len]);
-    if adj.len() < 4 {
+    if adj.len() < N {
         short.fill(0.0);
         return;
     }
-    // The padded index of bin k0 is k0 + 1; four bins from there must lie in the row.
-    let top = (adj.len() - 4) as f32;
-    let last = adj.len() - 4;
+    // The padded index of bin k0 is k0 + 1; N bins from there must lie in the row.
+    let top = (adj.len() - N) as f32;
+    let last = adj.len() - N;
     for i in 0..len {
         let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
-        let (_, s) = crate::splat::short_weights(&p);
+        let s = (p[9] != 0.0) & (p[3] <= (N - 1) as f32);
         let pos = p[0] + 1.0;
         let inside = (pos >= 0.0) & (pos <= top);
         // An exact small integer read from the bits (no float → int cast, which does not vectorise).
         let q = (pos.max(0.0).min(top) + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()) as usize;
         let q = q.min(last);
-        let r = [adj[q], adj[q + 1], adj[q + 2], adj[q + 3]];
-        let o = crate::splat::short_gather(&p, r);
+        let row = &adj[q..q + N];
+        let r: [f32; N] = std::array::from_fn(|m| row[m]);
+        let o = crate::splat::short_gather::<N>(&p, r);
         (w0[i], w1[i], w2[i], w3[i]) = (o[0], o[1], o[2], o[3]);
         short[i] = f32::from(u8::from(s & inside));
     }

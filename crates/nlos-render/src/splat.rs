@@ -103,64 +103,83 @@ pub(crate) fn centred_grad(u: [f32; 3], tc: f32) -> ([f32; 3], f32) {
     (u.map(|x| -0.25 - k * (3.0 * x - sum) * (1.0 / 18.0)), 0.75 + k * var / tc)
 }
 
-/// The bin weights of a pair that spans at most four bins (its largest shifted corner value c ≤ 3: bins
-/// `k0 ..= k0 + 3`), branch-free from its [`prepare`] constants `p`, for the vector kernels: `(w, short)`,
-/// `short` false (and `w` unused) for longer or invalid pairs. Shifted nodes 1..=4 all lie above a (a < 1),
-/// so `w_0 = G(1)`, `w_1 = G(2) − 2G(1)`, `w_m = G(m − 1) − 2G(m) + G(m + 1)`.
+/// The most bins a pair may span for the vector kernels' branch-free weights and gathers
+/// ([`short_weights`], [`short_gather`]): the renderer runs them with `N = 4` where a block's pairs are short
+/// (fine faces) and with `N = LONG_SPAN` where enough of them span more (a 3 mm face at 0.4 m spans up to 6
+/// bins of 1.2 mm); longer pairs go through [`Knots`].
+pub(crate) const LONG_SPAN: usize = 8;
+
+/// G at the shifted node u from a pair's [`prepare`] constants, branch-free (the three pieces of G selected).
 #[inline(always)]
-pub(crate) fn short_weights(p: &[f32; 10]) -> ([f32; 4], bool) {
-    let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, ok] = *p;
-    let g = |u: f32| {
-        let d = u - a;
-        let g2 = d * d * d * c2;
-        let t = u - b;
-        let g3 = (l1 * l1 * (1.0 / 3.0) + l1 * t + t * t * (1.0 - t * inv_l2 * (1.0 / 3.0))) * inv_d;
-        if u <= b {
-            g2
-        } else if u <= c {
-            g3
-        } else {
-            u - mean
-        }
-    };
-    let (g1, g2, g3, g4) = (g(1.0), g(2.0), g(3.0), g(4.0));
-    ([g1, g2 - 2.0 * g1, g1 - 2.0 * g2 + g3, g2 - 2.0 * g3 + g4], (ok != 0.0) & (c <= 3.0))
+fn g_lane(p: &[f32; 10], u: f32) -> f32 {
+    let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, _] = *p;
+    let d = u - a;
+    let g2 = d * d * d * c2;
+    let t = u - b;
+    let g3 = (l1 * l1 * (1.0 / 3.0) + l1 * t + t * t * (1.0 - t * inv_l2 * (1.0 / 3.0))) * inv_d;
+    if u <= b {
+        g2
+    } else if u <= c {
+        g3
+    } else {
+        u - mean
+    }
 }
 
-/// The adjoint's gather of a pair spanning at most four bins (as [`short_weights`]), branch-free for the
-/// vector kernels: `Σ_m r_m w_m` and `Σ_m r_m ∂w_m/∂(a, b, c)` over its bins `k0 + m` (m = 0..4, `r` the
-/// adjoint row there), from `(G, ∂G/∂a, ∂G/∂b, ∂G/∂c)` at the shifted nodes 1..=4.
+/// `(G, ∂G/∂a, ∂G/∂b, ∂G/∂c)` at the shifted node u ≥ 1 > a, branch-free (as [`Knots::g_grad2`],
+/// [`Knots::g_grad3`] and the linear tail).
 #[inline(always)]
-pub(crate) fn short_gather(p: &[f32; 10], r: [f32; 4]) -> [f32; 4] {
+fn g_grad_lane(p: &[f32; 10], u: f32) -> [f32; 4] {
+    const THIRD: f32 = -1.0 / 3.0;
     let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, _] = *p;
-    let g = |u: f32| -> [f32; 4] {
-        let d = u - a;
-        let f2 = d * d * (3.0 * c2);
-        let g2 = f2 * d * (1.0 / 3.0);
-        let (gb2, gc2) = (-g2 * (3.0 * c2 * (c - a)), -g2 * inv_d);
-        let t = u - b;
-        let rho = t * inv_l2;
-        let n3 = l1 * l1 * (1.0 / 3.0) + l1 * t + t * t - t * t * rho * (1.0 / 3.0);
-        let g3 = n3 * inv_d;
-        let f3 = (l1 + 2.0 * t - t * rho) * inv_d;
-        let gc3 = (t * rho * rho * (1.0 / 3.0) - g3) * inv_d;
-        let ga3 = (g3 - (2.0 / 3.0) * l1 - t) * inv_d;
-        const THIRD: f32 = -1.0 / 3.0;
-        if u <= b {
-            [g2, -f2 - gb2 - gc2, gb2, gc2]
-        } else if u <= c {
-            [g3, ga3, -f3 - ga3 - gc3, gc3]
-        } else {
-            [u - mean, THIRD, THIRD, THIRD]
-        }
-    };
-    let (g1, g2, g3, g4) = (g(1.0), g(2.0), g(3.0), g(4.0));
-    let mut out = [0.0f32; 4];
-    for k in 0..4 {
-        let w = [g1[k], g2[k] - 2.0 * g1[k], g1[k] - 2.0 * g2[k] + g3[k], g2[k] - 2.0 * g3[k] + g4[k]];
-        out[k] = r[0] * w[0] + r[1] * w[1] + r[2] * w[2] + r[3] * w[3];
+    let d = u - a;
+    let f2 = d * d * (3.0 * c2);
+    let g2 = f2 * d * (1.0 / 3.0);
+    let (gb2, gc2) = (-g2 * (3.0 * c2 * (c - a)), -g2 * inv_d);
+    let t = u - b;
+    let rho = t * inv_l2;
+    let n3 = l1 * l1 * (1.0 / 3.0) + l1 * t + t * t - t * t * rho * (1.0 / 3.0);
+    let g3 = n3 * inv_d;
+    let f3 = (l1 + 2.0 * t - t * rho) * inv_d;
+    let gc3 = (t * rho * rho * (1.0 / 3.0) - g3) * inv_d;
+    let ga3 = (g3 - (2.0 / 3.0) * l1 - t) * inv_d;
+    if u <= b {
+        [g2, -f2 - gb2 - gc2, gb2, gc2]
+    } else if u <= c {
+        [g3, ga3, -f3 - ga3 - gc3, gc3]
+    } else {
+        [u - mean, THIRD, THIRD, THIRD]
     }
-    out
+}
+
+/// The bin weights of a pair that spans at most N bins (its largest shifted corner value c ≤ N − 1: bins
+/// `k0 ..= k0 + N − 1`), branch-free from its [`prepare`] constants `p`, for the vector kernels: `(w, short)`,
+/// `short` false (and `w` unused) for longer or invalid pairs. Shifted nodes 1..=N all lie above a (a < 1)
+/// and G vanishes at nodes ≤ 0, so `w_m = G(m − 1) − 2 G(m) + G(m + 1)` with `G(−1) = G(0) = 0`.
+#[inline(always)]
+pub(crate) fn short_weights<const N: usize>(p: &[f32; 10]) -> ([f32; N], bool) {
+    let g: [f32; N] = std::array::from_fn(|j| g_lane(p, (j + 1) as f32));
+    let at = |n: usize| if n == 0 { 0.0 } else { g[n - 1] };
+    let w = std::array::from_fn(|m| if m == 0 { g[0] } else { at(m - 1) - 2.0 * at(m) + at(m + 1) });
+    (w, (p[9] != 0.0) & (p[3] <= (N - 1) as f32))
+}
+
+/// The adjoint's gather of a pair spanning at most N bins (as [`short_weights`]), branch-free for the vector
+/// kernels: `Σ_m r_m w_m` and `Σ_m r_m ∂w_m/∂(a, b, c)` over its bins `k0 + m` (m < N, `r` the adjoint row
+/// there). Summed by parts: `Σ_m r_m w_m = Σ_{n=1..N} G(n) (r_{n−1} − 2 r_n + r_{n+1})` with `r_N = 0`
+/// (`w_N = 0` for such a pair), and likewise for each derivative of G.
+#[inline(always)]
+pub(crate) fn short_gather<const N: usize>(p: &[f32; 10], r: [f32; N]) -> [f32; 4] {
+    let at = |m: usize| if m < N { r[m] } else { 0.0 };
+    let g: [[f32; 4]; N] = std::array::from_fn(|j| g_grad_lane(p, (j + 1) as f32));
+    let coef: [f32; N] = std::array::from_fn(|j| at(j) - 2.0 * at(j + 1) + at(j + 2));
+    std::array::from_fn(|k| {
+        let mut sum = 0.0;
+        for j in 0..N {
+            sum += g[j][k] * coef[j];
+        }
+        sum
+    })
 }
 
 /// Maps derivatives with respect to the sorted values `(a, b, c)` back to the corners `u`: the smallest
@@ -507,7 +526,13 @@ mod tests {
     fn short_spans_have_the_same_weights_branch_free() {
         for u in [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [7.25, 7.5, 7.5], [3.2, 3.3, 3.25], [5.0, 5.0, 5.0]] {
             let p = prepare(u[0], u[1], u[2]);
-            let (w, short) = short_weights(&p);
+            let (w, short) = short_weights::<4>(&p);
+            let (w8, short8) = short_weights::<LONG_SPAN>(&p);
+            assert!(
+                short8
+                    && w8[..4].iter().zip(&w).all(|(x, y)| (x - y).abs() < 1e-6)
+                    && w8[4..].iter().all(|x| x.abs() < 1e-6)
+            );
             assert!(short, "{u:?}");
             let k0 = p[0] as i64;
             let all = weights(u);
@@ -517,18 +542,36 @@ mod tests {
             }
             assert!(w.iter().enumerate().all(|(m, x)| all.iter().any(|(k, _)| *k == k0 + m as i64) || x.abs() < 1e-6));
         }
-        assert!(!short_weights(&prepare(1.0, 2.0, 6.5)).1);
+        assert!(!short_weights::<4>(&prepare(1.0, 2.0, 6.5)).1);
+        // Longer spans: up to eight bins.
+        for u in [[1.0f32, 2.0, 6.5], [700.9, 706.95, 703.3], [40.5, 41.0, 46.99]] {
+            let p = prepare(u[0], u[1], u[2]);
+            let (w, short) = short_weights::<LONG_SPAN>(&p);
+            assert!(short, "{u:?}");
+            let k0 = p[0] as i64;
+            for (k, x) in weights(u) {
+                assert!((w[(k - k0) as usize] - x).abs() < 1e-6, "{u:?} bin {k}");
+            }
+        }
+        assert!(!short_weights::<LONG_SPAN>(&prepare(1.0, 2.0, 8.5)).1);
         // The adjoint's short gather equals the general one.
         let row = |k: i64| ((k as f32) * 0.37).sin() + 0.2;
-        for u in [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [3.2, 3.3, 3.25]] {
+        for u in
+            [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [3.2, 3.3, 3.25], [700.9, 706.95, 703.3], [1.0, 2.0, 6.5]]
+        {
             let p = prepare(u[0], u[1], u[2]);
             let k0 = p[0] as i64;
-            let out = short_gather(&p, [row(k0), row(k0 + 1), row(k0 + 2), row(k0 + 3)]);
             let (v, d) = Knots::new(u).expect("finite").gather(i64::MIN / 4, i64::MAX / 4, row);
-            assert!((out[0] - v).abs() < 1e-5, "{u:?}: {} vs {v}", out[0]);
-            for c in 0..3 {
-                assert!((out[c + 1] - d[c]).abs() < 1e-4 * (1.0 + d[c].abs()), "{u:?}: {out:?} vs {d:?}");
+            let check = |out: [f32; 4]| {
+                assert!((out[0] - v).abs() < 1e-5, "{u:?}: {} vs {v}", out[0]);
+                for c in 0..3 {
+                    assert!((out[c + 1] - d[c]).abs() < 1e-4 * (1.0 + d[c].abs()), "{u:?}: {out:?} vs {d:?}");
+                }
+            };
+            if short_weights::<4>(&p).1 {
+                check(short_gather::<4>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
             }
+            check(short_gather::<LONG_SPAN>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
         }
     }
 
