@@ -13,6 +13,8 @@ use crate::brdf::RenderBrdf;
 /// accumulators (16 arrays) take about 40 KiB, so they stay in L1/L2 while the measurements stream past.
 pub(crate) const BLOCK: usize = 256;
 
+use crate::splat::MAX_SPAN;
+
 /// Triangle geometry, structure of arrays.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Soa {
@@ -374,9 +376,9 @@ pub(crate) struct Scratch {
     pub(crate) lanes: crate::splat::Lanes,
     /// Splat (forward): the bin weights of pairs spanning at most `span` bins, and 1.0 for those pairs
     /// (`splat::short_weights`); the adjoint's short gathers in the first four.
-    pub(crate) sw: [Vec<f32>; crate::splat::LONG_SPAN],
+    pub(crate) sw: [Vec<f32>; crate::splat::MAX_SPAN],
     pub(crate) short: Vec<f32>,
-    /// The span (4 or `splat::LONG_SPAN` bins) the vector kernels ran with for this block ([`short_span`]).
+    /// The span (4, 8 or `splat::MAX_SPAN` bins) the vector kernels ran with for this block ([`block_span`]).
     pub(crate) span: usize,
 }
 
@@ -977,43 +979,58 @@ pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
     short_lanes(isa, b.len, sc);
 }
 
-/// The span the vector kernels run with over a block's pairs: `splat::LONG_SPAN` bins where more than one
-/// pair in eight of the valid ones spans more than four (coarse faces, or faces seen edge-on), else four (the
-/// longer kernel costs about twice as much per pair, a pair left to the scalar loop about ten times).
-fn short_span(len: usize, sc: &Scratch) -> usize {
+/// The span the vector kernels run with over a block's pairs: the shortest of 4, 8 and `splat::MAX_SPAN`
+/// bins that covers seven in eight of its valid pairs (else the longest). The kernels cost about one G
+/// evaluation per pair and node; a pair left to the scalar loop costs several times that per bin it spans.
+fn block_span(len: usize, sc: &Scratch) -> usize {
     let (c, ok) = (&sc.lanes.v[3][..len], &sc.lanes.v[9][..len]);
-    let top = (crate::splat::LONG_SPAN - 1) as f32;
-    let long: u32 = c.iter().zip(ok).map(|(&c, &ok)| u32::from((ok != 0.0) & (c > 3.0) & (c <= top))).sum();
-    if long as usize * 8 > len { crate::splat::LONG_SPAN } else { 4 }
+    let count = |top: f32| -> u32 { c.iter().zip(ok).map(|(&c, &ok)| u32::from((ok != 0.0) & (c <= top))).sum() };
+    let valid = count(f32::INFINITY);
+    [4, 8].into_iter().find(|&n| count((n - 1) as f32) * 8 >= valid * 7).unwrap_or(crate::splat::MAX_SPAN)
 }
 
-/// The bin weights of the pairs that span at most `sc.span` bins (`splat::short_weights`) from `lanes` into
-/// `sw` and `short`, vectorised (separate output arguments).
+/// The bin weights of the pairs that span at most `sc.span` bins (`splat::window_weights`) from `lanes`
+/// into `sw` and `short`, vectorised (separate output arguments; eight weights per pass).
 #[inline(never)]
 fn short_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
-    sc.span = short_span(len, sc);
+    sc.span = block_span(len, sc);
     let lanes = &sc.lanes.v;
-    let [w0, w1, w2, w3, w4, w5, w6, w7] = &mut sc.sw;
+    let (lo, hi) = sc.sw.split_at_mut(8);
     let short = &mut sc.short;
-    let w = (&mut w0[..], &mut w1[..], &mut w2[..], &mut w3[..], &mut w4[..], &mut w5[..], &mut w6[..], &mut w7[..]);
+    let (Some(lo), Some(hi)) = (split8(lo), split8(hi)) else { return };
+    match sc.span {
+        4 => short_lanes_dispatch::<4, 0>(isa, len, lanes, lo, short),
+        8 => short_lanes_dispatch::<8, 0>(isa, len, lanes, lo, short),
+        _ => {
+            short_lanes_dispatch::<{ crate::splat::MAX_SPAN }, 0>(isa, len, lanes, lo, short);
+            short_lanes_dispatch::<{ crate::splat::MAX_SPAN }, 8>(isa, len, lanes, hi, short);
+        }
+    }
+}
+
+/// Eight streams of `w` as [`Lanes8`] (None when `w` does not hold eight).
+fn split8(w: &mut [Vec<f32>]) -> Option<Lanes8<'_>> {
+    let [w0, w1, w2, w3, w4, w5, w6, w7] = w else { return None };
+    Some((&mut w0[..], &mut w1[..], &mut w2[..], &mut w3[..], &mut w4[..], &mut w5[..], &mut w6[..], &mut w7[..]))
+}
+
+fn short_lanes_dispatch<const N: usize, const OFF: usize>(
+    isa: Isa,
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    w: Lanes8<'_>,
+    short: &mut [f32],
+) {
     #[cfg(target_arch = "x86_64")]
     if isa.avx2 {
         // SAFETY: as in `splat_lengths`.
         #[allow(unsafe_code)]
         unsafe {
-            if sc.span == 4 {
-                short_lanes_avx2::<4>(len, lanes, w, short);
-            } else {
-                short_lanes_avx2::<{ crate::splat::LONG_SPAN }>(len, lanes, w, short);
-            }
+            short_lanes_avx2::<N, OFF>(len, lanes, w, short);
         }
         return;
     }
-    if sc.span == 4 {
-        short_lanes_body::<4>(len, lanes, w, short);
-    } else {
-        short_lanes_body::<{ crate::splat::LONG_SPAN }>(len, lanes, w, short);
-    }
+    short_lanes_body::<N, OFF>(len, lanes, w, short);
 }
 
 /// Eight weight streams, passed as separate `&mut` (so the compiler knows they alias nothing).
@@ -1031,13 +1048,25 @@ type Lanes8<'a> = (
 /// [`short_lanes_body`] compiled for AVX2 + FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn short_lanes_avx2<const N: usize>(len: usize, lanes: &[Vec<f32>; 10], w: Lanes8<'_>, short: &mut [f32]) {
+fn short_lanes_avx2<const N: usize, const OFF: usize>(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    w: Lanes8<'_>,
+    short: &mut [f32],
+) {
     let (w0, w1, w2, w3, w4, w5, w6, w7) = w;
-    short_lanes_body::<N>(len, lanes, (w0, w1, w2, w3, w4, w5, w6, w7), short);
+    short_lanes_body::<N, OFF>(len, lanes, (w0, w1, w2, w3, w4, w5, w6, w7), short);
 }
 
+/// Weights `OFF .. OFF + min(N, 8)` of every pair into `w`; with `OFF = 0`, `short` = 1.0 for the valid
+/// pairs spanning at most N bins.
 #[inline(always)]
-fn short_lanes_body<const N: usize>(len: usize, lanes: &[Vec<f32>; 10], w: Lanes8<'_>, short: &mut [f32]) {
+fn short_lanes_body<const N: usize, const OFF: usize>(
+    len: usize,
+    lanes: &[Vec<f32>; 10],
+    w: Lanes8<'_>,
+    short: &mut [f32],
+) {
     let v: [&[f32]; 10] = std::array::from_fn(|k| &lanes[k][..len]);
     let (w0, w1, w2, w3, w4, w5, w6, w7) = w;
     let (w0, w1, w2, w3, short) = (&mut w0[..len], &mut w1[..len], &mut w2[..len], &mut w3[..len], &mut short[..len]);
@@ -1048,12 +1077,14 @@ fn short_lanes_body<const N: usize>(len: usize, lanes: &[Vec<f32>; 10], w: Lanes
     };
     for i in 0..len {
         let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
-        let (w, s) = crate::splat::short_weights::<N>(&p);
+        let w = crate::splat::window_weights::<OFF>(&p);
         (w0[i], w1[i], w2[i], w3[i]) = (w[0], w[1], w[2], w[3]);
         if N > 4 {
             (w4[i], w5[i], w6[i], w7[i]) = (w[4], w[5], w[6], w[7]);
         }
-        short[i] = f32::from(u8::from(s));
+        if OFF == 0 {
+            short[i] = f32::from(u8::from((p[9] != 0.0) & (p[3] <= (N - 1) as f32)));
+        }
     }
 }
 
@@ -1359,7 +1390,7 @@ fn corner_terms_body(
 /// `(Σ r w, Σ r ∂w/∂a, ∂/∂b, ∂/∂c)` and `short` = 1.0 for those pairs (inside the row), vectorised.
 #[inline(never)]
 pub(crate) fn short_gathers(isa: Isa, len: usize, adj: &[f32], sc: &mut Scratch) {
-    sc.span = short_span(len, sc);
+    sc.span = block_span(len, sc);
     let lanes = &sc.lanes.v;
     let [w0, w1, w2, w3, ..] = &mut sc.sw;
     let short = &mut sc.short;
@@ -1368,18 +1399,24 @@ pub(crate) fn short_gathers(isa: Isa, len: usize, adj: &[f32], sc: &mut Scratch)
         // SAFETY: as in `splat_lengths`.
         #[allow(unsafe_code)]
         unsafe {
-            if sc.span == 4 {
-                short_gathers_avx2::<4>(len, lanes, adj, w0, w1, w2, w3, short);
-            } else {
-                short_gathers_avx2::<{ crate::splat::LONG_SPAN }>(len, lanes, adj, w0, w1, w2, w3, short);
+            match sc.span {
+                4 => short_gathers_avx2::<4, 0, 4>(len, lanes, adj, w0, w1, w2, w3, short),
+                8 => short_gathers_avx2::<8, 0, 8>(len, lanes, adj, w0, w1, w2, w3, short),
+                _ => {
+                    short_gathers_avx2::<{ MAX_SPAN }, 0, 8>(len, lanes, adj, w0, w1, w2, w3, short);
+                    short_gathers_avx2::<{ MAX_SPAN }, 8, 8>(len, lanes, adj, w0, w1, w2, w3, short);
+                }
             }
         }
         return;
     }
-    if sc.span == 4 {
-        short_gathers_body::<4>(len, lanes, adj, w0, w1, w2, w3, short);
-    } else {
-        short_gathers_body::<{ crate::splat::LONG_SPAN }>(len, lanes, adj, w0, w1, w2, w3, short);
+    match sc.span {
+        4 => short_gathers_body::<4, 0, 4>(len, lanes, adj, w0, w1, w2, w3, short),
+        8 => short_gathers_body::<8, 0, 8>(len, lanes, adj, w0, w1, w2, w3, short),
+        _ => {
+            short_gathers_body::<{ MAX_SPAN }, 0, 8>(len, lanes, adj, w0, w1, w2, w3, short);
+            short_gathers_body::<{ MAX_SPAN }, 8, 8>(len, lanes, adj, w0, w1, w2, w3, short);
+        }
     }
 }
 
@@ -1387,7 +1424,7 @@ pub(crate) fn short_gathers(isa: Isa, len: usize, adj: &[f32], sc: &mut Scratch)
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(clippy::too_many_arguments)]
-fn short_gathers_avx2<const N: usize>(
+fn short_gathers_avx2<const N: usize, const OFF: usize, const W: usize>(
     len: usize,
     lanes: &[Vec<f32>; 10],
     adj: &[f32],
@@ -1397,12 +1434,12 @@ fn short_gathers_avx2<const N: usize>(
     w3: &mut [f32],
     short: &mut [f32],
 ) {
-    short_gathers_body::<N>(len, lanes, adj, w0, w1, w2, w3, short);
+    short_gathers_body::<N, OFF, W>(len, lanes, adj, w0, w1, w2, w3, short);
 }
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn short_gathers_body<const N: usize>(
+fn short_gathers_body<const N: usize, const OFF: usize, const W: usize>(
     len: usize,
     lanes: &[Vec<f32>; 10],
     adj: &[f32],
@@ -1430,10 +1467,13 @@ fn short_gathers_body<const N: usize>(
         // An exact small integer read from the bits (no float → int cast, which does not vectorise).
         let q = (pos.max(0.0).min(top) + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()) as usize;
         let q = q.min(last);
-        let row = &adj[q..q + N];
-        let r: [f32; N] = std::array::from_fn(|m| row[m]);
-        let o = crate::splat::short_gather::<N>(&p, r);
-        (w0[i], w1[i], w2[i], w3[i]) = (o[0], o[1], o[2], o[3]);
+        let r = |m: usize| if m < N { adj[q + m] } else { 0.0 };
+        let o = crate::splat::gather_window::<OFF, W>(&p, r);
+        if OFF == 0 {
+            (w0[i], w1[i], w2[i], w3[i]) = (o[0], o[1], o[2], o[3]);
+        } else {
+            (w0[i], w1[i], w2[i], w3[i]) = (w0[i] + o[0], w1[i] + o[1], w2[i] + o[2], w3[i] + o[3]);
+        }
         short[i] = f32::from(u8::from(s & inside));
     }
 }

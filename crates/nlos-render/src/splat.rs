@@ -103,15 +103,14 @@ pub(crate) fn centred_grad(u: [f32; 3], tc: f32) -> ([f32; 3], f32) {
     (u.map(|x| -0.25 - k * (3.0 * x - sum) * (1.0 / 18.0)), 0.75 + k * var / tc)
 }
 
-/// The most bins a pair may span for the vector kernels' branch-free weights and gathers
-/// ([`short_weights`], [`short_gather`]): the renderer runs them with `N = 4` where a block's pairs are short
-/// (fine faces) and with `N = LONG_SPAN` where enough of them span more (a 3 mm face at 0.4 m spans up to 6
-/// bins of 1.2 mm); longer pairs go through [`Knots`].
-pub(crate) const LONG_SPAN: usize = 8;
+/// The spans (in bins) the vector kernels' branch-free weights and gathers ([`window_weights`],
+/// [`short_gather`]) run with, chosen per block as its pairs need: 4 for fine faces, 8 (a 3 mm face at 0.4 m
+/// spans up to 6 bins of 1.2 mm) and `MAX_SPAN` (an 8 mm face up to 15). Longer pairs go through [`Knots`].
+pub(crate) const MAX_SPAN: usize = 16;
 
 /// G at the shifted node u from a pair's [`prepare`] constants, branch-free (the three pieces of G selected).
 #[inline(always)]
-fn g_lane(p: &[f32; 10], u: f32) -> f32 {
+pub(crate) fn g_lane(p: &[f32; 10], u: f32) -> f32 {
     let [_, a, b, c, l1, inv_d, c2, inv_l2, mean, _] = *p;
     let d = u - a;
     let g2 = d * d * d * c2;
@@ -152,34 +151,58 @@ fn g_grad_lane(p: &[f32; 10], u: f32) -> [f32; 4] {
     }
 }
 
-/// The bin weights of a pair that spans at most N bins (its largest shifted corner value c ≤ N − 1: bins
-/// `k0 ..= k0 + N − 1`), branch-free from its [`prepare`] constants `p`, for the vector kernels: `(w, short)`,
-/// `short` false (and `w` unused) for longer or invalid pairs. Shifted nodes 1..=N all lie above a (a < 1)
-/// and G vanishes at nodes ≤ 0, so `w_m = G(m − 1) − 2 G(m) + G(m + 1)` with `G(−1) = G(0) = 0`.
+/// Eight of the bin weights of a pair, `w_m` for `m = OFF .. OFF + 8` (bins `k0 + m`), branch-free from its
+/// [`prepare`] constants `p`, for the vector kernels: `w_m = G(m − 1) − 2 G(m) + G(m + 1)` with G at the
+/// shifted nodes, which vanishes at nodes ≤ 0 (a ≥ 0 after the shift). A pair spanning at most N bins (its
+/// largest shifted corner value c ≤ N − 1) has all its weight in `m < N`.
 #[inline(always)]
-pub(crate) fn short_weights<const N: usize>(p: &[f32; 10]) -> ([f32; N], bool) {
-    let g: [f32; N] = std::array::from_fn(|j| g_lane(p, (j + 1) as f32));
-    let at = |n: usize| if n == 0 { 0.0 } else { g[n - 1] };
-    let w = std::array::from_fn(|m| if m == 0 { g[0] } else { at(m - 1) - 2.0 * at(m) + at(m + 1) });
-    (w, (p[9] != 0.0) & (p[3] <= (N - 1) as f32))
+pub(crate) fn window_weights<const OFF: usize>(p: &[f32; 10]) -> [f32; 8] {
+    // G at the nodes OFF − 1 ..= OFF + 8.
+    let g: [f32; 10] = std::array::from_fn(|j| if OFF + j < 2 { 0.0 } else { g_lane(p, (OFF + j) as f32 - 1.0) });
+    std::array::from_fn(|m| g[m] - 2.0 * g[m + 1] + g[m + 2])
 }
 
-/// The adjoint's gather of a pair spanning at most N bins (as [`short_weights`]), branch-free for the vector
-/// kernels: `Σ_m r_m w_m` and `Σ_m r_m ∂w_m/∂(a, b, c)` over its bins `k0 + m` (m < N, `r` the adjoint row
-/// there). Summed by parts: `Σ_m r_m w_m = Σ_{n=1..N} G(n) (r_{n−1} − 2 r_n + r_{n+1})` with `r_N = 0`
-/// (`w_N = 0` for such a pair), and likewise for each derivative of G.
+/// The bin weights of a pair that spans at most N bins (N = 4 or 8; the first N of [`window_weights`]) and
+/// whether it does (valid and c ≤ N − 1).
+#[cfg(test)]
+fn short_weights<const N: usize>(p: &[f32; 10]) -> ([f32; N], bool) {
+    let w = window_weights::<0>(p);
+    (std::array::from_fn(|m| w[m]), (p[9] != 0.0) & (p[3] <= (N - 1) as f32))
+}
+
+/// W nodes of the adjoint's gather of a pair (nodes `OFF + 1 ..= OFF + W`), branch-free for the vector
+/// kernels: the terms `∇G(n) (r_{n−1} − 2 r_n + r_{n+1})` of `Σ_m r_m w_m` and `Σ_m r_m ∂w_m/∂(a, b, c)` summed
+/// by parts, `r(m)` the adjoint row at bin `k0 + m`. For a pair spanning at most N bins, summing the windows
+/// over nodes `1..=N` with `r(m) = 0` for m ≥ N gives the whole gather (`w_m = 0` there).
 #[inline(always)]
-pub(crate) fn short_gather<const N: usize>(p: &[f32; 10], r: [f32; N]) -> [f32; 4] {
-    let at = |m: usize| if m < N { r[m] } else { 0.0 };
-    let g: [[f32; 4]; N] = std::array::from_fn(|j| g_grad_lane(p, (j + 1) as f32));
-    let coef: [f32; N] = std::array::from_fn(|j| at(j) - 2.0 * at(j + 1) + at(j + 2));
+pub(crate) fn gather_window<const OFF: usize, const W: usize>(p: &[f32; 10], r: impl Fn(usize) -> f32) -> [f32; 4] {
+    let g: [[f32; 4]; W] = std::array::from_fn(|j| g_grad_lane(p, (OFF + j + 1) as f32));
+    let coef: [f32; W] = std::array::from_fn(|j| {
+        let n = OFF + j + 1;
+        r(n - 1) - 2.0 * r(n) + r(n + 1)
+    });
     std::array::from_fn(|k| {
         let mut sum = 0.0;
-        for j in 0..N {
+        for j in 0..W {
             sum += g[j][k] * coef[j];
         }
         sum
     })
+}
+
+/// The whole gather of a pair spanning at most N bins (N = 4, 8 or 16; windows of [`gather_window`]).
+#[cfg(test)]
+fn short_gather<const N: usize>(p: &[f32; 10], r: [f32; N]) -> [f32; 4] {
+    let at = |m: usize| if m < N { r[m] } else { 0.0 };
+    let mut out = gather_window::<0, 4>(p, at);
+    let mut add = |o: [f32; 4]| (0..4).for_each(|k| out[k] += o[k]);
+    if N > 4 {
+        add(gather_window::<4, 4>(p, at));
+    }
+    if N > 8 {
+        add(gather_window::<8, 8>(p, at));
+    }
+    out
 }
 
 /// Maps derivatives with respect to the sorted values `(a, b, c)` back to the corners `u`: the smallest
@@ -527,7 +550,7 @@ mod tests {
         for u in [[800.3f32, 801.9, 801.2], [10.0, 10.0, 12.5], [7.25, 7.5, 7.5], [3.2, 3.3, 3.25], [5.0, 5.0, 5.0]] {
             let p = prepare(u[0], u[1], u[2]);
             let (w, short) = short_weights::<4>(&p);
-            let (w8, short8) = short_weights::<LONG_SPAN>(&p);
+            let (w8, short8) = short_weights::<8>(&p);
             assert!(
                 short8
                     && w8[..4].iter().zip(&w).all(|(x, y)| (x - y).abs() < 1e-6)
@@ -546,14 +569,25 @@ mod tests {
         // Longer spans: up to eight bins.
         for u in [[1.0f32, 2.0, 6.5], [700.9, 706.95, 703.3], [40.5, 41.0, 46.99]] {
             let p = prepare(u[0], u[1], u[2]);
-            let (w, short) = short_weights::<LONG_SPAN>(&p);
+            let (w, short) = short_weights::<8>(&p);
             assert!(short, "{u:?}");
             let k0 = p[0] as i64;
             for (k, x) in weights(u) {
                 assert!((w[(k - k0) as usize] - x).abs() < 1e-6, "{u:?} bin {k}");
             }
         }
-        assert!(!short_weights::<LONG_SPAN>(&prepare(1.0, 2.0, 8.5)).1);
+        assert!(!short_weights::<8>(&prepare(1.0, 2.0, 8.5)).1);
+        // Up to sixteen: the second window.
+        for u in [[1.0f32, 2.0, 8.5], [300.2, 314.9, 309.9]] {
+            let p = prepare(u[0], u[1], u[2]);
+            let (lo, hi) = (window_weights::<0>(&p), window_weights::<8>(&p));
+            let k0 = p[0] as i64;
+            for (k, x) in weights(u) {
+                let m = (k - k0) as usize;
+                let w = if m < 8 { lo[m] } else { hi[m - 8] };
+                assert!((w - x).abs() < 1e-6, "{u:?} bin {k}: {w} vs {x}");
+            }
+        }
         // The adjoint's short gather equals the general one.
         let row = |k: i64| ((k as f32) * 0.37).sin() + 0.2;
         for u in
@@ -571,7 +605,8 @@ mod tests {
             if short_weights::<4>(&p).1 {
                 check(short_gather::<4>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
             }
-            check(short_gather::<LONG_SPAN>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
+            check(short_gather::<8>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
+            check(short_gather::<MAX_SPAN>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
         }
     }
 
