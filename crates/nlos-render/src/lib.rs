@@ -90,8 +90,8 @@
 //! path length for a quadratic τ) and the fall-off of the distance factor across the face. A face is cut
 //! further only where τ's curvature needs it ([`SplatRule`]). The vector kernels compute each pair's centroid
 //! value, corner path lengths and closed-form constants, and the weights (forward) or gathers (adjoint) of
-//! pairs that span at most four bins, as fine faces do; a scalar loop handles longer spans, over the bins
-//! they span (about span + 2 of them). The adjoint's gather sums the adjoint rows' second differences
+//! pairs that span at most 4, 8 or 16 bins (chosen per block: the shortest that covers seven in eight of its
+//! pairs); a scalar loop handles longer spans, over the bins they span (about span + 2 of them). The adjoint's gather sums the adjoint rows' second differences
 //! against the same piecewise cubic. `benches/loop_cost.rs` times the optimiser's exact configuration;
 //! docs/performance.md has the figures (per-step time and bin-level error of every rule).
 //!

@@ -374,8 +374,8 @@ pub(crate) struct Scratch {
     pub(crate) hs: Vec<f32>,
     /// Splat: the per-pair constants of the closed form (`splat::prepare`).
     pub(crate) lanes: crate::splat::Lanes,
-    /// Splat (forward): the bin weights of pairs spanning at most `span` bins, and 1.0 for those pairs
-    /// (`splat::short_weights`); the adjoint's short gathers in the first four.
+    /// Splat (forward): the bin weights of pairs spanning at most `span` bins (`splat::window_weights`); the
+    /// adjoint's gathers in the first four (`splat::gather_window`). `short`: 1.0 for those pairs.
     pub(crate) sw: [Vec<f32>; crate::splat::MAX_SPAN],
     pub(crate) short: Vec<f32>,
     /// The span (4, 8 or `splat::MAX_SPAN` bins) the vector kernels ran with for this block ([`block_span`]).
@@ -984,9 +984,21 @@ pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
 /// evaluation per pair and node; a pair left to the scalar loop costs several times that per bin it spans.
 fn block_span(len: usize, sc: &Scratch) -> usize {
     let (c, ok) = (&sc.lanes.v[3][..len], &sc.lanes.v[9][..len]);
-    let count = |top: f32| -> u32 { c.iter().zip(ok).map(|(&c, &ok)| u32::from((ok != 0.0) & (c <= top))).sum() };
-    let valid = count(f32::INFINITY);
-    [4, 8].into_iter().find(|&n| count((n - 1) as f32) * 8 >= valid * 7).unwrap_or(crate::splat::MAX_SPAN)
+    // One pass (this runs per block, measurement and sub-triangle): valid pairs, and those within 4 and 8.
+    let (mut valid, mut n4, mut n8) = (0u32, 0u32, 0u32);
+    for (&c, &ok) in c.iter().zip(ok) {
+        let v = ok != 0.0;
+        valid += u32::from(v);
+        n4 += u32::from(v & (c <= 3.0));
+        n8 += u32::from(v & (c <= 7.0));
+    }
+    if n4 * 8 >= valid * 7 {
+        4
+    } else if n8 * 8 >= valid * 7 {
+        8
+    } else {
+        MAX_SPAN
+    }
 }
 
 /// The bin weights of the pairs that span at most `sc.span` bins (`splat::window_weights`) from `lanes`
@@ -1385,7 +1397,7 @@ fn corner_terms_body(
     }
 }
 
-/// The adjoint's gathers of the pairs that span at most `sc.span` bins (`splat::short_gather`; the span
+/// The adjoint's gathers of the pairs that span at most `sc.span` bins (`splat::gather_window`; the span
 /// chosen as in the forward pass) against the padded adjoint row `adj` (bin k at k + 1): `sw[0..4]` =
 /// `(Σ r w, Σ r ∂w/∂a, ∂/∂b, ∂/∂c)` and `short` = 1.0 for those pairs (inside the row), vectorised.
 #[inline(never)]
