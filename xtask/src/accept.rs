@@ -233,7 +233,18 @@ fn with_photons(clean: &Path, photons: f64, seed: u64, out: &Path) -> Result<(),
 /// The reconstruction arguments of the acceptance configuration (or the quick one).
 fn reconstruct_args(opts: &Opts) -> Vec<String> {
     let mut a: Vec<String> = if opts.quick {
-        ["--stages", "1", "--blocks", "1", "--iterations", "5", "--subsample", "2", "--rebin", "2"].map(s).to_vec()
+        [
+            "--set",
+            "schedule.max_stages=1",
+            "--set",
+            "schedule.max_blocks_per_stage=1",
+            "--set",
+            "schedule.shape_iterations=5",
+        ]
+        .into_iter()
+        .chain(["--subsample", "2", "--rebin", "2"])
+        .map(s)
+        .collect()
     } else {
         Vec::new()
     };
@@ -412,7 +423,7 @@ fn ggx(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
         let tag = seed_tag(opts);
         let capture = r.out.join(format!("{name}_{}ph{tag}.hdf5", opts.photons));
         with_photons(&clean, opts.photons, opts.photon_seed, &capture)?;
-        let mut args = vec![s("--brdf"), s("ggx"), s("--alpha"), s("0.3")];
+        let mut args = vec![s("--brdf"), s("ggx"), s("--set"), s("reflectance.alpha=0.3")];
         args.extend(reconstruct_args(opts));
         let o = reconstruct_and_eval(r, &capture, &mesh, &r.out.join(format!("{name}{tag}")), &args)?;
         let fit = fitted_alpha(&o.run_dir)?;

@@ -45,7 +45,10 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     let data = capture(&dir);
     let out = dir.join("run");
     let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
-    let common = ["--out", &o, "--stages", "1", "--resolution", "10", "--blocks", "1", "--iterations", "3", "--quiet"];
+    let common = ["--out", &o, "--set", "schedule.max_stages=1", "--set", "schedule.initial_resolution=10"];
+    let common =
+        [&common[..], &["--set", "schedule.max_blocks_per_stage=1", "--set", "schedule.shape_iterations=3", "--quiet"]]
+            .concat();
     let mut args = vec!["reconstruct", d.as_str()];
     args.extend(common);
     args.push("--glb");
@@ -59,6 +62,7 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
         "run_log.json",
         "checkpoint.json",
         "command.json",
+        "settings.toml",
         "report.html",
         "summed.png",
         "loss.png",
@@ -79,7 +83,7 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     assert!(rep.status.success(), "{}", text(&rep));
     let html = std::fs::read_to_string(out.join("report.html")).expect("report regenerated");
     assert!(html.contains("summed.png") && out.join("summed.png").is_file());
-    assert!(html.contains("--iterations") || html.contains("shape iterations per block"), "parameters missing");
+    assert!(html.contains("1 stages from resolution 10, 1 blocks of 3 steps"), "parameters missing");
     let missing = nlos(&["report", &dir.join("nowhere").to_string_lossy(), "--data", &d]);
     assert_eq!(missing.status.code(), Some(2), "{}", text(&missing));
     // The LCT initial surface sits at the square's depth.
@@ -103,8 +107,9 @@ fn albedo_map_is_fitted_kept_and_shown() {
     let data = capture(&dir);
     let out = dir.join("run");
     let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
-    let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--stages", "1", "--resolution", "10"];
-    args.extend(["--blocks", "1", "--iterations", "2", "--quiet", "--albedo-map", "0.02"]);
+    let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--set", "schedule.max_stages=1"];
+    args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
+    args.extend(["--set", "schedule.shape_iterations=2", "--quiet", "--set", "albedo_map=0.02"]);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let ck: serde_json::Value =
@@ -119,11 +124,11 @@ fn albedo_map_is_fitted_kept_and_shown() {
     assert!(out.join("albedo.png").is_file(), "{}", text(&run));
     let html = std::fs::read_to_string(out.join("report.html")).expect("report");
     assert!(html.contains("albedo.png"));
-    // Resuming with other settings (no map) is refused, with the map it continues.
-    let plain: Vec<&str> = args.iter().copied().filter(|a| *a != "--albedo-map" && *a != "0.02").collect();
-    let refused = nlos(&[plain.as_slice(), &["--resume"]].concat());
+    // Resuming with other settings (no map) is refused, naming the setting; with the run's own it continues.
+    let refused = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume", "--set", "albedo_map=\"off\""]);
     assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
-    let resumed = nlos(&[args.as_slice(), &["--resume"]].concat());
+    assert!(text(&refused).contains("albedo_map"), "{}", text(&refused));
+    let resumed = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume"]);
     assert!(resumed.status.success(), "{}", text(&resumed));
 }
 
@@ -133,67 +138,51 @@ fn bad_arguments_are_input_errors() {
     let data = capture(&dir);
     let d = data.to_string_lossy().into_owned();
     let o = dir.join("run").to_string_lossy().into_owned();
-    // A mesh to start from (valid: --rim-radius is refused with it, not the mesh).
-    let plate = nlos_mesh::shapes::plane_grid(0.2, 0.2, 2, 2);
-    let start = dir.join("start.obj");
-    nlos_mesh::io::save(&plate, &start).expect("save");
-    let start = start.to_string_lossy().into_owned();
     for extra in [
         vec!["--brdf", "phong"],
         vec!["--init", "no-such-mesh.obj"],
-        vec!["--resolution=-3"],
-        vec!["--rebin", "0"],
-        vec!["--alpha", "7"],
-        vec!["--brdf", "ggx", "--alpha", "0"],
-        vec!["--visibility", "sometimes"],
-        vec!["--max-level", "0"],
         vec!["--init", "voxels"],
+        vec!["--rebin", "0"],
+        vec!["--subsample", "0"],
         vec!["--gt", "no-such-gt.obj"],
         vec!["--sensor", "no-such-jitter.mat"],
-        vec!["--background", "auto"],
-        vec!["--sensor", "ideal", "--background=-3"],
-        vec!["--sensor", "ideal", "--background", "lots"],
-        vec!["--noise", "gaussian"],
-        vec!["--gate", "lots"],
-        vec!["--gate", "inf"],
-        vec!["--max-depth=-1"],
-        vec!["--max-depth", "0"],
-        vec!["--max-depth", "deep"],
-        vec!["--boundary-smoothing=-1"],
-        vec!["--boundary-smoothing", "nan"],
-        vec!["--max-depth", "inf"],
-        vec!["--prune", "0"],
-        vec!["--prune", "lots"],
-        vec!["--prune-margin=-1"],
-        vec!["--prune-significance=-1"],
-        vec!["--prune-significance", "inf"],
-        vec!["--grow", "--grow-angles", "0,120"],
-        vec!["--grow", "--grow-angles", "flat"],
-        vec!["--grow", "--grow-margin=-0.5"],
-        vec!["--grow", "--grow-stages", "0"],
-        vec!["--residual", "maybe"],
-        vec!["--residual-separation", "0"],
-        vec!["--residual-margin=-1"],
-        vec!["--residual-tilts", "40,95"],
-        vec!["--residual-tilts", "steep"],
-        vec!["--temporal-blur", "wide"],
-        vec!["--temporal-blur=-0.01"],
-        vec!["--temporal-blur", "0.02,nan"],
-        vec!["--sensor", "ideal", "--temporal-blur", "0.02"],
         vec!["--sensor", "direct"],
-        vec!["--sensor", "auto", "--background", "0.5"],
-        vec!["--albedo-map", "fine"],
-        vec!["--albedo-map", "0"],
-        vec!["--albedo-map=-0.01"],
-        vec!["--albedo-map", "nan"],
-        vec!["--rim-radius", "0"],
-        vec!["--rim-radius=-0.02"],
-        vec!["--rim-radius", "nan"],
-        vec!["--init", start.as_str(), "--rim-radius", "0.02"],
+        vec!["--set", "schedule.initial_resolution=-3"],
+        vec!["--set", "reflectance.alpha=7"],
+        vec!["--brdf", "ggx", "--set", "reflectance.alpha=0"],
+        vec!["--set", "render.visibility=sometimes"],
+        vec!["--set", "render.max_level=0"],
+        vec!["--set", "sensor.background=-3", "--sensor", "ideal"],
+        vec!["--set", "sensor.background=lots", "--sensor", "ideal"],
+        vec!["--set", "sensor.background=0.5"],
+        vec!["--set", "sensor.noise=gaussian"],
+        vec!["--set", "capture.gate=lots"],
+        vec!["--set", "capture.gate=inf"],
+        vec!["--set", "capture.max_depth=-1"],
+        vec!["--set", "capture.max_depth=0"],
+        vec!["--set", "capture.max_depth=deep"],
+        vec!["--set", "capture.max_depth=inf"],
+        vec!["--set", "optimiser.boundary_smoothing=-1"],
+        vec!["--set", "optimiser.boundary_smoothing=nan"],
+        vec!["--set", "boundary.prune_rounds=lots"],
+        vec!["--set", "boundary.prune_margin=-1"],
+        vec!["--set", "boundary.residual_separation=0"],
+        vec!["--set", "boundary.residual_margin=-1"],
+        vec!["--set", "boundary.residual_tilts=[40, 95]"],
+        vec!["--set", "boundary.residual_tilts=steep"],
+        vec!["--set", "albedo_map=fine"],
+        vec!["--set", "albedo_map=0"],
+        vec!["--set", "albedo_map=-0.01"],
+        vec!["--set", "albedo_map=nan"],
+        vec!["--set", "no_such_setting=1"],
+        vec!["--set", "schedule.no_such_setting=1"],
+        vec!["--set", "schedule"],
+        vec!["--config", "no-such-config.toml"],
     ] {
         // Fast settings, so that an argument wrongly accepted fails the test quickly instead of running long.
-        let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet", "--stages", "1"];
-        args.extend(["--blocks", "1", "--iterations", "1"]);
+        let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--quiet"];
+        args.extend(["--set", "schedule.max_stages=1", "--set", "schedule.max_blocks_per_stage=1"]);
+        args.extend(["--set", "schedule.shape_iterations=1"]);
         args.extend(extra.iter().copied());
         let r = nlos(&args);
         assert_eq!(r.status.code(), Some(2), "{extra:?}: {}", text(&r));
@@ -214,9 +203,11 @@ fn noise_counts_logs_the_noise_floor_and_auto_detects_non_counts() {
     let d = data.to_string_lossy().into_owned();
     for (mode, want_floor) in [("auto", false), ("counts", true)] {
         let o = dir.join(mode).to_string_lossy().into_owned();
-        let args = ["reconstruct", &d, "--out", &o, "--quiet", "--no-report", "--stages", "1", "--resolution", "10"];
+        let noise = format!("sensor.noise={mode}");
+        let args = ["reconstruct", &d, "--out", &o, "--quiet", "--no-report", "--set", "schedule.max_stages=1"];
         let mut args = args.to_vec();
-        args.extend(["--blocks", "1", "--iterations", "2", "--noise", mode]);
+        args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
+        args.extend(["--set", "schedule.shape_iterations=2", "--set", &noise]);
         let r = nlos(&args);
         assert!(r.status.success(), "{mode}: {}", text(&r));
         let log: serde_json::Value =
@@ -257,14 +248,14 @@ fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
         "carve",
         "--gt",
         &g,
-        "--stages",
-        "1",
-        "--resolution",
-        "10",
-        "--blocks",
-        "1",
-        "--iterations",
-        "2",
+        "--set",
+        "schedule.max_stages=1",
+        "--set",
+        "schedule.initial_resolution=10",
+        "--set",
+        "schedule.max_blocks_per_stage=1",
+        "--set",
+        "schedule.shape_iterations=2",
         "--subsample",
         "2",
         "--quiet",
@@ -306,16 +297,16 @@ fn sensor_fit_reconstructs_photon_counts() {
         &o,
         "--sensor",
         "ideal",
-        "--background",
-        "auto",
-        "--stages",
-        "1",
-        "--resolution",
-        "10",
-        "--blocks",
-        "1",
-        "--iterations",
-        "2",
+        "--set",
+        "sensor.background=auto",
+        "--set",
+        "schedule.max_stages=1",
+        "--set",
+        "schedule.initial_resolution=10",
+        "--set",
+        "schedule.max_blocks_per_stage=1",
+        "--set",
+        "schedule.shape_iterations=2",
         "--quiet",
     ]);
     assert!(run.status.success(), "{}", text(&run));
@@ -349,23 +340,34 @@ fn max_depth_auto_drops_the_late_background_of_a_capture_with_background_only() 
     nlos_transient::write(&noisy, &file, Format::Tal).expect("write");
     let d = file.to_string_lossy().into_owned();
     let o = dir.join("run").to_string_lossy().into_owned();
-    let fast =
-        ["--stages", "1", "--resolution", "10", "--blocks", "1", "--iterations", "1", "--quiet", "--gate", "off"];
+    let fast = [
+        "--set",
+        "schedule.max_stages=1",
+        "--set",
+        "schedule.initial_resolution=10",
+        "--set",
+        "schedule.max_blocks_per_stage=1",
+        "--set",
+        "schedule.shape_iterations=1",
+        "--quiet",
+        "--set",
+        "capture.gate=off",
+    ];
     let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str()];
     args.extend(fast);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
-    let note = format!("--max-depth auto: the last return ends at {expected:.4} m of path");
+    let note = format!("max_depth auto: the last return ends at {expected:.4} m of path");
     assert!(text(&run).contains(&note), "expected `{note}` in: {}", text(&run));
     // `off` keeps every bin, and a capture without background (the clean render) has nothing to drop.
-    args.extend(["--max-depth", "off"]);
+    args.extend(["--set", "capture.max_depth=off"]);
     let run = nlos(&args);
-    assert!(run.status.success() && !text(&run).contains("--max-depth auto"), "{}", text(&run));
+    assert!(run.status.success() && !text(&run).contains("max_depth auto"), "{}", text(&run));
     let clean_file = dir.join("square.hdf5").to_string_lossy().into_owned();
     let mut args = vec!["reconstruct", clean_file.as_str(), "--out", o.as_str()];
     args.extend(fast);
     let run = nlos(&args);
-    assert!(run.status.success() && !text(&run).contains("--max-depth auto"), "{}", text(&run));
+    assert!(run.status.success() && !text(&run).contains("max_depth auto"), "{}", text(&run));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -405,8 +407,18 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
             extra.len()
         ));
         let (f, o) = (file.to_string_lossy().into_owned(), o.to_string_lossy().into_owned());
-        let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--stages", "1", "--resolution", "10"];
-        args.extend(["--blocks", "1", "--iterations", "2"]);
+        let mut args = vec![
+            "reconstruct",
+            &f,
+            "--out",
+            &o,
+            "--no-report",
+            "--set",
+            "schedule.max_stages=1",
+            "--set",
+            "schedule.initial_resolution=10",
+        ];
+        args.extend(["--set", "schedule.max_blocks_per_stage=1", "--set", "schedule.shape_iterations=2"]);
         args.extend(extra);
         let r = nlos(&args);
         assert!(r.status.success(), "{extra:?}: {}", text(&r));
@@ -416,13 +428,27 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
     assert!(run(&files[0], &[]).contains(own), "a capture with a direct return is fitted through it");
     assert!(!run(&files[0], &["--sensor", "off"]).contains(own), "--sensor off fits by L2");
     assert!(!run(&files[1], &[]).contains(own), "a simulation has no direct return to take");
-    // An L2 run (as older versions made by default) resumed with the new default: refused, saying how.
+    // An L2 run resumed with another sensor setting: refused, naming it.
     let (f, o) = (files[0].to_string_lossy().into_owned(), dir.join("run-real-2").to_string_lossy().into_owned());
-    let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--stages", "1", "--resolution", "10"];
-    args.extend(["--blocks", "1", "--iterations", "2", "--resume"]);
+    let mut args = vec![
+        "reconstruct",
+        &f,
+        "--out",
+        &o,
+        "--no-report",
+        "--set",
+        "schedule.max_stages=1",
+        "--set",
+        "schedule.initial_resolution=10",
+    ];
+    args.extend(["--set", "schedule.max_blocks_per_stage=1", "--set", "schedule.shape_iterations=2", "--resume"]);
+    args.extend(["--sensor", "auto"]);
     let refused = nlos(&args);
     assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
-    assert!(text(&refused).contains("--sensor off"), "{}", text(&refused));
+    assert!(text(&refused).contains("started with sensor = null"), "{}", text(&refused));
+    // With the run's own settings (`DIR/settings.toml`) it continues.
+    let resumed = nlos(&["reconstruct", &f, "--out", &o, "--no-report", "--resume"]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
 }
 
 /// `--rim-radius` on `nlos init` (and, through the same `SurfaceParams`, on `nlos reconstruct --init lct`):
@@ -459,4 +485,46 @@ fn rim_radius_turns_the_initial_surface_back_at_its_boundary() {
         assert_eq!(o.status.code(), Some(2), "--rim-radius {bad}: {}", text(&o));
         assert!(text(&o).contains("rim_radius"), "{}", text(&o));
     }
+}
+
+/// `--print-config` writes the settings as TOML and `--config` reads them back; a Rust caller of
+/// `nlos_optim::pipeline` with the same settings gets the same mesh as the command line, byte for byte.
+#[test]
+fn the_cli_and_the_library_pipeline_make_the_same_mesh() {
+    use nlos_optim::pipeline::{Config, Prepared};
+    let dir = scratch("pipeline");
+    let data = capture(&dir);
+    let d = data.to_string_lossy().into_owned();
+    // The defaults round-trip.
+    let printed = nlos(&["reconstruct", "--print-config"]);
+    assert!(printed.status.success(), "{}", text(&printed));
+    let defaults = Config::from_toml(&String::from_utf8_lossy(&printed.stdout)).expect("printed defaults parse");
+    assert_eq!(defaults, Config::default());
+    // A fast configuration, printed and read back.
+    let fast = ["schedule.max_stages=1", "schedule.initial_resolution=10", "schedule.max_blocks_per_stage=1"];
+    let mut args = vec!["reconstruct", "--print-config", "--seed", "3", "--set", "schedule.shape_iterations=3"];
+    for kv in &fast {
+        args.extend(["--set", kv]);
+    }
+    let printed = nlos(&args);
+    assert!(printed.status.success(), "{}", text(&printed));
+    let file = dir.join("fast.toml");
+    std::fs::write(&file, &printed.stdout).expect("write config");
+    let config = Config::load(&file).expect("config");
+    assert_eq!((config.seed, config.schedule.max_stages, config.schedule.shape_iterations), (3, 1, 3));
+    // The command line …
+    let cli_dir = dir.join("cli");
+    let f = file.to_string_lossy().into_owned();
+    let run = nlos(&["reconstruct", &d, "--out", &cli_dir.to_string_lossy(), "--config", &f, "--quiet", "--no-report"]);
+    assert!(run.status.success(), "{}", text(&run));
+    assert_eq!(Config::load(&cli_dir.join("settings.toml")).expect("saved settings"), config);
+    // … and the library.
+    let lib_dir = dir.join("lib");
+    let prepared = Prepared::load(&data, &config).expect("prepare");
+    let params = prepared.params(&config, Some(lib_dir.clone())).expect("params");
+    let init = prepared.initial_surface(&config).expect("initial surface");
+    nlos_optim::reconstruct(&prepared.measured, &init, &params).expect("reconstruct");
+    let read = |p: PathBuf| std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    assert_eq!(read(cli_dir.join("mesh.obj")), read(lib_dir.join("mesh.obj")));
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -48,7 +48,16 @@ fn capture(dir: &Path) -> PathBuf {
 fn command(data: &Path, out: &Path) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_nlos"));
     c.arg("reconstruct").arg(data).arg("--out").arg(out);
-    c.args(["--stages", "3", "--resolution", "8", "--blocks", "2", "--iterations", "6", "--seed", "11", "--quiet"]);
+    c.args(["--set", "schedule.max_stages=3", "--set", "schedule.initial_resolution=8"]);
+    c.args([
+        "--set",
+        "schedule.max_blocks_per_stage=2",
+        "--set",
+        "schedule.shape_iterations=6",
+        "--seed",
+        "11",
+        "--quiet",
+    ]);
     c
 }
 

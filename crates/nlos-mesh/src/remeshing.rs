@@ -23,7 +23,7 @@ use crate::handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 use crate::surface_mesh::SurfaceMesh;
 
 /// What happens to the boundary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum BoundaryMode {
     /// Boundary vertices and edges are kept exactly as they are (no split, collapse or motion).
     Fixed,
@@ -34,7 +34,7 @@ pub enum BoundaryMode {
 }
 
 /// Parameters shared by the uniform and adaptive variants. Start from a preset.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct RemeshParams {
     /// Split/collapse/flip/relax rounds (pmp default 10).
     pub iterations: u32,

@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{OptimError, Result};
 
 /// Parameters of the albedo map ([`crate::ReconstructParams::albedo_map`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct AlbedoMapParams {
     /// Cell size in metres (default 0.01). Detail finer than about two cells cannot be represented.
     pub cell: f64,

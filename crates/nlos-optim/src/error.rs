@@ -83,25 +83,51 @@ pub enum OptimError {
         /// What is wrong.
         message: String,
     },
-    /// `resume` found a checkpoint written with other reconstruction settings than the ones given (the
-    /// fingerprint of the parameters differs): continuing would silently mix two different runs.
+    /// `resume` found a checkpoint written with other reconstruction settings than the ones given: continuing
+    /// would silently mix two different runs. `field` is the first setting that differs, as a path into
+    /// [`crate::ReconstructParams`] (`schedule.shape_iterations`), with its value in the checkpoint and now.
     #[error(
-        "checkpoint {}: it was written with different reconstruction settings; resume with the options of the \
-         original run (`nlos reconstruct` keeps them in command.json beside the checkpoint), or start afresh in \
+        "checkpoint {}: the run was started with {field} = {was}, not {now}; resume with the settings of the \
+         original run (`nlos reconstruct` keeps them in settings.toml beside the checkpoint), or start afresh in \
          another directory",
         path.display()
     )]
     SettingsChanged {
         /// The checkpoint file.
         path: PathBuf,
+        /// The first setting that differs (a dotted path into the parameters).
+        field: String,
+        /// Its value in the checkpoint (JSON).
+        was: String,
+        /// Its value now (JSON).
+        now: String,
     },
     /// The sensor model of the noise-aware fit (jitter kernel, background window, histogram layout) is
     /// unusable.
     #[error("sensor fit: {0}; check the jitter response, the background window and the capture's bins")]
     Sensor(#[from] nlos_transient::TransientError),
-    /// The residual's volumetric reconstruction failed ([`crate::residual`]).
-    #[error("residual back-projection: {0}; switch it off (ReconstructParams::residual = None, --residual off)")]
+    /// A volumetric reconstruction failed: the initial surface ([`crate::pipeline`]) or the residual's
+    /// back-projection ([`crate::residual`]).
+    #[error("volumetric reconstruction: {0}; for the residual patches switch them off (boundary.residual_stages = 0)")]
     Init(#[from] nlos_init::InitError),
+    /// A setting of the pipeline's configuration ([`crate::pipeline::Config`]) is malformed or outside its
+    /// domain for this capture.
+    #[error("setting {field}: {reason}")]
+    Config {
+        /// The field, as spelled in the configuration file (`capture.rebin`), or the file.
+        field: String,
+        /// What is wrong and what is allowed.
+        reason: String,
+    },
+    /// The capture file cannot be read.
+    #[error("{}: {source}", path.display())]
+    Capture {
+        /// The capture file.
+        path: PathBuf,
+        /// What the reader found (boxed: it is large, and every `Result` of the crate would carry it).
+        #[source]
+        source: Box<nlos_transient::TransientError>,
+    },
     /// The evolution hook (collision handling) failed.
     #[error("evolution hook: {0}; fall back to DirectEvolve or fix the hook")]
     Evolve(String),

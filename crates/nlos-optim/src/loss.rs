@@ -24,11 +24,13 @@ use nlos_render::Loss;
 use crate::error::{OptimError, Result};
 
 /// A data term: loss, optional per-(measurement, bin) weights, whether to solve the scale.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct DataTerm {
     /// The loss (L2 of eq. 7 or Poisson NLL), from `nlos_render`.
     pub loss: Loss,
     /// Optional non-negative weight per (measurement, bin), measurement-major.
+    /// In the settings record as their count and FNV-1a digest (`serialize_weights`), not the values.
+    #[serde(serialize_with = "serialize_weights")]
     pub weights: Option<Vec<f32>>,
     /// Solve the global intensity scale in closed form (default true); if false, `s = 1`.
     pub solve_scale: bool,
@@ -42,6 +44,25 @@ pub struct DataTerm {
 impl Default for DataTerm {
     fn default() -> Self {
         Self { loss: Loss::L2, weights: None, solve_scale: true, counts: false }
+    }
+}
+
+/// The settings record's form of [`DataTerm::weights`]: `{ "len": n, "fnv1a": h }` over the weights'
+/// bits (a run's record must not hold a copy of the capture's size).
+fn serialize_weights<S: serde::Serializer>(w: &Option<Vec<f32>>, s: S) -> std::result::Result<S::Ok, S::Error> {
+    use serde::ser::SerializeStruct;
+    match w {
+        None => s.serialize_none(),
+        Some(w) => {
+            let h = w
+                .iter()
+                .flat_map(|v| v.to_bits().to_le_bytes())
+                .fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3));
+            let mut st = s.serialize_struct("Weights", 2)?;
+            st.serialize_field("len", &w.len())?;
+            st.serialize_field("fnv1a", &h)?;
+            st.end()
+        }
     }
 }
 

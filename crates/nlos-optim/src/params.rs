@@ -9,7 +9,6 @@ use nlos_render::{DeterministicRule, RenderParams, SplatRule};
 use crate::adam::AdamParams;
 use crate::albedo::AlbedoMapParams;
 use crate::error::{OptimError, Result};
-use crate::grow::GrowParams;
 use crate::loss::DataTerm;
 use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
@@ -22,7 +21,8 @@ use crate::sensor::SensorFit;
 /// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
 /// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages or
 /// when the next stage would exceed `max_faces` faces.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Schedule {
     /// Resolution of the first stage (default 48; the seed's is 64).
     pub initial_resolution: f64,
@@ -74,13 +74,13 @@ impl Schedule {
 }
 
 /// How the renderer samples the surface, stage by stage ("the sample budget grows").
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub enum SamplingSchedule {
     /// Closed-form time integration of each (sub-)triangle against the tent kernel
     /// (`nlos_render::Sampling::Splat`): noise-free, exact in time whatever the bins a face spans. The
     /// default (`SplatRule::default()`): at the seed's setup one forward + adjoint on the bunny's 3.2k-face
-    /// first stage takes about 0.8 s on 2 cores, against 20 s for the adaptive quadrature below at
-    /// `max_level` 8, at a bin-level error against the exact quadrature of 1.64e-3 against its 1.52e-3
+    /// first stage takes under a second on 2 cores, against 20 s for the adaptive quadrature below at
+    /// `max_level` 8, at a bin-level error against the exact quadrature of 1.46e-3 against its 1.52e-3
     /// (docs/performance.md).
     Splat(SplatRule),
     /// Noise-free quadrature with an adaptive level per (triangle, measurement) (`DeterministicRule`).
@@ -102,7 +102,7 @@ impl Default for SamplingSchedule {
 }
 
 /// Everything a reconstruction needs besides the measurement and the initial mesh.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ReconstructParams {
     /// Data term: loss (default L2, eq. 7), weights (none), scale solving (on).
     pub data: DataTerm,
@@ -139,19 +139,6 @@ pub struct ReconstructParams {
     /// `λ (R + w R_∂)` ([`crate::boundary_smoothing`]; λ is still set against `R` alone). 0 turns it off;
     /// default 1.
     pub boundary_smoothing: f64,
-    /// Coarse-to-fine in time ([`crate::temporal`]): the full width at half maximum, in metres of path, of
-    /// the Gaussian blur applied to the rendered and the measured histograms in the data term of stage 0, 1,
-    /// …; stages past the list's end, and widths of 0, fit the unblurred histograms. Default empty (no
-    /// blur). It widens the gradient's reach in depth (a start 7 cm in front of a plane converges with it and
-    /// not without, `tests/temporal.rs`). `[0.02, 0.0075]` on the seed-setup bunny (1000 photons, `cargo
-    /// xtask accept bunny` configuration), over two photon draws: Chamfer distance 31.1 → 28.4 and 30.0 →
-    /// 28.9 mm, normal error 26.2 → 24.1° and 24.8 → 23.4°, mean depth error 1.32 → 1.61 and 1.56 → 1.19 mm,
-    /// coverage 85.0 → 86.5 % and 86.1 → 85.1 % (the last two within the draws' spread). On the independent
-    /// renderer's bunny (4 mm bins, no noise) it was worse: mean depth error 0.85 → 1.10 mm, normal error
-    /// 14.9 → 16.5°, coverage 90.2 % both (`docs/acceptance.md`) — hence off by default. For the L2 data
-    /// term only: not applied with [`Self::sensor`] or a Poisson data term, whose likelihoods need the raw
-    /// counts (blurred counts are not Poisson).
-    pub temporal_blur: Vec<f64>,
     /// Spatially varying albedo ([`crate::albedo`]): a map of log-albedo over the wall plane, fitted in the
     /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in the seed).
     /// For scenes whose reflectance varies (printed patterns, labels), which a uniform albedo turns into
@@ -173,17 +160,6 @@ pub struct ReconstructParams {
     /// already self-intersects (remeshing does not prevent it) is evolved with `check_input: false`, so only
     /// new intersections are prevented.
     pub collision: Option<EvolveParams>,
-    /// Boundary vertices move only in depth (along the wall normal, +z): their gradient's x and y components
-    /// are dropped before the Adam step (default false: the boundary moves freely, as in the seed). With
-    /// `true` the silhouette of the initial surface is kept and the rim can only curve away from the wall.
-    /// Measured on the seed-setup bunny from LCT (`cargo xtask accept bunny`, 3 stages × 4 blocks × 20
-    /// steps, docs/acceptance.md): depth-only kept the coverage at 94.6 % but left the
-    /// LCT skirt in front of the receding rim (mean depth error 5.38 mm, Chamfer 42.7 mm); the free boundary
-    /// retracts the skirt (coverage 91.4 %, mean depth error 3.53 mm, Chamfer 37.3 mm).
-    pub boundary_depth_only: bool,
-    /// Delete boundary faces that no measurement can see (facing away from every laser/sensor spot or
-    /// outside the time window) before each remeshing (default true).
-    pub remove_unlit_boundary_faces: bool,
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
     /// lowers the data term by more than the margin are deleted (default `Some(PruneParams::default())`:
     /// 3 rounds, margin 0.5). Measured on the seed-setup bunny from LCT (1000 photons, 3 stages × 4 blocks
@@ -191,14 +167,6 @@ pub struct ReconstructParams {
     /// 35.7 → 34.6 mm, normal error 29.3 → 27.1°, coverage 87.8 → 85.1 %; on the independent renderer's
     /// bunny 1.47 → 0.84 mm, normal error 23.6 → 16.8°, coverage 90.3 → 88.5 %.
     pub prune: Option<PruneParams>,
-    /// Loss-driven boundary growth after every block, after pruning ([`crate::grow`]): faces across boundary
-    /// edges are added where they lower the data term (default `None`: off). It trades depth accuracy for
-    /// coverage: on the seed-setup bunny at 1000 photons (3 stages × 4 blocks × 20 steps, `--subsample 2
-    /// --max-level 3 --resolution 48`) coverage 85.0 → 87.4 %, but mean depth error 1.32 →
-    /// 2.18 mm (0.54 → 0.74 mm inside the silhouette, 5.1 → 8.4 mm on its band) and normal error 26 → 48°;
-    /// it added 300–2,400 faces per block: strips that explain unexplained light at the right path length but
-    /// the wrong place (the NLOS ambiguity). Steep angles only (70°, 80°): 86.8 %, 1.65 mm, 51° (docs/coverage.md).
-    pub grow: Option<GrowParams>,
     /// Residual back-projection at the end of the first stage ([`crate::residual`]): the LCT of the fit's
     /// residual proposes surface patches away from the mesh, added where they lower the data term (default
     /// `Some(ResidualParams::default())`; skipped for scans that are not confocal grids). On the
@@ -212,7 +180,8 @@ pub struct ReconstructParams {
     /// allowed per run before giving up (default 10).
     pub max_rollbacks: u32,
     /// Output directory for the checkpoint, the run log and the meshes (default None: nothing written,
-    /// and [`crate::resume`] is impossible).
+    /// and [`crate::resume`] is impossible). Not a setting of the run: the settings record leaves it out.
+    #[serde(skip)]
     pub out_dir: Option<PathBuf>,
 }
 
@@ -231,17 +200,13 @@ impl Default for ReconstructParams {
             lr_reflectance: 0.05,
             regulariser_ratio: 0.1,
             boundary_smoothing: 1.0,
-            temporal_blur: Vec::new(),
             albedo_map: None,
             regulariser_weight: None,
             render: RenderParams::default(),
             sampling: SamplingSchedule::default(),
             remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
             collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),
-            boundary_depth_only: false,
-            remove_unlit_boundary_faces: true,
             prune: Some(PruneParams::default()),
-            grow: None,
             residual: Some(ResidualParams::default()),
             seed: 0,
             max_rollbacks: 10,
@@ -263,9 +228,6 @@ impl ReconstructParams {
         }
         if let Some(p) = &self.prune {
             p.validate()?;
-        }
-        if let Some(g) = &self.grow {
-            g.validate()?;
         }
         if let Some(a) = &self.albedo_map {
             a.validate()?;
@@ -313,9 +275,6 @@ impl ReconstructParams {
             && (initial_samples == 0 || !(growth.is_finite() && growth >= 1.0))
         {
             return bad("sampling.growth", growth, "need initial_samples >= 1 and a finite growth >= 1");
-        }
-        if let Some(&w) = self.temporal_blur.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
-            return bad("temporal_blur", w, "blur widths are finite and >= 0 metres of path (0: no blur)");
         }
         if self.sensor.is_some() && self.data.weights.is_some() {
             return bad("data.weights", 0.0, "per-bin weights are not supported with the sensor fit");

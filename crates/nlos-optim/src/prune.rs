@@ -23,21 +23,6 @@
 //! ([`crate::grow`], [`crate::residual`]) take `c_f` from the forward difference
 //! `E(I + 2I_f) − 2E(I + I_f) + E(I)`, the same `s²‖I_f‖²` for L2.
 //!
-//! **Significance.** The margin scales with the face's share squared, the noise of `ΔE_f` with the share
-//! itself: for Poisson counts `ΔE_f = s⟨Ĩ − sI, I_f⟩ + ½ s²‖I_f‖²` has standard deviation
-//! `σ_f = s √(Σ_k I_f,k² · s I_k)` about its mean `+½ c_f` when the face is real. For the dim faces of a fine
-//! stage the margin is then far inside the noise (on the seed-setup bunny at 1000 photons, stage 2, ~6,000
-//! faces, roughly `½ c_f ≈ 23` against `σ_f ≈ 30`, in counts²): the sign of `ΔE_f` decides by chance, for real
-//! faces and spurious ones alike (`tests/boundary.rs`: 62 faces of a true surface deleted over 8 dim draws by
-//! the margin test, none with z = 2). With the measurement's noise known (`prune_boundary`'s `noise`; photon
-//! counts), [`PruneParams::significance`] z > 0 deletes a face only when `ΔE_f < −κ · ½ c_f − z σ_f`. It is
-//! off by default (z = 0) because on the seed-setup bunny the chance deletions were doing useful work: z = 2
-//! kept more of the rim (coverage 85.0 → 86.6 % and 86.1 → 87.3 % over two photon draws) but also the dim
-//! spurious faces (mean depth error 1.32 → 1.51 and 1.56 → 1.81 mm, Chamfer distance 31.1 → 35.4 and 30.0 →
-//! 33.6 mm, normal error 26.2 → 27.9° and 24.8 → 26.3°). On the glossy bunny (GGX α = 0.2, one draw),
-//! whose grazing faces reflect little, z = 2 was better: coverage 63.1 → 68.4 %, Chamfer distance 36.1 →
-//! 35.0 mm, normal error 15.7 → 14.9°, mean depth error 0.97 → 1.02 mm.
-//!
 //! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted
 //! greedily from the most negative, each re-tested against the rendering left by the deletions before it
 //! (their shares overlap in time and measurement). A deletion that would pinch a vertex into two fans (a
@@ -65,17 +50,11 @@ pub struct PruneParams {
     /// second difference along the face's share. 0 is the plain sign test; 1 deletes only faces that
     /// nothing in the measurement supports. Default 0.5.
     pub margin: f64,
-    /// Significance z ≥ 0 of the test when the measurement's noise is known (photon counts, see
-    /// [`prune_boundary`]'s `noise`): a face goes only when `ΔE_f < −κ · ½ c_f − z · σ_f`, `σ_f` the
-    /// standard deviation of `ΔE_f` under the hypothesis that the face is real (module docs,
-    /// "Significance"). 0 (the default) is the margin test alone.
-    #[serde(default)]
-    pub significance: f64,
 }
 
 impl Default for PruneParams {
     fn default() -> Self {
-        Self { rounds: 3, max_fraction: 0.2, margin: 0.5, significance: 0.0 }
+        Self { rounds: 3, max_fraction: 0.2, margin: 0.5 }
     }
 }
 
@@ -104,13 +83,6 @@ impl PruneParams {
                 name: "prune.margin",
                 value: self.margin,
                 reason: "the margin κ is finite and ≥ 0 (0: the plain sign test)",
-            });
-        }
-        if !(self.significance >= 0.0 && self.significance.is_finite()) {
-            return Err(OptimError::InvalidParameter {
-                name: "prune.significance",
-                value: self.significance,
-                reason: "the significance z is finite and ≥ 0 (0: the margin test alone)",
             });
         }
         Ok(())
@@ -150,15 +122,11 @@ pub struct Pruned {
 /// `renderer` holds the mesh `triangles` at the current positions, `rendered` its forward pass with `brdf`
 /// (measurement-major, `bins` per histogram; updated in place: the deleted faces' shares are subtracted),
 /// and `row_loss` the data term of histogram `m` ([`RowLoss`]) at the block's
-/// scale (`DataTerm::row_value_in`, `SensorFit::row_value_in`). `noise`, when the measurement's noise is known,
-/// holds per bin (same layout as `rendered`) the weight `ν_k` with `Var(ΔE_f) = Σ_k I_f,k² ν_k`: for the L2
-/// term `½ Σ w_k (s I_k − Ĩ_k)²` of Poisson counts, `ν_k = w_k² s² · s I_k` (`∂ΔE_f/∂Ĩ_k = w_k s I_f,k`,
-/// `Var Ĩ_k = s I_k`); the test then adds [`PruneParams::significance`] `· √Var(ΔE_f)` (module docs).
+/// scale (`DataTerm::row_value_in`, `SensorFit::row_value_in`).
 ///
 /// # Errors
 /// [`OptimError::InvalidParameter`] for invalid `params`, [`OptimError::LengthMismatch`] when `rendered`
 /// is not measurements × `bins` long, and the errors of `row_loss` and of the renderer.
-#[allow(clippy::too_many_arguments)] // the renderer's state, the data term and the noise are separate inputs
 pub fn prune_boundary(
     triangles: &[[u32; 3]],
     renderer: &Renderer,
@@ -166,7 +134,6 @@ pub fn prune_boundary(
     rendered: &mut [f32],
     bins: usize,
     row_loss: &RowLoss<'_>,
-    noise: Option<&[f32]>,
     params: &PruneParams,
 ) -> Result<Pruned> {
     params.validate()?;
@@ -174,13 +141,6 @@ pub fn prune_boundary(
     if bins == 0 || rendered.len() != rows * bins {
         return Err(OptimError::LengthMismatch { what: "rendered", expected: rows * bins, got: rendered.len() });
     }
-    if let Some(nu) = noise
-        && nu.len() != rendered.len()
-    {
-        return Err(OptimError::LengthMismatch { what: "noise", expected: rendered.len(), got: nu.len() });
-    }
-    // z · σ_f of a face's share (0 without a noise model).
-    let z_sigma = |spans: &[RowSpan]| noise.map_or(0.0, |nu| params.significance * noise_sigma(spans, nu, bins));
     let nt = triangles.len();
     let budget = ((nt as f64 * params.max_fraction).floor() as usize).min(nt.saturating_sub(1));
     let mut keep = vec![true; nt];
@@ -213,7 +173,7 @@ pub fn prune_boundary(
             .map(|&f| {
                 let spans = brdf.forward_triangle(renderer, f)?;
                 let (d, _) = delta(&spans, snapshot, bins, row_loss, params.margin, false)?;
-                Ok((d + z_sigma(&spans), f, spans))
+                Ok((d, f, spans))
             })
             .collect::<Result<_>>()?;
         scored.retain(|(d, _, _)| *d < 0.0);
@@ -225,7 +185,7 @@ pub fn prune_boundary(
             }
             // Re-test against the rendering the deletions so far have left.
             let (test, d) = delta(&spans, rendered, bins, row_loss, params.margin, false)?;
-            if !(test + z_sigma(&spans) < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
+            if !(test < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
             apply_spans(&spans, rendered, bins, false);
@@ -254,19 +214,6 @@ pub fn prune_boundary(
 /// whole data term. `0..bins` gives the whole term. A face's share spans a few dozen of the bins: the tests
 /// of [`prune_boundary`] cost that, not the histograms' length.
 pub type RowLoss<'a> = dyn Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync + 'a;
-
-/// `σ_f = √(Σ_k I_f,k² ν_k)` over a face's share (the standard deviation of its `ΔE_f` under the
-/// measurement's noise, [`prune_boundary`]).
-fn noise_sigma(spans: &[RowSpan], nu: &[f32], bins: usize) -> f64 {
-    spans
-        .iter()
-        .map(|s| {
-            let row = &nu[s.measurement * bins + s.first_bin..];
-            s.values.iter().zip(row).map(|(v, n)| f64::from(*v).powi(2) * f64::from(*n).max(0.0)).sum::<f64>()
-        })
-        .sum::<f64>()
-        .sqrt()
-}
 
 /// Subtracts (`add` false) or adds a face's share `spans` to `rendered`.
 pub(crate) fn apply_spans(spans: &[RowSpan], rendered: &mut [f32], bins: usize, add: bool) {

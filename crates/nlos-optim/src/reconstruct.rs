@@ -12,9 +12,8 @@
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed (and on the albedo map's log-albedo,
 //!    [`crate::albedo`], when there is one).
-//! 4. **Pruning and growth** (optional, [`crate::ReconstructParams::prune`], [`crate::ReconstructParams::grow`]):
-//!    boundary faces whose deletion lowers the data term are deleted ([`crate::prune`]), then faces across
-//!    the boundary edges are added where they lower it ([`crate::grow`]). At the end of the first stages
+//! 4. **Pruning** (optional, [`crate::ReconstructParams::prune`]): boundary faces whose deletion lowers the
+//!    data term are deleted ([`crate::prune`]). At the end of the first stages
 //!    ([`crate::ReconstructParams::residual`]), patches from the LCT of the fit's residual join the mesh
 //!    where they lower it ([`crate::residual`]); the stage's saved mesh is the one before they join.
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
@@ -51,19 +50,17 @@ use crate::adam::{VectorAdam, VertexAdam};
 use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
-use crate::grow::{GrowRecord, grow_boundary};
 use crate::params::{ReconstructParams, SamplingSchedule};
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{ResidualRecord, residual_patches};
-use crate::temporal::{TemporalBlur, stage_blur};
 
 /// File name of the checkpoint inside the output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// File name of the run log inside the output directory.
 pub const RUN_LOG_FILE: &str = "run_log.json";
-const CHECKPOINT_VERSION: u32 = 1;
+const CHECKPOINT_VERSION: u32 = 2;
 
 /// The collision-handling hook: turns the current positions and an Adam displacement into new positions.
 /// The default [`DirectEvolve`] adds the displacement; El Topo (issue 7) will implement this trait.
@@ -257,8 +254,6 @@ pub struct Outcome {
     pub evolve: Vec<EvolveRecord>,
     /// One record per boundary pruning (per block; empty when [`ReconstructParams::prune`] is `None`).
     pub prune: Vec<PruneRecord>,
-    /// One record per boundary growth (per block; empty when [`ReconstructParams::grow`] is `None`).
-    pub grow: Vec<GrowRecord>,
     /// One record per residual back-projection (per stage that proposes, [`crate::ResidualParams::stages`];
     /// empty when [`ReconstructParams::residual`] is `None`).
     pub residual: Vec<ResidualRecord>,
@@ -271,10 +266,8 @@ pub struct Outcome {
 struct State {
     version: u32,
     fingerprint: u64,
-    /// [`settings_fingerprint`] of the parameters the run was started with (absent in checkpoints written
-    /// before it existed, which are resumed unchecked).
-    #[serde(default)]
-    settings: Option<u64>,
+    /// The settings the run was started with ([`SettingsRecord`]).
+    settings: SettingsRecord,
     #[serde(with = "exact_vec3")]
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
@@ -301,9 +294,6 @@ struct State {
     /// Boundary pruning per block.
     #[serde(default)]
     prune_log: Vec<PruneRecord>,
-    /// Boundary growth per block.
-    #[serde(default)]
-    grow_log: Vec<GrowRecord>,
     /// Residual back-projection per stage.
     #[serde(default)]
     residual_log: Vec<ResidualRecord>,
@@ -358,20 +348,62 @@ fn fingerprint(measured: &Transient) -> u64 {
     h
 }
 
-/// FNV-1a over the `Debug` form of the parameters, `out_dir` left out: ties a checkpoint to the settings
-/// that wrote it (pruning, growth, residual patches, the noise model, the schedule, …), so that a resumed
-/// run cannot silently continue with other settings than the run it continues. `Debug` prints every
-/// field, floats in their shortest exact form.
-///
-/// Parameters added later are left out of the text while they hold the value that means "as before" (no
-/// temporal blur, pruning significance 0), so that a checkpoint written before they existed still resumes
-/// with the settings that wrote it (`settings_fingerprint_of_older_checkpoints_is_unchanged`).
-fn settings_fingerprint(params: &ReconstructParams) -> u64 {
-    let text = format!("{:?}", ReconstructParams { out_dir: None, ..params.clone() })
-        .replace(", temporal_blur: []", "")
-        .replace(", significance: 0.0 }", " }")
-        .replace(", albedo_map: None", "");
-    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
+/// The settings a run was started with, in its checkpoint: every field of [`ReconstructParams`] but
+/// `out_dir`, as serde writes them. `resume` compares it field by field with the parameters it is given and
+/// names the first that differs ([`OptimError::SettingsChanged`]). `version` changes when a field changes
+/// meaning; a record of another version is refused rather than compared.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct SettingsRecord {
+    version: u32,
+    params: serde_json::Value,
+}
+
+/// The version of [`SettingsRecord`] this build writes.
+const SETTINGS_VERSION: u32 = 1;
+
+impl SettingsRecord {
+    fn of(params: &ReconstructParams) -> Result<Self> {
+        // Serialising plain data into a `Value` fails only for maps with non-string keys, which the
+        // parameters do not hold.
+        let params = serde_json::to_value(params).map_err(|_| OptimError::InvalidParameter {
+            name: "params",
+            value: 0.0,
+            reason: "the parameters cannot be recorded in the checkpoint",
+        })?;
+        Ok(Self { version: SETTINGS_VERSION, params })
+    }
+}
+
+/// The first difference between two settings records' values, depth first in field order: its dotted path
+/// and the two values (compact JSON).
+fn first_difference(was: &serde_json::Value, now: &serde_json::Value, path: &str) -> Option<(String, String, String)> {
+    use serde_json::Value;
+    let join = |key: &str| if path.is_empty() { key.to_owned() } else { format!("{path}.{key}") };
+    match (was, now) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (key, va) in a {
+                let vb = b.get(key).unwrap_or(&Value::Null);
+                if let Some(d) = first_difference(va, vb, &join(key)) {
+                    return Some(d);
+                }
+            }
+            b.iter()
+                .find(|(key, vb)| !a.contains_key(*key) && !vb.is_null())
+                .map(|(key, vb)| (join(key), "(absent)".to_owned(), vb.to_string()))
+        }
+        (Value::Array(a), Value::Array(b)) if a.len() == b.len() => {
+            a.iter().zip(b).enumerate().find_map(|(i, (va, vb))| first_difference(va, vb, &format!("{path}[{i}]")))
+        }
+        _ if was == now => None,
+        _ => {
+            // Long values (a sensor's response) are cut: the path names the setting.
+            let short = |v: &Value| {
+                let s = v.to_string();
+                if s.chars().count() > 60 { format!("{}…", s.chars().take(57).collect::<String>()) } else { s }
+            };
+            Some((path.to_owned(), short(was), short(now)))
+        }
+    }
 }
 
 /// Writes `bytes` to `path` atomically (temporary file in the same directory + rename).
@@ -427,7 +459,7 @@ pub fn reconstruct_with(
     let state = State {
         version: CHECKPOINT_VERSION,
         fingerprint: fingerprint(measured),
-        settings: Some(settings_fingerprint(params)),
+        settings: SettingsRecord::of(params)?,
         positions,
         triangles,
         reflectance: params.reflectance.clone(),
@@ -447,7 +479,6 @@ pub fn reconstruct_with(
         max_stages_hint: params.schedule.max_stages,
         evolve_log: Vec::new(),
         prune_log: Vec::new(),
-        grow_log: Vec::new(),
         residual_log: Vec::new(),
         albedo,
         albedo_adam,
@@ -477,13 +508,24 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     let ck = |message: String| OptimError::Checkpoint { path: path.clone(), message };
     let state: State = serde_json::from_slice(&bytes).map_err(|e| ck(e.to_string()))?;
     if state.version != CHECKPOINT_VERSION {
-        return Err(ck(format!("version {} (this build reads {CHECKPOINT_VERSION})", state.version)));
+        return Err(ck(format!(
+            "written by another version of nlos (checkpoint version {}, this build reads {CHECKPOINT_VERSION}); \
+             start the run afresh",
+            state.version
+        )));
     }
     if state.fingerprint != fingerprint(measured) {
         return Err(ck("it was written for a different measurement".into()));
     }
-    if state.settings.is_some_and(|s| s != settings_fingerprint(params)) {
-        return Err(OptimError::SettingsChanged { path: path.clone() });
+    if state.settings.version != SETTINGS_VERSION {
+        return Err(ck(format!(
+            "settings record version {} (this build writes {SETTINGS_VERSION}); start the run afresh",
+            state.settings.version
+        )));
+    }
+    let now = SettingsRecord::of(params)?;
+    if let Some((field, was, now)) = first_difference(&state.settings.params, &now.params, "") {
+        return Err(OptimError::SettingsChanged { path: path.clone(), field, was, now });
     }
     if state.shape_adam.len() != state.positions.len()
         || state.triangles.is_empty()
@@ -537,26 +579,25 @@ fn prepare_topology(
 ) -> Result<Vec<bool>> {
     let (old_pos, old_tris) = (st.positions.clone(), st.triangles.clone());
     let mut mesh = SurfaceMesh::from_triangles(&st.positions, &st.triangles)?;
-    if params.remove_unlit_boundary_faces {
-        let dark: Vec<_> = mesh
-            .faces()
-            .filter(|&f| {
-                mesh.is_boundary_face(f)
-                    && !face_lit(mesh.face_points(f), measured.scan(), measured.time(), params.render.two_sided)
-            })
-            .collect();
-        // Guard: never delete everything (a mesh entirely out of view keeps its faces and its zero signal).
-        if !dark.is_empty() && dark.len() < mesh.n_faces() {
-            let mut pruned = mesh.clone();
-            for f in dark {
-                pruned.delete_face(f);
-            }
-            pruned.garbage_collect();
-            // Deleting faces can pinch a vertex between two boundary loops (a non-manifold "bow tie" that
-            // the half-edge builder rejects): keep the faces for this block rather than fail the run.
-            if is_manifold(&pruned) {
-                mesh = pruned;
-            }
+    // Boundary faces no measurement can see carry no signal and no gradient: they go before remeshing.
+    let dark: Vec<_> = mesh
+        .faces()
+        .filter(|&f| {
+            mesh.is_boundary_face(f)
+                && !face_lit(mesh.face_points(f), measured.scan(), measured.time(), params.render.two_sided)
+        })
+        .collect();
+    // Guard: never delete everything (a mesh entirely out of view keeps its faces and its zero signal).
+    if !dark.is_empty() && dark.len() < mesh.n_faces() {
+        let mut pruned = mesh.clone();
+        for f in dark {
+            pruned.delete_face(f);
+        }
+        pruned.garbage_collect();
+        // Deleting faces can pinch a vertex between two boundary loops (a non-manifold "bow tie" that
+        // the half-edge builder rejects): keep the faces for this block rather than fail the run.
+        if is_manifold(&pruned) {
+            mesh = pruned;
         }
     }
     if mesh.n_faces() == 0 {
@@ -649,9 +690,6 @@ struct Fit<'a> {
     background: f64,
     /// Normaliser of the data term.
     norm: f64,
-    /// The stage's temporal blur ([`crate::temporal`]): `measured` is then the blurred measurement, and the
-    /// rendering and the data term's gradient are blurred in [`evaluate`].
-    blur: Option<&'a TemporalBlur>,
 }
 
 /// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
@@ -659,10 +697,7 @@ struct Fit<'a> {
 fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
-    let mut rendered = brdf.forward(r);
-    if let Some(g) = fit.blur {
-        rendered = g.apply(&rendered, fit.bins)?;
-    }
+    let rendered = brdf.forward(r);
     let mut floor = 0.0;
     let ev = match &params.sensor {
         Some(sensor) => {
@@ -676,19 +711,13 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
         None => {
             let ev = params.data.evaluate(&rendered, measured, st.scale)?;
             if want_floor && params.data.counts {
-                // Blurred counts: the noise variance is scaled by Σg² (crate::temporal, "Noise floor").
-                let factor = fit.blur.map_or(1.0, TemporalBlur::noise_factor);
-                floor = factor * params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
+                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
             }
             ev
         }
     };
     let inv = (1.0 / norm) as f32;
-    let mut d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
-    if let Some(g) = fit.blur {
-        // ∂E/∂I = Gᵀ ∂E/∂(G I), and G is symmetric.
-        d = g.apply(&d, fit.bins)?;
-    }
+    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
     let g = brdf.adjoint(r, &d)?;
     Ok(Eval {
         data: ev.value / norm,
@@ -745,8 +774,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         value: 0.0,
         reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
     })?;
-    // The temporal blur of the stage whose histograms are held in `blurred` (crate::temporal).
-    let mut blurred: Option<(u32, TemporalBlur, Vec<f32>)> = None;
     // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
     let counts = params.sensor.is_some() || params.data.counts;
     let sch = params.schedule;
@@ -773,26 +800,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     while st.finished.is_none() {
         let target = sch.target_edge_length(st.stage);
         let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
-        if blurred.as_ref().is_none_or(|(s, _, _)| *s != st.stage) {
-            // L2 only: the sensor fit's and the Poisson term's likelihoods need the raw counts.
-            let l2 = params.sensor.is_none() && matches!(params.data.loss, nlos_render::Loss::L2);
-            let schedule: &[f64] = if l2 { &params.temporal_blur } else { &[] };
-            blurred = match stage_blur(schedule, st.stage, measured.time().bin_width)? {
-                Some(g) => {
-                    let b = g.apply(data, measured.bins())?;
-                    Some((st.stage, g, b))
-                }
-                None => None,
-            };
-        }
-        let fit = Fit {
-            params,
-            measured: blurred.as_ref().map_or(data, |(_, _, b)| b.as_slice()),
-            bins: measured.bins(),
-            background,
-            norm,
-            blur: blurred.as_ref().map(|(_, g, _)| g),
-        };
+        let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
         let mut renderer = Renderer::new(
             &st.positions,
             &st.triangles,
@@ -865,12 +873,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 noise_floor: counts.then_some(ev.floor),
             });
             let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
-            let mut grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
-            if params.boundary_depth_only {
-                for (g, _) in grad.iter_mut().zip(&boundary).filter(|(_, b)| **b) {
-                    *g = Vec3::new(0.0, 0.0, g.z);
-                }
-            }
+            let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
             good = Some((st.positions.clone(), st.shape_adam.clone()));
             let (li, lb) = (params.lr_interior * target * st.lr_scale, params.lr_boundary * target * st.lr_scale);
             let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
@@ -968,14 +971,13 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage;
         let last_block = stage_ends && st.stage + 1 >= sch.max_stages;
 
-        // ---- boundary pruning and growth (no growth after the last block: no step would refine new faces),
+        // ---- boundary pruning,
         // residual back-projection at the end of a stage but the last ----
-        let grow = params.grow.as_ref().filter(|g| !last_block && g.stages.is_none_or(|n| st.stage < n));
         let residual =
             params.residual.as_ref().filter(|r| stage_ends && !last_block && r.stages.is_none_or(|n| st.stage < n));
         // The stage's mesh as fitted (before residual patches join it).
         let mut stage_mesh: Option<(Vec<Vec3>, Vec<[u32; 3]>)> = None;
-        if params.prune.is_some() || grow.is_some() || residual.is_some() {
+        if params.prune.is_some() || residual.is_some() {
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
@@ -987,30 +989,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 }
             };
             if let Some(pp) = &params.prune {
-                // Photon counts fitted by L2: the noise of each pruning test is known (crate::prune,
-                // "Significance"); ν_k = w_k² s² · s I_k.
-                let noise: Option<Vec<f32>> = (pp.significance > 0.0
-                    && params.sensor.is_none()
-                    && params.data.counts
-                    && matches!(params.data.loss, nlos_render::Loss::L2))
-                .then(|| {
-                    let w = |i: usize| params.data.weights.as_ref().map_or(1.0, |w| f64::from(w[i]));
-                    rendered
-                        .iter()
-                        .enumerate()
-                        .map(|(i, &r)| (w(i).powi(2) * scale * scale * (scale * f64::from(r)).max(0.0)) as f32)
-                        .collect()
-                });
-                let p = prune_boundary(
-                    &st.triangles,
-                    &renderer,
-                    &brdf,
-                    &mut rendered,
-                    bins,
-                    &row_loss,
-                    noise.as_deref(),
-                    pp,
-                )?;
+                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
                 if p.removed > 0 {
                     drop_faces(&mut st, &p.keep);
                 }
@@ -1020,28 +999,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     tested: p.tested,
                     removed: p.removed,
                     data_change: p.data_change / norm,
-                });
-            }
-            if let Some(gp) = grow {
-                let g = grow_boundary(
-                    &st.positions,
-                    &st.triangles,
-                    measured.scan(),
-                    measured.time(),
-                    *renderer.params(),
-                    &brdf,
-                    &mut rendered,
-                    bins,
-                    &row_loss,
-                    gp,
-                )?;
-                append(&mut st, &g.positions, &g.triangles);
-                st.grow_log.push(GrowRecord {
-                    stage: st.stage,
-                    block: st.block_in_stage,
-                    edges: g.edges,
-                    added: g.triangles.len(),
-                    data_change: g.data_change / norm,
                 });
             }
             if let Some(rp) = residual {
@@ -1116,7 +1073,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 blocks_done: st.blocks_done,
                 evolve: st.evolve_log.clone(),
                 prune: st.prune_log.clone(),
-                grow: st.grow_log.clone(),
                 residual: st.residual_log.clone(),
                 albedo: st.albedo.clone(),
             });
@@ -1137,7 +1093,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         blocks_done: st.blocks_done,
         evolve: st.evolve_log.clone(),
         prune: st.prune_log.clone(),
-        grow: st.grow_log.clone(),
         residual: st.residual_log.clone(),
         albedo: st.albedo.clone(),
     })
@@ -1261,30 +1216,24 @@ fn set_albedo_weights(st: &State, renderer: &mut Renderer) -> Result<()> {
 mod tests {
     use super::*;
 
-    /// Regression: adding `temporal_blur` and `PruneParams::significance` changed the `Debug` text the
-    /// settings fingerprint hashes, so `--resume` refused checkpoints written by the version before them
-    /// ("different reconstruction settings"). The values below were printed by that version (9145556).
+    /// The record names the first setting that differs, by its path, with both values.
     #[test]
-    fn settings_fingerprint_of_older_checkpoints_is_unchanged() {
-        // The defaults of that version rendered with the adaptive quadrature and ran 4 stages from resolution
-        // 64; a checkpoint of the old default must not resume under the new one.
-        let old_default = ReconstructParams {
-            sampling: crate::SamplingSchedule::Deterministic(nlos_render::DeterministicRule::default()),
-            schedule: crate::Schedule { initial_resolution: 64.0, max_stages: 4, ..crate::Schedule::default() },
-            ..ReconstructParams::default()
-        };
-        assert_ne!(settings_fingerprint(&old_default), settings_fingerprint(&ReconstructParams::default()));
-        let p = old_default;
-        assert_eq!(settings_fingerprint(&p), 2_629_228_410_015_569_325);
-        let q = ReconstructParams { seed: 7, prune: None, ..p.clone() };
-        assert_eq!(settings_fingerprint(&q), 4_625_969_404_322_523_965);
-        // The new settings, when used, still tell runs apart.
-        let blurred = ReconstructParams { temporal_blur: vec![0.02], ..p.clone() };
-        assert_ne!(settings_fingerprint(&blurred), settings_fingerprint(&p));
-        let significant = ReconstructParams {
-            prune: Some(crate::PruneParams { significance: 2.0, ..Default::default() }),
-            ..p.clone()
-        };
-        assert_ne!(settings_fingerprint(&significant), settings_fingerprint(&p));
+    fn settings_record_names_the_changed_field() {
+        let p = ReconstructParams::default();
+        let a = SettingsRecord::of(&p).expect("record");
+        assert_eq!(first_difference(&a.params, &a.params, ""), None);
+        let q = ReconstructParams { schedule: crate::Schedule { shape_iterations: 30, ..p.schedule }, ..p.clone() };
+        let b = SettingsRecord::of(&q).expect("record");
+        assert_eq!(
+            first_difference(&a.params, &b.params, ""),
+            Some(("schedule.shape_iterations".into(), "20".into(), "30".into()))
+        );
+        let r = ReconstructParams { prune: None, ..p.clone() };
+        let d = first_difference(&a.params, &SettingsRecord::of(&r).expect("record").params, "").expect("differs");
+        assert_eq!(d.0, "prune");
+        assert_eq!(d.2, "null");
+        // The output directory is not a setting.
+        let o = ReconstructParams { out_dir: Some("elsewhere".into()), ..p };
+        assert_eq!(SettingsRecord::of(&o).expect("record"), a);
     }
 }

@@ -98,7 +98,7 @@ pub fn expected_half_deviance(mu: f64) -> f64 {
 }
 
 /// Where the background level `b` (expected counts per bin) comes from.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub enum SensorBackground {
     /// A known level, counts per bin (≥ 0).
     Fixed(f64),
@@ -108,7 +108,7 @@ pub enum SensorBackground {
 }
 
 /// The noise-aware fit: jitter kernel on the measurement's bins and background (module docs).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SensorFit {
     /// The timing response `J` on the measurement's bins ([`BinKernel::identity`] for an ideal sensor).
     pub kernel: BinKernel,

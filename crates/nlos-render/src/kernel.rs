@@ -8,7 +8,7 @@
 //! go through one weight routine).
 
 /// A temporal kernel `K_k(τ)`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub enum Kernel {
     /// The box of eq. (3) of Tsai et al. 2019: `K_k(τ) = 1` for τ in bin k (floor assignment). Exact for
     /// simulating measurements; its τ-derivative is 0 almost everywhere, so with it the adjoint carries no

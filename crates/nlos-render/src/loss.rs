@@ -3,7 +3,7 @@
 use crate::error::{RenderError, Result};
 
 /// A data term E(I; Ĩ) summed over every (measurement, bin), optionally weighted per bin.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub enum Loss {
     /// `E = ½ Σ w (Ĩ − I)²`, `dE/dI = w (I − Ĩ)` (Tsai et al. 2019, eq. 6). The default.
     #[default]

@@ -27,7 +27,7 @@ const FLUSH: usize = 16;
 /// estimated as `range/n + e²/(n² r_min)` (the range of τ over the three vertices, plus the deviation of τ
 /// from linear: its Hessian has norm ≤ 2/r_min, r_min the smallest vertex–spot distance, e the longest
 /// edge), clamped to `[min_level, max_level]`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct DeterministicRule {
     /// Largest path-length span of a sub-triangle, in bins (> 0). Default 0.5.
     pub max_bin_fraction: f32,
@@ -63,7 +63,7 @@ impl DeterministicRule {
 /// from the triangle to every wall spot; the linear interpolant's error on a triangle of longest edge e is
 /// at most `M e²/6` for a Hessian norm ≤ M), taken as the largest over each block of 256 triangles and
 /// clamped to `[1, max_level]`. Tent kernel only.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SplatRule {
     /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.09: on the first
     /// stage's 8 mm faces at the seed's setup this cuts the blocks holding the longest faces in four, which
@@ -81,7 +81,7 @@ impl Default for SplatRule {
 }
 
 /// How the surface integral of eq. (1) is estimated.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub enum Sampling {
     /// Noise-free quadrature (see [`DeterministicRule`]). The default.
     Deterministic(DeterministicRule),
@@ -109,7 +109,7 @@ impl Default for Sampling {
 }
 
 /// How v(x, l) v(x, s) of eq. (1) is evaluated. In the adjoint pass visibility is always held fixed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub enum Visibility {
     /// Everything visible (convex scenes, or to ignore occlusion).
     Off,
@@ -130,7 +130,7 @@ pub enum Visibility {
 
 /// Parameters of a [`Renderer`] (defaults: tent kernel, deterministic default rule, live visibility,
 /// one-sided faces).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct RenderParams {
     /// Temporal kernel, used in both passes.
     pub kernel: Kernel,

@@ -64,7 +64,7 @@ pub use improve::{ImproveReport, improve};
 /// Parameters of [`evolve`] and [`improve()`]. `Default` matches the seed's use of El Topo (Tsai et al. 2019
 /// code): edge lengths within `[0.99·L, 1.01·L]` for the mesh's current mean edge length `L`, angles
 /// 30–90°, proximity ε = 10⁻⁴ m, no merging.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct EvolveParams {
     /// Pairs are kept at least this far apart where the motion would bring them closer (metres; El Topo's
     /// `proximity_epsilon`). Default 1e-4.

@@ -76,7 +76,7 @@ pub fn coates_correction(counts: &Transient, cycles: f64) -> Result<Transient> {
 }
 
 /// Which bins hold background only.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub enum BackgroundWindow {
     /// The bins before the first return of the summed histogram (the direct light when it is on the
     /// axis, else the first hidden-scene return). The summed histogram is smoothed with a box of

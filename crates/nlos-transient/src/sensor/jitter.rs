@@ -378,7 +378,7 @@ fn tent_cdf(x: f64) -> f64 {
 
 /// A timing response on transient bins: `K[d]` for `d = first, first+1, …` (`Σ K = 1`), the linear
 /// operator `A` of the sensor's temporal response. See the [module docs](self).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BinKernel {
     first: i64,
     weights: Vec<f64>,
