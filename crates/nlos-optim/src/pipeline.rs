@@ -428,14 +428,69 @@ impl Config {
         })
     }
 
-    /// The configuration as TOML (every field, so that it documents the defaults).
+    /// The configuration as TOML: every field, each under a comment that says what it is ([`FIELD_DOCS`]),
+    /// so that `--print-config` documents the defaults.
     ///
     /// # Errors
     /// [`OptimError::Config`] when a value has no TOML form (a non-finite number).
     pub fn to_toml(&self) -> Result<String> {
-        toml::to_string(self).map_err(|e| config_error("config", e.to_string()))
+        let plain = toml::to_string(self).map_err(|e| config_error("config", e.to_string()))?;
+        let mut out =
+            String::from("# nlos reconstruct settings (`--config FILE`); absent fields keep their defaults.\n");
+        let mut section = String::new();
+        for line in plain.lines() {
+            if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+                section = format!("{name}.");
+            } else if let Some((key, _)) = line.split_once(" = ") {
+                let path = format!("{section}{key}");
+                if let Some((_, doc)) = FIELD_DOCS.iter().find(|(k, _)| *k == path) {
+                    out.push_str(&format!("# {doc}\n"));
+                }
+            }
+            out.push_str(line);
+            out.push('\n');
+        }
+        Ok(out)
     }
 }
+
+/// One line per setting, for the comments of [`Config::to_toml`] (the fields' rustdoc says more).
+pub const FIELD_DOCS: &[(&str, &str)] = &[
+    ("seed", "seed of the run: a run is a deterministic function of its inputs and seed"),
+    ("init", "initial surface: \"lct\", \"fk\", \"carve\" or a mesh file (OBJ/PLY/GLB) facing the wall"),
+    ("albedo_map", "albedo map over the wall plane: cell size in metres, or \"off\" (one albedo)"),
+    ("capture.rebin", "sum this many consecutive bins first (1: as captured)"),
+    ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
+    ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),
+    ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
+    ("reflectance.model", "\"lambert\" or \"ggx\""),
+    ("reflectance.alpha", "initial GGX roughness, in [0.001, 1]"),
+    ("sensor.response", "\"auto\", \"off\" (L2), \"ideal\", \"direct\" (the capture's own) or a jitter file"),
+    ("sensor.background", "background counts per bin of the sensor fit, or \"auto\""),
+    ("sensor.noise", "noise model of the smoothing weight: \"auto\", \"counts\" or \"none\""),
+    ("schedule.initial_resolution", "first stage: target edge length extent / resolution"),
+    ("schedule.growth", "resolution factor between stages"),
+    ("schedule.extent", "numerator of the target edge length (m)"),
+    ("schedule.max_stages", "coarse-to-fine stages at most"),
+    ("schedule.max_faces", "a stage that would exceed this many faces is not started"),
+    ("schedule.max_blocks_per_stage", "blocks per stage at most"),
+    ("schedule.shape_iterations", "Adam steps on the vertices per block"),
+    ("schedule.reflectance_iterations", "Adam steps on the reflectance per block (0: none)"),
+    ("schedule.rel_tol", "a stage ends when a block lowers the loss by less than this fraction"),
+    ("optimiser.lr_interior", "step of interior vertices, as a fraction of the stage's edge length"),
+    ("optimiser.lr_boundary", "step of boundary vertices, same unit"),
+    ("optimiser.lr_reflectance", "step of the reflectance parameters"),
+    ("optimiser.smoothing", "β of the normal-smoothing weight λ = β·E_data/R"),
+    ("optimiser.boundary_smoothing", "weight of boundary smoothing relative to normal smoothing (0: off)"),
+    ("render.visibility", "\"cached\" (per face and measurement), \"live\" (exact, slow) or \"off\" (height fields)"),
+    ("render.max_level", "largest subdivision level of the closed-form time integration (1 to 64)"),
+    ("boundary.prune_rounds", "rounds of boundary pruning after every block (0: none)"),
+    ("boundary.prune_margin", "margin κ of the pruning test"),
+    ("boundary.residual_stages", "residual patches after the first N stages (0: none; confocal grids only)"),
+    ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
+    ("boundary.residual_margin", "margin κ of the residual patches' test"),
+    ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),
+];
 
 /// A capture prepared as the optimiser fits it ([`Prepared::new`]), with the intermediate forms the sensor
 /// fit and the initial surface need.
@@ -704,5 +759,69 @@ impl Prepared {
             if config.init == InitMethod::Lct { SurfaceParams::object() } else { SurfaceParams::default() };
         surface_params.max_depth = surface_params.max_depth.or(self.surface_depth);
         Ok(volume_to_surface(&volume, &surface_params)?.mesh)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every setting printed has its comment, and every comment names a setting.
+    #[test]
+    fn every_setting_is_documented() {
+        let text = Config::default().to_toml().expect("toml");
+        let mut section = String::new();
+        let mut keys = Vec::new();
+        for line in text.lines().filter(|l| !l.starts_with('#')) {
+            if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+                section = format!("{name}.");
+            } else if let Some((key, _)) = line.split_once(" = ") {
+                keys.push(format!("{section}{key}"));
+            }
+        }
+        for key in &keys {
+            assert!(FIELD_DOCS.iter().any(|(k, _)| k == key), "{key} has no comment");
+        }
+        for (k, _) in FIELD_DOCS {
+            assert!(keys.iter().any(|key| key == k), "comment for {k}, which is not a setting");
+        }
+    }
+
+    #[test]
+    fn settings_round_trip_through_toml() {
+        assert_eq!(Config::from_toml(&Config::default().to_toml().expect("toml")).expect("parse"), Config::default());
+        let mut c = Config { seed: 9, init: InitMethod::Mesh("start.obj".into()), ..Config::default() };
+        c.capture.gate = Setting::Value(0.3);
+        c.capture.max_depth = Setting::OFF;
+        c.sensor.response = SensorChoice::File("jitter.mat".into());
+        c.reflectance.model = BrdfModel::Ggx;
+        c.schedule.max_stages = 2;
+        c.boundary.residual_tilts = vec![30.0];
+        assert_eq!(Config::from_toml(&c.to_toml().expect("toml")).expect("parse"), c);
+        // Absent fields keep their defaults; integers are numbers too.
+        let partial = Config::from_toml("[capture]\ngate = 1\n").expect("parse");
+        assert_eq!(
+            partial,
+            Config {
+                capture: CaptureConfig { gate: Setting::Value(1.0), ..CaptureConfig::default() },
+                ..Config::default()
+            }
+        );
+    }
+
+    #[test]
+    fn bad_settings_are_typed_errors_naming_the_field() {
+        for (text, field) in [
+            ("[capture]\ngate = \"lots\"\n", "gate"),
+            ("[schedule]\nmax_stages = -1\n", "max_stages"),
+            ("[render]\nvisibility = \"sometimes\"\n", "visibility"),
+            ("no_such_setting = 1\n", "no_such_setting"),
+            ("[capture\n", "capture"),
+        ] {
+            match Config::from_toml(text) {
+                Err(OptimError::Config { reason, .. }) => assert!(reason.contains(field), "{text}: {reason}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
     }
 }
