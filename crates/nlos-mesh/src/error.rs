@@ -97,6 +97,37 @@ pub enum MeshError {
         /// What the valid range is.
         reason: &'static str,
     },
+    /// [`crate::evolve::evolve`]: the displacement slice does not have one entry per vertex slot.
+    #[error(
+        "got {got} displacements for a mesh with {expected} vertex slots; pass one per `VertexId` index \
+         (`mesh.vertices_size()`, deleted slots included)"
+    )]
+    DisplacementCount {
+        /// `mesh.vertices_size()`.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+    /// [`crate::evolve::evolve`]: a displacement of a live vertex is NaN or infinite.
+    #[error("displacement of vertex {vertex} is not finite ({value:?}); fix the gradient step")]
+    NonFiniteDisplacement {
+        /// Vertex index.
+        vertex: usize,
+        /// The value given.
+        value: [f32; 3],
+    },
+    /// [`crate::evolve::evolve`]: the input mesh already self-intersects, so no motion can be guaranteed
+    /// intersection-free.
+    #[error(
+        "the input mesh already self-intersects ({pairs} face pairs, first {first:?}); repair it, or set \
+         `check_input: false` to evolve anyway (then only new intersections are prevented)"
+    )]
+    InputSelfIntersects {
+        /// Number of intersecting face pairs.
+        pairs: usize,
+        /// The first pair.
+        first: (crate::FaceId, crate::FaceId),
+    },
     /// A file could not be read or written.
     #[error("{}: {source}; check the path and permissions", file.display())]
     Io {

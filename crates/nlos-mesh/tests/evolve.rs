@@ -5,7 +5,7 @@ use glam::{DVec3, Vec3};
 use nlos_mesh::evolve::ccd::{
     Moving, edge_edge_ccd, point_triangle_distance, segment_segment_distance, vertex_triangle_ccd,
 };
-use nlos_mesh::evolve::{EvolveError, EvolveParams, evolve};
+use nlos_mesh::evolve::{EvolveParams, evolve};
 use nlos_mesh::intersect::self_intersections;
 use nlos_mesh::{MeshError, SurfaceMesh, shapes};
 
@@ -262,26 +262,23 @@ fn bad_inputs_give_typed_errors() {
     let n = m.vertices_size();
     let before = m.positions().to_vec();
     let e = evolve(&mut m, &vec![Vec3::ZERO; n - 1], &motion_only()).expect_err("short displacements");
-    assert!(matches!(e, EvolveError::DisplacementCount { expected, got } if expected == n && got == n - 1), "{e}");
+    assert!(matches!(e, MeshError::DisplacementCount { expected, got } if expected == n && got == n - 1), "{e}");
     let mut d = vec![Vec3::ZERO; n];
     d[5] = Vec3::new(f32::NAN, 0.0, 0.0);
     let e = evolve(&mut m, &d, &motion_only()).expect_err("NaN displacement");
-    assert!(matches!(e, EvolveError::NonFiniteDisplacement { vertex: 5, .. }), "{e}");
+    assert!(matches!(e, MeshError::NonFiniteDisplacement { vertex: 5, .. }), "{e}");
     d[5] = Vec3::new(0.0, f32::INFINITY, 0.0);
-    assert!(matches!(evolve(&mut m, &d, &motion_only()), Err(EvolveError::NonFiniteDisplacement { .. })));
+    assert!(matches!(evolve(&mut m, &d, &motion_only()), Err(MeshError::NonFiniteDisplacement { .. })));
     let zero = vec![Vec3::ZERO; n];
     let bad = EvolveParams { proximity_epsilon: -1.0, ..motion_only() };
-    assert!(matches!(
-        evolve(&mut m, &zero, &bad),
-        Err(EvolveError::InvalidParameter { name: "proximity_epsilon", .. })
-    ));
+    assert!(matches!(evolve(&mut m, &zero, &bad), Err(MeshError::InvalidParameter { name: "proximity_epsilon", .. })));
     let bad = EvolveParams { collision_epsilon: 1.0, ..motion_only() };
-    assert!(matches!(evolve(&mut m, &zero, &bad), Err(EvolveError::InvalidParameter { .. })));
+    assert!(matches!(evolve(&mut m, &zero, &bad), Err(MeshError::InvalidParameter { .. })));
     let bad = EvolveParams { allow_merges: true, ..motion_only() };
-    assert!(matches!(evolve(&mut m, &zero, &bad), Err(EvolveError::InvalidParameter { name: "allow_merges", .. })));
+    assert!(matches!(evolve(&mut m, &zero, &bad), Err(MeshError::InvalidParameter { name: "allow_merges", .. })));
     assert_eq!(m.positions(), &before[..], "errors leave the mesh unchanged");
     let mut empty = SurfaceMesh::new();
-    assert!(matches!(evolve(&mut empty, &[], &motion_only()), Err(EvolveError::Mesh(MeshError::EmptyMesh { .. }))));
+    assert!(matches!(evolve(&mut empty, &[], &motion_only()), Err(MeshError::EmptyMesh { .. })));
     // a self-intersecting input is refused
     let mut crossing = two_sheets(4, 0.1);
     let nv = crossing.vertices_size();
@@ -290,7 +287,7 @@ fn bad_inputs_give_typed_errors() {
         crossing.positions_mut()[i] = Vec3::new(p.x, p.y, -0.3 + p.x); // tilted through the lower sheet
     }
     let e = evolve(&mut crossing, &vec![Vec3::ZERO; nv], &motion_only()).expect_err("intersecting input");
-    assert!(matches!(e, EvolveError::InputSelfIntersects { .. }), "{e}");
+    assert!(matches!(e, MeshError::InputSelfIntersects { .. }), "{e}");
 }
 
 #[test]

@@ -105,7 +105,16 @@ pub enum OptimError {
     /// The sensor model of the noise-aware fit (jitter kernel, background window, histogram layout) is
     /// unusable.
     #[error("sensor fit: {0}; check the jitter response, the background window and the capture's bins")]
-    Sensor(#[from] nlos_transient::TransientError),
+    Sensor(#[source] nlos_transient::TransientError),
+    /// A transient built inside the loop (the residual's histograms) is invalid: non-finite values.
+    #[error("{context}: {source}; the fit diverged or the measurement holds non-finite values")]
+    Transient {
+        /// Which transient.
+        context: &'static str,
+        /// What the transient crate found.
+        #[source]
+        source: nlos_transient::TransientError,
+    },
     /// A volumetric reconstruction failed: the initial surface ([`crate::pipeline`]) or the residual's
     /// back-projection ([`crate::residual`]).
     #[error("volumetric reconstruction: {0}; for the residual patches switch them off (boundary.residual_stages = 0)")]
@@ -128,9 +137,21 @@ pub enum OptimError {
         #[source]
         source: Box<nlos_transient::TransientError>,
     },
-    /// The evolution hook (collision handling) failed.
+    /// An evolution hook ([`crate::Evolve`]) failed with its own error.
     #[error("evolution hook: {0}; fall back to DirectEvolve or fix the hook")]
-    Evolve(String),
+    Evolve(#[source] Box<dyn std::error::Error + Send + Sync>),
+    /// Collision-aware evolution returned positions that do not fit the mesh: another vertex count, or
+    /// non-finite positions (then `got == expected`).
+    #[error(
+        "collision-aware evolution returned {got} positions for {expected} vertices, or non-finite ones; \
+         lower the learning rates or switch it off (ReconstructParams::collision = None)"
+    )]
+    EvolveOutput {
+        /// Vertices of the mesh.
+        expected: usize,
+        /// Positions returned.
+        got: usize,
+    },
 }
 
 /// Result alias of the crate.

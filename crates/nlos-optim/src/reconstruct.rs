@@ -40,8 +40,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
-use nlos_mesh::evolve::{EvolveError, EvolveParams, evolve};
-use nlos_mesh::{SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
+use nlos_mesh::evolve::{EvolveParams, evolve};
+use nlos_mesh::{MeshError, SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
 use nlos_render::{RenderParams, Renderer, Sampling};
 use nlos_transient::{Scan, TimeAxis, Transient};
 use serde::{Deserialize, Serialize};
@@ -68,7 +68,7 @@ pub trait Evolve {
     /// New positions (same length as `positions`).
     ///
     /// # Errors
-    /// Any failure, reported as [`OptimError::Evolve`] or another variant.
+    /// Any failure: the hook's own error boxed in [`OptimError::Evolve`], or another variant.
     fn evolve(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], displacement: &[Vec3]) -> Result<Vec<Vec3>>;
 }
 
@@ -1105,17 +1105,16 @@ fn evolve_block(st: &mut State, start: &[Vec3], target: f32, ep: EvolveParams) -
     let disp: Vec<Vec3> = st.positions.iter().zip(start).map(|(p, q)| *p - *q).collect();
     let mut mesh = SurfaceMesh::from_triangles(start, &st.triangles)?;
     let ep = EvolveParams { improve: false, edge_length: ep.edge_length.or(Some(target)), ..ep };
-    let fail = |e: EvolveError| OptimError::Evolve(e.to_string());
     let (report, input_intersected) = match evolve(&mut mesh, &disp, &ep) {
         Ok(r) => (r, false),
-        Err(EvolveError::InputSelfIntersects { .. }) => {
-            (evolve(&mut mesh, &disp, &EvolveParams { check_input: false, ..ep }).map_err(fail)?, true)
+        Err(MeshError::InputSelfIntersects { .. }) => {
+            (evolve(&mut mesh, &disp, &EvolveParams { check_input: false, ..ep })?, true)
         }
-        Err(e) => return Err(fail(e)),
+        Err(e) => return Err(e.into()),
     };
     let pos = mesh.positions();
     if pos.len() != st.positions.len() || pos.iter().any(|p| !p.is_finite()) {
-        return Err(OptimError::Evolve("collision-aware evolution changed the vertex count or diverged".into()));
+        return Err(OptimError::EvolveOutput { expected: st.positions.len(), got: pos.len() });
     }
     st.positions = pos.to_vec();
     Ok(EvolveRecord {

@@ -185,7 +185,8 @@ pub fn residual_patches(
     if rendered.len() != n {
         return Err(OptimError::LengthMismatch { what: "rendered", expected: n, got: rendered.len() });
     }
-    let t = Transient::new(measured.scan().clone(), *measured.time(), residual)?;
+    let t = Transient::new(measured.scan().clone(), *measured.time(), residual)
+        .map_err(|source| OptimError::Transient { context: "the residual's histograms", source })?;
     let lct_params = LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() };
     let vol = match lct(&t, &lct_params) {
         Ok(v) => v,

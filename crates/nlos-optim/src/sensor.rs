@@ -123,7 +123,7 @@ impl SensorFit {
     /// # Errors
     /// [`OptimError::Sensor`] for a bin width that is not finite and positive.
     pub fn from_jitter(response: &JitterResponse, bin_width: f64, background: SensorBackground) -> Result<Self> {
-        Ok(Self { kernel: response.to_bins(bin_width)?, background })
+        Ok(Self { kernel: response.to_bins(bin_width).map_err(OptimError::Sensor)?, background })
     }
 
     /// The fit matching a SPAD model: its jitter (identity without one) and its background per bin
@@ -133,9 +133,9 @@ impl SensorFit {
     /// # Errors
     /// [`OptimError::Sensor`] for an invalid model or bin width.
     pub fn from_spad(model: &SpadModel, bin_width: f64) -> Result<Self> {
-        model.validate()?;
+        model.validate().map_err(OptimError::Sensor)?;
         Ok(Self {
-            kernel: model.kernel(bin_width)?,
+            kernel: model.kernel(bin_width).map_err(OptimError::Sensor)?,
             background: SensorBackground::Fixed(model.background_per_bin(bin_width)),
         })
     }
@@ -149,7 +149,9 @@ impl SensorFit {
     pub fn resolve_background(&self, measured: &Transient) -> Result<f64> {
         let b = match self.background {
             SensorBackground::Fixed(b) => b,
-            SensorBackground::Estimate(window) => estimate_background(measured, window)?.per_bin.max(0.0),
+            SensorBackground::Estimate(window) => {
+                estimate_background(measured, window).map_err(OptimError::Sensor)?.per_bin.max(0.0)
+            }
         };
         if !(b.is_finite() && b >= 0.0) {
             return Err(OptimError::InvalidParameter {
@@ -175,7 +177,7 @@ impl SensorFit {
     fn jitter(&self, rendered: &[f32], bins: usize) -> Result<Vec<f64>> {
         let x: Vec<f64> = rendered.iter().map(|&v| f64::from(v)).collect();
         let mut a = vec![0.0; x.len()];
-        self.kernel.apply_f64(&x, bins, &mut a)?;
+        self.kernel.apply_f64(&x, bins, &mut a).map_err(OptimError::Sensor)?;
         Ok(a)
     }
 
@@ -279,7 +281,7 @@ impl SensorFit {
             *rk = 1.0 - n / mu;
         }
         let mut g = vec![0.0; r.len()];
-        self.kernel.adjoint_f64(&r, bins, &mut g)?;
+        self.kernel.adjoint_f64(&r, bins, &mut g).map_err(OptimError::Sensor)?;
         let d_rendered = g.iter().map(|&v| (scale * v) as f32).collect();
         Ok(DataEval { value, scale, d_rendered })
     }

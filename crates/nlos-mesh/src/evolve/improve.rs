@@ -23,8 +23,9 @@ use std::collections::HashMap;
 
 use glam::{DMat3, DVec3, Vec3};
 
+use super::EvolveParams;
 use super::ccd::{Moving, edge_edge_ccd, vertex_triangle_ccd};
-use super::{EvolveError, EvolveParams};
+use crate::MeshError;
 use crate::handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 use crate::intersect::faces_intersect;
 use crate::quality::triangle_angles;
@@ -52,7 +53,7 @@ pub struct ImproveReport {
 /// Improves `mesh` with the targets of `params` (edge length `L` from `params.edge_length` or the mean edge
 /// length). Never creates a self-intersection. The mesh is garbage-collected on return when an operation
 /// deleted elements, so handles held before are invalid then.
-pub fn improve(mesh: &mut SurfaceMesh, params: &EvolveParams) -> Result<ImproveReport, EvolveError> {
+pub fn improve(mesh: &mut SurfaceMesh, params: &EvolveParams) -> Result<ImproveReport, MeshError> {
     params.validate()?;
     mesh.validate()?;
     let l = params.edge_length.unwrap_or_else(|| mesh.mean_edge_length());
@@ -63,7 +64,7 @@ pub(crate) fn improve_with_length(
     mesh: &mut SurfaceMesh,
     params: &EvolveParams,
     l: f32,
-) -> Result<ImproveReport, EvolveError> {
+) -> Result<ImproveReport, MeshError> {
     let mut report = ImproveReport::default();
     // Guard: a mesh whose mean edge length is 0 or not finite has nothing to improve toward.
     if !(l.is_finite() && l > 0.0) || mesh.n_faces() == 0 {

@@ -23,7 +23,7 @@
 //! - A vertex that no stage touches ends at exactly `x₀ + d` computed in `f32` (the same expression as
 //!   `position += displacement`), bit for bit. Stages touch only vertices of pairs that collide, or that end
 //!   closer than ε while approaching.
-//! - Never panics on bad input: wrong lengths, non-finite values and bad parameters give [`EvolveError`].
+//! - Never panics on bad input: wrong lengths, non-finite values and bad parameters give [`MeshError`].
 //!
 //! # Cost
 //! The broad phase builds BVHs of swept boxes once per pass; after the first pass, detection and proximity
@@ -55,7 +55,6 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 use crate::error::MeshError;
-use crate::handles::FaceId;
 use crate::intersect::self_intersections;
 use crate::surface_mesh::SurfaceMesh;
 
@@ -109,7 +108,7 @@ pub struct EvolveParams {
     /// Null-space smoothing (Jiao 2007, as in El Topo) during improvement. Default true.
     pub smoothing: bool,
     /// Topological merging of surfaces that come close (El Topo's merges). Default false; `true` is
-    /// rejected with [`EvolveError::InvalidParameter`]: merging is not implemented.
+    /// rejected with [`MeshError::InvalidParameter`]: merging is not implemented.
     pub allow_merges: bool,
 }
 
@@ -141,9 +140,9 @@ impl EvolveParams {
         Self { edge_length: Some(l), ..Self::default() }
     }
 
-    fn validate(&self) -> Result<(), EvolveError> {
+    fn validate(&self) -> Result<(), MeshError> {
         let bad = |name: &'static str, value: f32, reason: &'static str| {
-            Err(EvolveError::InvalidParameter { name, value: value as f64, reason })
+            Err(MeshError::InvalidParameter { name, value: value as f64, reason })
         };
         let pos = |x: f32| x.is_finite() && x > 0.0;
         if !pos(self.proximity_epsilon) {
@@ -177,55 +176,6 @@ impl EvolveParams {
         }
         Ok(())
     }
-}
-
-/// Errors of [`evolve`] and [`improve()`].
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum EvolveError {
-    /// The displacement slice does not have one entry per vertex slot.
-    #[error(
-        "got {got} displacements for a mesh with {expected} vertex slots; pass one per `VertexId` index \
-         (`mesh.vertices_size()`, deleted slots included)"
-    )]
-    DisplacementCount {
-        /// `mesh.vertices_size()`.
-        expected: usize,
-        /// Length given.
-        got: usize,
-    },
-    /// A displacement of a live vertex is NaN or infinite.
-    #[error("displacement of vertex {vertex} is not finite ({value:?}); fix the gradient step")]
-    NonFiniteDisplacement {
-        /// Vertex index.
-        vertex: usize,
-        /// The value given.
-        value: [f32; 3],
-    },
-    /// The input mesh already self-intersects, so no motion can be guaranteed intersection-free.
-    #[error(
-        "the input mesh already self-intersects ({pairs} face pairs, first {first:?}); repair it, or set \
-         `check_input: false` to evolve anyway (then only new intersections are prevented)"
-    )]
-    InputSelfIntersects {
-        /// Number of intersecting face pairs.
-        pairs: usize,
-        /// The first pair.
-        first: (FaceId, FaceId),
-    },
-    /// A parameter is out of range.
-    #[error("parameter `{name}` = {value} is invalid: {reason}")]
-    InvalidParameter {
-        /// Parameter name.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// What is allowed.
-        reason: &'static str,
-    },
-    /// The mesh is invalid or empty.
-    #[error(transparent)]
-    Mesh(#[from] MeshError),
 }
 
 /// Wall-clock time per part of a call.
@@ -276,21 +226,21 @@ pub fn evolve(
     mesh: &mut SurfaceMesh,
     displacements: &[Vec3],
     params: &EvolveParams,
-) -> Result<EvolveReport, EvolveError> {
+) -> Result<EvolveReport, MeshError> {
     let start = Instant::now();
     params.validate()?;
     if displacements.len() != mesh.vertices_size() {
-        return Err(EvolveError::DisplacementCount { expected: mesh.vertices_size(), got: displacements.len() });
+        return Err(MeshError::DisplacementCount { expected: mesh.vertices_size(), got: displacements.len() });
     }
     for v in mesh.vertices() {
         let d = displacements[v.idx()];
         if !d.is_finite() {
-            return Err(EvolveError::NonFiniteDisplacement { vertex: v.idx(), value: d.to_array() });
+            return Err(MeshError::NonFiniteDisplacement { vertex: v.idx(), value: d.to_array() });
         }
     }
     mesh.validate()?;
     if mesh.n_faces() == 0 {
-        return Err(MeshError::EmptyMesh { what: "evolve" }.into());
+        return Err(MeshError::EmptyMesh { what: "evolve" });
     }
     let mut report = EvolveReport::default();
     let l = params.edge_length.unwrap_or_else(|| mesh.mean_edge_length());
@@ -299,7 +249,7 @@ pub fn evolve(
         let pairs = self_intersections(mesh)?;
         report.timings.static_check += clock.elapsed();
         if let Some(&first) = pairs.first() {
-            return Err(EvolveError::InputSelfIntersects { pairs: pairs.len(), first });
+            return Err(MeshError::InputSelfIntersects { pairs: pairs.len(), first });
         }
     }
 
