@@ -226,3 +226,31 @@ pub fn self_intersections(mesh: &SurfaceMesh) -> Result<Vec<(FaceId, FaceId)>, M
     pairs.sort_unstable();
     Ok(pairs)
 }
+
+/// [`self_intersections`] of an indexed triangle list: the pairs `(i, j)`, `i < j`, of triangles that
+/// intersect other than along their shared vertices/edges, sorted. Errors on an empty list, out-of-range
+/// indices or non-finite positions.
+pub fn triangle_self_intersections(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<(u32, u32)>, MeshError> {
+    let bvh = TriangleBvh::from_triangles(positions, triangles)?;
+    let mut pairs = Vec::new();
+    for ti in 0..bvh.len() as u32 {
+        let t = bvh.triangle(ti);
+        if is_degenerate_triangle(t[0], t[1], t[2]) {
+            continue;
+        }
+        let fv = triangles[ti as usize];
+        let lo = t[0].min(t[1]).min(t[2]);
+        let hi = t[0].max(t[1]).max(t[2]);
+        bvh.for_each_overlapping(lo, hi, |ui| {
+            if ui <= ti {
+                return;
+            }
+            let u = bvh.triangle(ui);
+            if !is_degenerate_triangle(u[0], u[1], u[2]) && faces_intersect(fv, t, triangles[ui as usize], u) {
+                pairs.push((ti, ui));
+            }
+        });
+    }
+    pairs.sort_unstable();
+    Ok(pairs)
+}

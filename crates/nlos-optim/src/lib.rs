@@ -60,8 +60,9 @@ pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};
 pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, prune_boundary};
 pub use reconstruct::{
-    CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IterationRecord, Outcome, Progress, ProgressEvent,
-    ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct, reconstruct_with, resume,
+    CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
+    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct,
+    reconstruct_with, resume,
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};

@@ -41,6 +41,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use nlos_mesh::evolve::{EvolveParams, evolve};
+use nlos_mesh::intersect::triangle_self_intersections;
 use nlos_mesh::{MeshError, SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
 use nlos_render::{RenderParams, Renderer, Sampling};
 use nlos_transient::{Scan, TimeAxis, Transient};
@@ -201,6 +202,41 @@ pub struct RunLog {
     pub iterations: Vec<IterationRecord>,
     /// Rollbacks performed.
     pub rollbacks: u32,
+    /// Self-intersection checks: of the start, after every remeshing and at the end of every block.
+    #[serde(default)]
+    pub intersections: Vec<IntersectionRecord>,
+}
+
+/// When the surface is checked for self-intersections ([`IntersectionRecord`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntersectionCheck {
+    /// The initial surface, before the loop.
+    Start,
+    /// After a block's remeshing (remeshing moves vertices without collision handling).
+    Remeshed,
+    /// At the end of a block: after the collision-aware evolution of its shape steps, pruning and residual
+    /// patches (which are added where the data want them, whatever they cross).
+    BlockEnd,
+}
+
+/// One self-intersection check of the surface. Faces found intersecting are deleted (the smaller face of
+/// each pair, both where that leaves a non-manifold mesh), so that collision-aware evolution starts every
+/// block from an intersection-free surface: `pairs_left` is 0 unless no deletion kept the mesh manifold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IntersectionRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// When.
+    pub check: IntersectionCheck,
+    /// Intersecting face pairs found.
+    pub pairs: usize,
+    /// Faces deleted.
+    pub faces_removed: usize,
+    /// Intersecting face pairs left.
+    pub pairs_left: usize,
 }
 
 /// Why a run ended.
@@ -456,7 +492,7 @@ pub fn reconstruct_with(
         None => None,
     };
     let albedo_adam = VectorAdam::new(albedo.as_ref().map_or(0, |m| m.log_albedo.len()));
-    let state = State {
+    let mut state = State {
         version: CHECKPOINT_VERSION,
         fingerprint: fingerprint(measured),
         settings: SettingsRecord::of(params)?,
@@ -483,6 +519,8 @@ pub fn reconstruct_with(
         albedo,
         albedo_adam,
     };
+    // A start that intersects itself would leave collision-aware evolution nothing to guarantee.
+    untangle(&mut state, IntersectionCheck::Start)?;
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
     }
@@ -627,7 +665,14 @@ fn prepare_topology(
     st.shape_adam = st.shape_adam.transfer(&weights);
     st.positions = pos;
     st.triangles = tris;
-    Ok(boundary)
+    let faces = st.triangles.len();
+    untangle(st, IntersectionCheck::Remeshed)?;
+    if st.triangles.len() == faces {
+        return Ok(boundary);
+    }
+    // Faces went: the boundary flags of the mesh as it now is.
+    let mesh = mesh_of(st)?;
+    Ok(mesh.vertices().map(|v| mesh.is_boundary_vertex(v)).collect())
 }
 
 /// Keeps the triangles flagged in `keep` and the vertices they use (renumbered in order), with their Adam
@@ -651,6 +696,45 @@ fn drop_faces(st: &mut State, keep: &[bool]) {
     st.shape_adam = st.shape_adam.select(&source);
     st.positions = old_of_new.iter().map(|&v| st.positions[v as usize]).collect();
     st.triangles = triangles;
+}
+
+/// Checks the surface for self-intersections and deletes the faces that cause them ([`IntersectionRecord`]),
+/// with their vertices' Adam state; the check is logged.
+fn untangle(st: &mut State, check: IntersectionCheck) -> Result<()> {
+    let pairs = triangle_self_intersections(&st.positions, &st.triangles)?;
+    let mut record = IntersectionRecord {
+        stage: st.stage,
+        block: st.block_in_stage,
+        check,
+        pairs: pairs.len(),
+        faces_removed: 0,
+        pairs_left: pairs.len(),
+    };
+    if !pairs.is_empty() {
+        let area = |f: u32| {
+            let t = st.triangles[f as usize].map(|v| st.positions[v as usize]);
+            (t[1] - t[0]).cross(t[2] - t[0]).length()
+        };
+        let smaller: Vec<u32> = pairs.iter().map(|&(f, g)| if area(f) <= area(g) { f } else { g }).collect();
+        let both: Vec<u32> = pairs.iter().flat_map(|&(f, g)| [f, g]).collect();
+        for doomed in [smaller, both] {
+            let mut keep = vec![true; st.triangles.len()];
+            for f in doomed {
+                keep[f as usize] = false;
+            }
+            let kept: Vec<[u32; 3]> = st.triangles.iter().zip(&keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
+            // Guard: deleting faces can pinch a vertex into a bow tie, or delete everything.
+            if kept.is_empty() || SurfaceMesh::from_triangles(&st.positions, &kept).is_err() {
+                continue;
+            }
+            record.faces_removed = st.triangles.len() - kept.len();
+            drop_faces(st, &keep);
+            record.pairs_left = triangle_self_intersections(&st.positions, &st.triangles)?.len();
+            break;
+        }
+    }
+    st.log.intersections.push(record);
+    Ok(())
 }
 
 /// Whether the mesh's triangles rebuild into a valid half-edge mesh (no non-manifold vertex or edge).
@@ -1033,7 +1117,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             }
         }
 
-        // ---- bookkeeping: relative decrease, stage advance, checkpoint ----
+        // ---- bookkeeping: self-intersections, relative decrease, stage advance, checkpoint ----
+        untangle(&mut st, IntersectionCheck::BlockEnd)?;
         st.blocks_done += 1;
         if stage_ends {
             if let Some(dir) = &out_dir {

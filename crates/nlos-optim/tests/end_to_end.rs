@@ -445,3 +445,31 @@ fn smoothing_weight_of_photon_counts_discounts_the_noise_floor() {
     let got = with.reg_weight / without.reg_weight;
     assert!((got - want).abs() < 1e-9 * want.max(1.0), "λ ratio {got} vs (E − E_floor)/E = {want}");
 }
+
+/// A start that intersects itself (a plate crossing the surface) is repaired before the loop, and the
+/// surface is free of self-intersections after every remeshing and at the end of every block (run log).
+#[test]
+fn a_start_that_collides_is_repaired_and_every_block_ends_intersection_free() {
+    let measured = measurement(8);
+    let (mut p, mut t) = facing_wall(6, |_, _| 0.42).to_triangles();
+    let (q, u) = facing_wall(3, |x, _| 0.42 + 0.4 * x).to_triangles();
+    let offset = p.len() as u32;
+    p.extend(q.iter().map(|v| Vec3::new(0.5 * v.x, 0.5 * v.y, v.z)));
+    t.extend(u.iter().map(|f| f.map(|i| i + offset)));
+    let crossing = nlos_mesh::intersect::triangle_self_intersections(&p, &t).unwrap();
+    assert!(!crossing.is_empty(), "the start must collide");
+    let init = SurfaceMesh::from_triangles(&p, &t).unwrap();
+    let mut params = small_params(out_dir("collide"));
+    params.out_dir = None;
+    let out = reconstruct_with(&measured, &init, &params, Hooks::default()).unwrap();
+    let log = &out.log.intersections;
+    let start = log.first().expect("a start check");
+    assert_eq!(start.check, nlos_optim::IntersectionCheck::Start);
+    assert_eq!(start.pairs, crossing.len());
+    assert!(start.faces_removed > 0);
+    let blocks = log.iter().filter(|r| r.check == nlos_optim::IntersectionCheck::BlockEnd).count();
+    assert_eq!(blocks as u64, out.blocks_done);
+    assert!(log.iter().all(|r| r.pairs_left == 0), "{log:?}");
+    let (p, t) = out.mesh.to_triangles();
+    assert!(nlos_mesh::intersect::triangle_self_intersections(&p, &t).unwrap().is_empty());
+}
