@@ -13,13 +13,12 @@
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;
 //! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
-//! - [`grow`]: loss-driven boundary growth — faces across boundary edges are added where they lower it;
 //! - [`residual`]: residual back-projection — new surface patches where the LCT of the fit's residual
 //!   finds light away from the mesh, added where they lower the data term;
-//! - [`temporal`]: coarse-to-fine in time — the early stages' data term compares Gaussian-blurred
-//!   histograms, so surfaces whose light arrives many bins from the measured return feel a pull toward it;
 //! - [`albedo`]: spatially varying albedo — a log-albedo map over the wall plane, fitted with the shape, for
 //!   scenes whose reflectance varies (printed patterns), which a uniform albedo turns into relief;
+//! - [`pipeline`]: the reconstruction as users run it — settings ([`pipeline::Config`], TOML), capture
+//!   preparation, every `auto` decision and the initial surface;
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each

@@ -20,7 +20,7 @@
 //! second difference of the data term along the face's share (`E(I + I_f) + E(I − I_f) − 2E(I)`, which is
 //! `s²‖I_f‖²` for L2): with κ = ½, the rendering must exceed the measurement, in the face's bins, by ¾ of the
 //! face's own contribution. A face nothing supports has `ΔE_f = −½ c_f` and still goes. Additions
-//! ([`crate::grow`], [`crate::residual`]) take `c_f` from the forward difference
+//! ([`crate::residual`]) take `c_f` from the forward difference
 //! `E(I + 2I_f) − 2E(I + I_f) + E(I)`, the same `s²‖I_f‖²` for L2.
 //!
 //! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted

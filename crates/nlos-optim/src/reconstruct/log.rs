@@ -1,0 +1,126 @@
+//! The run log (`run_log.json`): one record per iteration, per collision-aware evolution and per
+//! self-intersection check, and why the run ended.
+
+use super::*;
+
+/// Which block an iteration belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StepKind {
+    /// A vertex step.
+    Shape,
+    /// A reflectance (θ) step.
+    Reflectance,
+}
+
+/// One line of the run log.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IterationRecord {
+    /// Global iteration number.
+    pub iteration: u64,
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Shape or reflectance step.
+    pub kind: StepKind,
+    /// Total loss `E_data/E_0 + λ R` (E_0: [`crate::DataTerm::normaliser`]).
+    pub loss: f64,
+    /// Normalised data term `E_data/E_0`.
+    pub data: f64,
+    /// Regulariser `R + w R_∂` (normal plus boundary smoothing, [`ReconstructParams::boundary_smoothing`]), before λ.
+    pub regulariser: f64,
+    /// Regulariser weight λ.
+    pub reg_weight: f64,
+    /// Intensity scale s.
+    pub scale: f64,
+    /// Learning rate of the step (metres for shape steps, θ units for reflectance steps), rollbacks
+    /// included.
+    pub step_size: f64,
+    /// Faces.
+    pub faces: usize,
+    /// Vertices.
+    pub vertices: usize,
+    /// Wall-clock seconds since the start of the run (summed over resumes; the only non-deterministic
+    /// field).
+    pub time_s: f64,
+    /// Shape steps of a fit to photon counts (a sensor fit, or [`crate::DataTerm::counts`]): the normalised
+    /// noise floor of the data term ([`crate::SensorFit::noise_floor`], [`crate::DataTerm::noise_floor`]),
+    /// what `data` would be if the expected counts were exact. `data − noise_floor` is the misfit left; the
+    /// regulariser weight is set against it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_floor: Option<f64>,
+}
+
+/// The JSON run log (`run_log.json`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RunLog {
+    /// One record per iteration.
+    pub iterations: Vec<IterationRecord>,
+    /// Rollbacks performed.
+    pub rollbacks: u32,
+    /// Self-intersection checks: of the start, after every remeshing and at the end of every block.
+    #[serde(default)]
+    pub intersections: Vec<IntersectionRecord>,
+}
+
+/// When the surface is checked for self-intersections ([`IntersectionRecord`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntersectionCheck {
+    /// The initial surface, before the loop.
+    Start,
+    /// After a block's remeshing (remeshing moves vertices without collision handling).
+    Remeshed,
+    /// At the end of a block: after the collision-aware evolution of its shape steps, pruning and residual
+    /// patches (which are added where the data want them, whatever they cross).
+    BlockEnd,
+}
+
+/// One self-intersection check of the surface. Faces found intersecting are deleted (the smaller face of
+/// each pair, both where that leaves a non-manifold mesh), so that collision-aware evolution starts every
+/// block from an intersection-free surface: `pairs_left` is 0 unless no deletion kept the mesh manifold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IntersectionRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// When.
+    pub check: IntersectionCheck,
+    /// Intersecting face pairs found.
+    pub pairs: usize,
+    /// Faces deleted.
+    pub faces_removed: usize,
+    /// Intersecting face pairs left.
+    pub pairs_left: usize,
+}
+
+/// Why a run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// All stages ran.
+    MaxStages,
+    /// The next stage would exceed the face limit.
+    FaceLimit,
+    /// The progress callback asked to stop (resume continues).
+    Interrupted,
+}
+
+/// What the collision-aware evolution did at the end of one shape block.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EvolveRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Wall-clock seconds of the `evolve` call (the only non-deterministic field).
+    pub seconds: f64,
+    /// Vertices whose end position differs from `x₀ + d` (collisions resolved).
+    pub vertices_adjusted: usize,
+    /// Share of the requested motion applied (`nlos_mesh::evolve::EvolveReport::motion_fraction`).
+    pub motion_fraction: f64,
+    /// Whether the block's starting mesh already self-intersected (evolved with `check_input: false`).
+    pub input_intersected: bool,
+}
