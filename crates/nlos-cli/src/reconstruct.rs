@@ -1,7 +1,7 @@
 //! `nlos reconstruct`: capture → initial surface (LCT, f-k, carving or a mesh file) → optimised mesh.
 //!
 //! The command parses, calls [`nlos_optim::pipeline`] (capture preparation, every `auto` decision, the
-//! initial surface) and [`nlos_optim::reconstruct`], and prints. Every setting lives in
+//! initial surface) and [`nlos_optim::reconstruct()`], and prints. Every setting lives in
 //! [`nlos_optim::pipeline::Config`]: `--print-config` writes the defaults as TOML, `--config FILE` reads
 //! them back, `--set KEY=VALUE` changes one; the flags below are shorthands for the settings changed most.
 //!
