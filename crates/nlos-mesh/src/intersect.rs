@@ -198,31 +198,14 @@ pub fn faces_intersect(fv: [u32; 3], t: [Vec3; 3], gv: [u32; 3], u: [Vec3; 3]) -
 /// [`crate::quality::mesh_quality`]. Errors on a mesh without faces.
 pub fn self_intersections(mesh: &SurfaceMesh) -> Result<Vec<(FaceId, FaceId)>, MeshError> {
     let bvh = TriangleBvh::from_mesh(mesh)?;
-    let mut pairs = Vec::new();
-    for ti in 0..bvh.len() as u32 {
-        let f = bvh.face_id(ti);
-        let t = bvh.triangle(ti);
-        if is_degenerate_triangle(t[0], t[1], t[2]) {
-            continue;
-        }
-        let fv = mesh.face_vertices(f).map(|v| v.0);
-        let lo = t[0].min(t[1]).min(t[2]);
-        let hi = t[0].max(t[1]).max(t[2]);
-        bvh.for_each_overlapping(lo, hi, |ui| {
-            if ui <= ti {
-                return;
-            }
-            let u = bvh.triangle(ui);
-            if is_degenerate_triangle(u[0], u[1], u[2]) {
-                return;
-            }
-            let g = bvh.face_id(ui);
-            let gv = mesh.face_vertices(g).map(|v| v.0);
-            if faces_intersect(fv, t, gv, u) {
-                pairs.push(if f < g { (f, g) } else { (g, f) });
-            }
-        });
-    }
+    let corners = |ti: u32| mesh.face_vertices(bvh.face_id(ti)).map(|v| v.0);
+    let mut pairs: Vec<(FaceId, FaceId)> = intersecting_pairs(&bvh, corners)
+        .into_iter()
+        .map(|(ti, ui)| {
+            let (f, g) = (bvh.face_id(ti), bvh.face_id(ui));
+            if f < g { (f, g) } else { (g, f) }
+        })
+        .collect();
     pairs.sort_unstable();
     Ok(pairs)
 }
@@ -232,13 +215,21 @@ pub fn self_intersections(mesh: &SurfaceMesh) -> Result<Vec<(FaceId, FaceId)>, M
 /// indices or non-finite positions.
 pub fn triangle_self_intersections(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<Vec<(u32, u32)>, MeshError> {
     let bvh = TriangleBvh::from_triangles(positions, triangles)?;
+    let mut pairs = intersecting_pairs(&bvh, |ti| triangles[ti as usize]);
+    pairs.sort_unstable();
+    Ok(pairs)
+}
+
+/// The pairs `(t, u)`, `t < u`, of the BVH's triangles that intersect other than along shared corners
+/// (`corners(t)`: the vertex indices of triangle `t`); degenerate triangles are skipped.
+fn intersecting_pairs(bvh: &TriangleBvh, corners: impl Fn(u32) -> [u32; 3]) -> Vec<(u32, u32)> {
     let mut pairs = Vec::new();
     for ti in 0..bvh.len() as u32 {
         let t = bvh.triangle(ti);
         if is_degenerate_triangle(t[0], t[1], t[2]) {
             continue;
         }
-        let fv = triangles[ti as usize];
+        let fv = corners(ti);
         let lo = t[0].min(t[1]).min(t[2]);
         let hi = t[0].max(t[1]).max(t[2]);
         bvh.for_each_overlapping(lo, hi, |ui| {
@@ -246,11 +237,10 @@ pub fn triangle_self_intersections(positions: &[Vec3], triangles: &[[u32; 3]]) -
                 return;
             }
             let u = bvh.triangle(ui);
-            if !is_degenerate_triangle(u[0], u[1], u[2]) && faces_intersect(fv, t, triangles[ui as usize], u) {
+            if !is_degenerate_triangle(u[0], u[1], u[2]) && faces_intersect(fv, t, corners(ui), u) {
                 pairs.push((ti, ui));
             }
         });
     }
-    pairs.sort_unstable();
-    Ok(pairs)
+    pairs
 }

@@ -4,7 +4,7 @@ use glam::Vec3;
 use nlos_mesh::distance::{self, Sampling};
 use nlos_mesh::intersect::{self, triangles_intersect};
 use nlos_mesh::quality::mesh_quality;
-use nlos_mesh::{SurfaceMesh, TriangleBvh, shapes};
+use nlos_mesh::{FaceId, SurfaceMesh, TriangleBvh, shapes};
 
 struct Rng(u64);
 impl Rng {
@@ -209,6 +209,14 @@ fn self_intersections_are_found_and_match_brute_force() {
     for p in &brute {
         assert!(pairs.contains(p), "brute-force pair {p:?} missed");
     }
+    // The indexed-triangle form finds the same pairs (face i is triangle i of `to_triangles`).
+    let (pos, tris) = m.to_triangles();
+    let by_index: Vec<(FaceId, FaceId)> = intersect::triangle_self_intersections(&pos, &tris)
+        .expect("non-empty")
+        .into_iter()
+        .map(|(i, j)| (faces[i as usize], faces[j as usize]))
+        .collect();
+    assert_eq!(by_index, pairs);
     // adjacent faces folded flat onto each other are reported
     let mut fold =
         SurfaceMesh::from_triangles(&[Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.5, 0.4, 0.0)], &[[0, 1, 2], [1, 0, 3]])

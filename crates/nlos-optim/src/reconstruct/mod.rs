@@ -696,19 +696,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         }
         let flow = report(&mut hooks, &st, ProgressEvent::BlockEnd, planned, block_last, target, st.elapsed_s);
         if flow.is_break() && st.finished.is_none() {
-            return Ok(Outcome {
-                mesh: mesh_of(&st)?,
-                reflectance: st.reflectance.clone(),
-                scale: st.scale,
-                log: st.log.clone(),
-                stop: StopReason::Interrupted,
-                stage: st.stage,
-                blocks_done: st.blocks_done,
-                evolve: st.evolve_log.clone(),
-                prune: st.prune_log.clone(),
-                residual: st.residual_log.clone(),
-                albedo: st.albedo.clone(),
-            });
+            return Ok(outcome(&st, mesh_of(&st)?, StopReason::Interrupted));
         }
     }
     let mesh = mesh_of(&st)?;
@@ -716,19 +704,24 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
         nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
     }
-    Ok(Outcome {
+    Ok(outcome(&st, mesh, st.finished.unwrap_or(StopReason::MaxStages)))
+}
+
+/// The outcome of a run in state `st` with its mesh.
+fn outcome(st: &State, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
+    Outcome {
         mesh,
         reflectance: st.reflectance.clone(),
         scale: st.scale,
         log: st.log.clone(),
-        stop: st.finished.unwrap_or(StopReason::MaxStages),
+        stop,
         stage: st.stage,
         blocks_done: st.blocks_done,
         evolve: st.evolve_log.clone(),
         prune: st.prune_log.clone(),
         residual: st.residual_log.clone(),
         albedo: st.albedo.clone(),
-    })
+    }
 }
 
 fn report(
