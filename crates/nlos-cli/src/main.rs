@@ -7,6 +7,7 @@
 //! of range, a usage error), 1 for other failures (an output that cannot be written, a figure that cannot
 //! be encoded). Errors are printed to stderr as `error: <message>`.
 
+mod choices;
 mod convert;
 mod eval;
 mod info;

@@ -18,6 +18,7 @@ use nlos_render::{RenderParams, Sampling};
 use nlos_report::ReportOptions;
 
 use crate::CliError;
+use crate::choices::BrdfArg;
 
 /// Arguments of `nlos reconstruct`.
 #[derive(Debug, clap::Args)]
@@ -79,15 +80,6 @@ pub(crate) struct Args {
     /// Hide the progress bar and the sensor fit's description (what `auto` cut from the capture is still said).
     #[arg(long)]
     quiet: bool,
-}
-
-/// `--brdf`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum BrdfArg {
-    /// One albedo.
-    Lambert,
-    /// GGX microfacet lobe.
-    Ggx,
 }
 
 /// The file in the output directory that keeps the run's settings.

@@ -13,6 +13,7 @@ use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient};
 
 use crate::CliError;
+use crate::choices::{BrdfArg, ModeArg, VisibilityArg};
 
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
@@ -29,8 +30,8 @@ pub(crate) struct Args {
     #[arg(long, value_name = "FILE")]
     setup: Option<PathBuf>,
     /// Reflectance: `lambert` (albedo 1) or `ggx` (specular 1, no diffuse, F = 1, roughness --alpha).
-    #[arg(long, default_value = "lambert", value_name = "lambert|ggx")]
-    brdf: String,
+    #[arg(long, value_enum, default_value = "lambert")]
+    brdf: BrdfArg,
     /// GGX roughness α in [0.001, 1].
     #[arg(long, default_value_t = 0.3)]
     alpha: f32,
@@ -39,8 +40,8 @@ pub(crate) struct Args {
     two_sided: bool,
     /// `exact`: noise-free adaptive quadrature; `mc`: the seed's stratified area sampling (--spp samples
     /// per measurement).
-    #[arg(long, default_value = "exact", value_name = "exact|mc")]
-    mode: String,
+    #[arg(long, value_enum, default_value = "exact")]
+    mode: ModeArg,
     /// Largest subdivision level of the `exact` quadrature (each sub-triangle spans at most half a bin of
     /// path length, up to level² sub-triangles per triangle and measurement).
     #[arg(long, default_value_t = 64, value_name = "N")]
@@ -48,8 +49,8 @@ pub(crate) struct Args {
     /// Visibility: `cached` (one visible fraction per triangle and measurement from --vis-level²
     /// shadow rays: fast, and exact away from shadow boundaries), `live` (a shadow ray per sample: exact,
     /// slow on large meshes), `off` (no occlusion).
-    #[arg(long, default_value = "cached", value_name = "cached|live|off")]
-    visibility: String,
+    #[arg(long, value_enum, default_value = "cached")]
+    visibility: VisibilityArg,
     /// Sub-triangle level of the cached visibility rays (level² rays per triangle and measurement).
     #[arg(long, default_value_t = 2, value_name = "N")]
     vis_level: u32,
@@ -143,14 +144,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             TimeAxis::new(0.0, 0.0012, 1200).map_err(bad)?,
         ),
     };
-    let sampling = match args.mode.as_str() {
-        "exact" if args.max_level >= 1 => {
+    let sampling = match args.mode {
+        ModeArg::Exact if args.max_level >= 1 => {
             Sampling::Deterministic(DeterministicRule { max_level: args.max_level, ..DeterministicRule::default() })
         }
-        "exact" => return Err(bad("--max-level must be at least 1")),
-        "mc" if args.spp > 0 => Sampling::Stratified { samples_per_measurement: args.spp, seed: args.seed },
-        "mc" => return Err(bad("--spp must be at least 1")),
-        other => return Err(bad(format!("--mode `{other}`: expected `exact` or `mc`"))),
+        ModeArg::Exact => return Err(bad("--max-level must be at least 1")),
+        ModeArg::Mc if args.spp > 0 => Sampling::Stratified { samples_per_measurement: args.spp, seed: args.seed },
+        ModeArg::Mc => return Err(bad("--spp must be at least 1")),
     };
     let model = match args.photons {
         Some(n) if !(n.is_finite() && n > 0.0) => return Err(bad(format!("--photons {n}: must be finite and > 0"))),
@@ -162,19 +162,17 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let bytes = std::fs::read(&args.mesh).map_err(|e| bad(format!("{}: {e}", args.mesh.display())))?;
     let soup = nlos_mesh::io::read_any(&bytes, &args.mesh.display().to_string()).map_err(bad)?;
     let (positions, triangles) = (soup.positions, soup.triangles);
-    let visibility = match args.visibility.as_str() {
-        "cached" if (1..=16).contains(&args.vis_level) => Visibility::Cached { level: args.vis_level },
-        "cached" => return Err(bad(format!("--vis-level {}: must be in 1..=16", args.vis_level))),
-        "live" => Visibility::Live,
-        "off" => Visibility::Off,
-        other => return Err(bad(format!("--visibility `{other}`: expected `cached`, `live` or `off`"))),
+    let visibility = match args.visibility {
+        VisibilityArg::Cached if (1..=16).contains(&args.vis_level) => Visibility::Cached { level: args.vis_level },
+        VisibilityArg::Cached => return Err(bad(format!("--vis-level {}: must be in 1..=16", args.vis_level))),
+        VisibilityArg::Live => Visibility::Live,
+        VisibilityArg::Off => Visibility::Off,
     };
     let params = RenderParams { kernel: Kernel::Box, sampling, visibility, two_sided: args.two_sided };
     let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
-    let rendered: Transient = match args.brdf.as_str() {
-        "lambert" | "lambertian" => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
-        "ggx" => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
-        other => return Err(bad(format!("--brdf `{other}`: expected `lambert` or `ggx`"))),
+    let rendered: Transient = match args.brdf {
+        BrdfArg::Lambert => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
+        BrdfArg::Ggx => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
     }
     .map_err(bad)?;
     let out = match &model {
