@@ -14,170 +14,18 @@ use crate::soa::{self, Acc, BLOCK, Block, Frame, Isa, Packed, Scratch, Soa, Spot
 use crate::splat::{self, Knots};
 use crate::visibility::Bvh;
 
+mod lobe;
+mod params;
+
+use lobe::Lobe;
+pub use params::*;
+
 /// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
 /// is swept over them).
 const M_CHUNK: usize = 8;
 /// Measurements between flushes of the adjoint's f32 per-triangle accumulators into f64, which bounds the
 /// length of every f32 sum.
 const FLUSH: usize = 16;
-
-/// The deterministic barycentric rule: triangle `t` is cut, for measurement `m`, into `n²` congruent
-/// sub-triangles (n per edge) and each contributes its centroid value times its area (the centroid rule).
-/// `n` is the smallest level at which a sub-triangle spans at most `max_bin_fraction` bins of path length,
-/// estimated as `range/n + e²/(n² r_min)` (the range of τ over the three vertices, plus the deviation of τ
-/// from linear: its Hessian has norm ≤ 2/r_min, r_min the smallest vertex–spot distance, e the longest
-/// edge), clamped to `[min_level, max_level]`.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct DeterministicRule {
-    /// Largest path-length span of a sub-triangle, in bins (> 0). Default 0.5.
-    pub max_bin_fraction: f32,
-    /// Smallest subdivision level n (≥ 1). Default 1.
-    pub min_level: u32,
-    /// Largest subdivision level n (≥ min_level); caps the cost at n² samples per (triangle, measurement).
-    /// Default 64. Set `min_level = max_level` for a fixed rule (smooth in the vertices: use it for finite
-    /// differences).
-    pub max_level: u32,
-}
-
-impl Default for DeterministicRule {
-    fn default() -> Self {
-        Self { max_bin_fraction: 0.5, min_level: 1, max_level: 64 }
-    }
-}
-
-impl DeterministicRule {
-    /// A fixed level `n` for every (triangle, measurement).
-    pub fn fixed(n: u32) -> Self {
-        Self { max_bin_fraction: 1.0, min_level: n, max_level: n }
-    }
-}
-
-/// Closed-form time integration per (triangle, measurement) ([`Sampling::Splat`]): triangle t is cut into
-/// `n²` congruent sub-triangles (n per edge, the same cut as [`DeterministicRule`]); on each, the integrand
-/// `f_s Q` is taken at the centroid and the path length τ as linear between the three corners, whose area
-/// density over τ (rising from the smallest corner value to the middle one, falling to the largest) is
-/// integrated against the tent kernel in closed form (`splat.rs`). The time integral is then exact however
-/// many bins a sub-triangle spans; the level only has to resolve τ's curvature: `n` is the smallest level
-/// at which τ departs from linear by at most `max_deviation` bins over a sub-triangle, bounded as
-/// `(2/r) e²/(6 n²)` (τ's Hessian has norm ≤ 1/|x − l| + 1/|x − s| ≤ 2/r, r a lower bound of the distance
-/// from the triangle to every wall spot; the linear interpolant's error on a triangle of longest edge e is
-/// at most `M e²/6` for a Hessian norm ≤ M), taken as the largest over each block of 256 triangles and
-/// clamped to `[1, max_level]`. Tent kernel only.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct SplatRule {
-    /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.09: on the first
-    /// stage's 8 mm faces at the seed's setup this cuts the blocks holding the longest faces in four, which
-    /// brings the bin-level error against the exact quadrature below the former adaptive rule's (see
-    /// `docs/performance.md`).
-    pub max_deviation: f32,
-    /// Largest subdivision level (1..=64). Default 8.
-    pub max_level: u32,
-}
-
-impl Default for SplatRule {
-    fn default() -> Self {
-        Self { max_deviation: 0.09, max_level: 8 }
-    }
-}
-
-/// How the surface integral of eq. (1) is estimated.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub enum Sampling {
-    /// Noise-free quadrature (see [`DeterministicRule`]). The default.
-    Deterministic(DeterministicRule),
-    /// The seed's stratified area sampling: per measurement, `samples_per_measurement` samples are spread
-    /// over the mesh in proportion to triangle area (triangle t gets ⌊c_t⌋ or ⌈c_t⌉ samples, c_t = N A_t/A,
-    /// randomised so the expected count is c_t), each sample weighted `A/N`, jittered (stratified along the
-    /// area-preserving square-to-triangle map). Unbiased; seeded per (seed, measurement, triangle).
-    Stratified {
-        /// Expected samples per measurement over the whole mesh (> 0).
-        samples_per_measurement: u32,
-        /// Seed.
-        seed: u64,
-    },
-    /// Closed-form time integration of each (sub-)triangle against the tent kernel (see [`SplatRule`]):
-    /// noise-free, and about (span in bins + 2) operations per pair instead of the n² samples a point rule
-    /// needs to resolve the same span. The optimiser's default. Needs [`Kernel::Tent`]; the steady-state
-    /// passes use the same sub-triangle centroids (time does not matter there).
-    Splat(SplatRule),
-}
-
-impl Default for Sampling {
-    fn default() -> Self {
-        Sampling::Deterministic(DeterministicRule::default())
-    }
-}
-
-/// How v(x, l) v(x, s) of eq. (1) is evaluated. In the adjoint pass visibility is always held fixed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
-pub enum Visibility {
-    /// Everything visible (convex scenes, or to ignore occlusion).
-    Off,
-    /// A shadow ray per sample (toward l, and toward s when not confocal). The default.
-    #[default]
-    Live,
-    /// A visible fraction per (triangle, measurement), from the `level²` sub-triangle centroids, stored as
-    /// a byte and multiplied into every sample of that pair. Computed by [`Renderer::new`] and
-    /// [`Renderer::refresh_visibility`] only; [`Renderer::set_positions`] keeps it (refresh after remeshing or
-    /// large moves), and with it the grouping of the triangles into blocks (made from the normals at the last
-    /// refresh), so results depend on the positions at the last refresh as well as on the current ones.
-    /// Memory: one byte per (triangle, measurement).
-    Cached {
-        /// Sub-triangle level of the visibility rays (≥ 1; 1 = one ray at the centroid).
-        level: u32,
-    },
-}
-
-/// Parameters of a [`Renderer`] (defaults: tent kernel, deterministic default rule, live visibility,
-/// one-sided faces).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
-pub struct RenderParams {
-    /// Temporal kernel, used in both passes.
-    pub kernel: Kernel,
-    /// Surface sampling.
-    pub sampling: Sampling,
-    /// Visibility.
-    pub visibility: Visibility,
-    /// Whether back faces reflect too (default false: a face reflects only when l and s are both on the
-    /// side of its geometric normal `(v1−v0)×(v2−v0)`).
-    pub two_sided: bool,
-}
-
-/// The non-zero part of one measurement's histogram ([`Renderer::forward_triangle`]): bins
-/// `first_bin .. first_bin + values.len()` of measurement `measurement`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RowSpan {
-    /// Measurement (row of the transient).
-    pub measurement: usize,
-    /// First bin of `values`.
-    pub first_bin: usize,
-    /// The histogram values from `first_bin` on (the first and last are non-zero).
-    pub values: Vec<f32>,
-}
-
-/// dE/d(vertex positions) and dE/d(BRDF parameters) from the adjoint pass.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Gradient {
-    /// One gradient per vertex.
-    pub vertices: Vec<Vec3>,
-    /// One per BRDF parameter, in the order of [`RenderBrdf::PARAM_NAMES`].
-    pub brdf: Vec<f32>,
-    /// One per mesh triangle: dE/dw_t, the derivative with respect to the triangle's reflectance factor
-    /// ([`Renderer::set_face_weights`]; 1 when none are set) at its current value. 0 for degenerate
-    /// triangles and for triangles whose factor is 0 (they are skipped, so nothing is sampled on them).
-    pub faces: Vec<f32>,
-}
-
-/// What [`Renderer::loss_and_gradient`] returns.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LossAndGradient {
-    /// The loss E (summed in f64).
-    pub loss: f64,
-    /// dE/d(vertices), dE/d(BRDF parameters).
-    pub gradient: Gradient,
-    /// The rendered transient, measurement-major (steady-state: one value per measurement).
-    pub rendered: Vec<f32>,
-}
 
 /// Per-measurement wall geometry, structure of arrays.
 #[derive(Debug, Clone)]
@@ -1606,122 +1454,12 @@ fn subtriangles(n: u32, mut f: impl FnMut(soa::Sub)) {
     }
 }
 
-/// The GGX lobe sampler of [`Renderer::set_lobe_sampling`] for one (triangle, confocal spot): microfacet
-/// normals `m ~ D(m)(m·n)` about the oriented unit normal `n`, mapped to the plane through the ray from `l`
-/// along `−m`.
-#[derive(Debug, Clone, Copy)]
-struct Lobe {
-    alpha2: f32,
-    n: Vec3,
-    /// Tangent frame of n.
-    t1: Vec3,
-    t2: Vec3,
-    l: Vec3,
-}
-
-impl Lobe {
-    fn new(alpha: f32, n_raw: Vec3, l: Vec3) -> Self {
-        let a = alpha.max(1e-3);
-        let n = n_raw.normalize_or_zero();
-        let (t1, t2) = n.any_orthonormal_pair();
-        Self { alpha2: a * a, n, t1, t2, l }
-    }
-
-    /// GGX `D(m)` at `cos θ_m = c`: `α²/(π (c²(α² − 1) + 1)²)`.
-    #[inline(always)]
-    fn d(&self, c: f32) -> f32 {
-        let k = c * c * (self.alpha2 - 1.0) + 1.0;
-        self.alpha2 / (std::f32::consts::PI * k * k)
-    }
-
-    /// The lobe's density at x per unit area of the plane: `D(m)(n·m)²/|x − l|²`, `m = (l − x)/|l − x|`
-    /// (0 behind the plane).
-    #[inline(always)]
-    fn pdf(&self, x: Vec3) -> f32 {
-        let d = self.l - x;
-        let r2 = d.length_squared();
-        let c = self.n.dot(d) / r2.sqrt();
-        if !(c > 0.0 && r2 > 0.0) {
-            return 0.0;
-        }
-        self.d(c) * c * c / r2
-    }
-
-    /// The barycentric coordinates (u along e1, v along e2) of the lobe sample for uniforms `(r1, r2)`, or
-    /// None when the ray misses the plane or the point is outside the triangle.
-    #[inline(always)]
-    fn sample(&self, r1: f32, r2: f32, v0: Vec3, e1: Vec3, e2: Vec3) -> Option<(f32, f32)> {
-        // tan²θ = α² r1/(1 − r1) samples D(m) cos θ_m.
-        let tan2 = self.alpha2 * r1 / (1.0 - r1);
-        let cos = 1.0 / (1.0 + tan2).sqrt();
-        let sin = (1.0 - cos * cos).max(0.0).sqrt();
-        let phi = std::f32::consts::TAU * r2;
-        let m = sin * phi.cos() * self.t1 + sin * phi.sin() * self.t2 + cos * self.n;
-        // x = l − s m on the plane n·(x − v0) = 0: s = n·(l − v0)/(n·m) > 0 for a front-facing pair.
-        let s = self.n.dot(self.l - v0) / self.n.dot(m);
-        if !(s > 0.0 && s.is_finite()) {
-            return None;
-        }
-        let x = self.l - s * m - v0;
-        let nn = e1.cross(e2);
-        let inv = 1.0 / nn.length_squared();
-        let u = x.cross(e2).dot(nn) * inv;
-        let v = e1.cross(x).dot(nn) * inv;
-        (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then_some((u, v))
-    }
-}
-
 /// Componentwise bounding box of every laser and sensor spot of the scan.
 fn spot_box(scan: &Scan) -> (Vec3, Vec3) {
     (0..scan.measurements()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), i| {
         let g = scan.measurement(i);
         (lo.min(g.laser).min(g.sensor), hi.max(g.laser).max(g.sensor))
     })
-}
-
-fn check_params(p: &RenderParams) -> Result<()> {
-    let bad = |name, value: f64, reason| Err(RenderError::InvalidParameter { name, value, reason });
-    if let Kernel::Gaussian { fwhm_bins } = p.kernel
-        && !(fwhm_bins > 0.0 && fwhm_bins.is_finite())
-    {
-        return bad("Kernel::Gaussian.fwhm_bins", f64::from(fwhm_bins), "must be finite and > 0 bins");
-    }
-    match p.sampling {
-        Sampling::Deterministic(r) => {
-            if !(r.max_bin_fraction > 0.0 && r.max_bin_fraction.is_finite()) {
-                return bad("max_bin_fraction", f64::from(r.max_bin_fraction), "must be finite and > 0");
-            }
-            if r.min_level == 0 || r.max_level < r.min_level || r.max_level > 4096 {
-                return bad("max_level", f64::from(r.max_level), "need 1 ≤ min_level ≤ max_level ≤ 4096");
-            }
-        }
-        Sampling::Stratified { samples_per_measurement, .. } => {
-            if samples_per_measurement == 0 {
-                return bad("samples_per_measurement", 0.0, "must be > 0");
-            }
-        }
-        Sampling::Splat(r) => {
-            if !(r.max_deviation > 0.0 && r.max_deviation.is_finite()) {
-                return bad("SplatRule.max_deviation", f64::from(r.max_deviation), "must be finite and > 0 bins");
-            }
-            if !(1..=64).contains(&r.max_level) {
-                return bad("SplatRule.max_level", f64::from(r.max_level), "must be in 1..=64");
-            }
-            if p.kernel != Kernel::Tent {
-                return bad(
-                    "Sampling::Splat",
-                    0.0,
-                    "integrates the tent kernel in closed form: use Kernel::Tent (or a Deterministic rule)",
-                );
-            }
-        }
-    }
-    if let Visibility::Cached { level } = p.visibility
-        && !(1..=64).contains(&level)
-    {
-        return bad("Visibility::Cached.level", f64::from(level), "must be in 1..=64");
-    }
-    Ok(())
 }
 
 #[cfg(test)]
