@@ -156,9 +156,11 @@ pub struct ReconstructParams {
     /// accumulated displacement, from the block's starting positions, before the reflectance block and the
     /// next remeshing (default `Some` with `improve: false` and `edge_length: None` → the stage's target
     /// length; `None` applies the displacements as they are). `improve` is always treated as false: the
-    /// remeshing that follows improves the mesh, and the Adam state needs fixed connectivity. An input that
-    /// already self-intersects (remeshing does not prevent it) is evolved with `check_input: false`, so only
-    /// new intersections are prevented.
+    /// remeshing that follows improves the mesh, and the Adam state needs fixed connectivity. The loop
+    /// deletes the faces of any self-intersection found in the start, after a remeshing or at the end of a
+    /// block (`RunLog::intersections`), so each block starts intersection-free; should that repair fail (no
+    /// deletion keeps the mesh manifold), the block is evolved with `check_input: false` and only new
+    /// intersections are prevented.
     pub collision: Option<EvolveParams>,
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
     /// lowers the data term by more than the margin are deleted (default `Some(PruneParams::default())`:
