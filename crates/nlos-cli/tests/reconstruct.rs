@@ -9,6 +9,18 @@ use nlos_brdf::Lambertian;
 use nlos_render::{Kernel, RenderParams, Renderer, Visibility};
 use nlos_transient::{Format, PointSet, Scan, TimeAxis};
 
+/// A one-stage, one-block, two-step schedule on a coarse mesh: a run of seconds.
+const FAST: [&str; 8] = [
+    "--set",
+    "schedule.max_stages=1",
+    "--set",
+    "schedule.initial_resolution=10",
+    "--set",
+    "schedule.max_blocks_per_stage=1",
+    "--set",
+    "schedule.shape_iterations=2",
+];
+
 fn nlos(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
 }
@@ -239,27 +251,9 @@ fn space_carving_initialises_and_gt_adds_metrics_to_the_report() {
         out.to_string_lossy().into_owned(),
         gt_file.to_string_lossy().into_owned(),
     );
-    let run = nlos(&[
-        "reconstruct",
-        &d,
-        "--out",
-        &o,
-        "--init",
-        "carve",
-        "--gt",
-        &g,
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=10",
-        "--set",
-        "schedule.max_blocks_per_stage=1",
-        "--set",
-        "schedule.shape_iterations=2",
-        "--subsample",
-        "2",
-        "--quiet",
-    ]);
+    let mut args = vec!["reconstruct", &d, "--out", &o, "--init", "carve", "--gt", &g, "--subsample", "2", "--quiet"];
+    args.extend(FAST);
+    let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let init = nlos_mesh::io::load(out.join("init.obj")).expect("init mesh");
     let mean_z = init.positions().iter().map(|p| p.z).sum::<f32>() / init.positions().len() as f32;
@@ -290,25 +284,10 @@ fn sensor_fit_reconstructs_photon_counts() {
     assert!(r.status.success(), "{}", text(&r));
     let out = dir.join("run");
     let o = out.to_string_lossy().into_owned();
-    let run = nlos(&[
-        "reconstruct",
-        &c,
-        "--out",
-        &o,
-        "--sensor",
-        "ideal",
-        "--set",
-        "sensor.background=auto",
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=10",
-        "--set",
-        "schedule.max_blocks_per_stage=1",
-        "--set",
-        "schedule.shape_iterations=2",
-        "--quiet",
-    ]);
+    let mut args = vec!["reconstruct", &c, "--out", &o, "--sensor", "ideal", "--set", "sensor.background=auto"];
+    args.extend(FAST);
+    args.push("--quiet");
+    let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let html = std::fs::read_to_string(out.join("report.html")).expect("report");
     assert!(html.contains("sensor fit: Poisson NLL"), "the report does not name the sensor fit");
@@ -340,21 +319,9 @@ fn max_depth_auto_drops_the_late_background_of_a_capture_with_background_only() 
     nlos_transient::write(&noisy, &file, Format::Tal).expect("write");
     let d = file.to_string_lossy().into_owned();
     let o = dir.join("run").to_string_lossy().into_owned();
-    let fast = [
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=10",
-        "--set",
-        "schedule.max_blocks_per_stage=1",
-        "--set",
-        "schedule.shape_iterations=1",
-        "--quiet",
-        "--set",
-        "capture.gate=off",
-    ];
+    let fast = [&FAST[..], &["--quiet", "--set", "capture.gate=off"]].concat();
     let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str()];
-    args.extend(fast);
+    args.extend(&fast);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let note = format!("max_depth auto: the last return ends at {expected:.4} m of path");
@@ -407,18 +374,8 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
             extra.len()
         ));
         let (f, o) = (file.to_string_lossy().into_owned(), o.to_string_lossy().into_owned());
-        let mut args = vec![
-            "reconstruct",
-            &f,
-            "--out",
-            &o,
-            "--no-report",
-            "--set",
-            "schedule.max_stages=1",
-            "--set",
-            "schedule.initial_resolution=10",
-        ];
-        args.extend(["--set", "schedule.max_blocks_per_stage=1", "--set", "schedule.shape_iterations=2"]);
+        let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report"];
+        args.extend(FAST);
         args.extend(extra);
         let r = nlos(&args);
         assert!(r.status.success(), "{extra:?}: {}", text(&r));
@@ -430,19 +387,8 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
     assert!(!run(&files[1], &[]).contains(own), "a simulation has no direct return to take");
     // An L2 run resumed with another sensor setting: refused, naming it.
     let (f, o) = (files[0].to_string_lossy().into_owned(), dir.join("run-real-2").to_string_lossy().into_owned());
-    let mut args = vec![
-        "reconstruct",
-        &f,
-        "--out",
-        &o,
-        "--no-report",
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=10",
-    ];
-    args.extend(["--set", "schedule.max_blocks_per_stage=1", "--set", "schedule.shape_iterations=2", "--resume"]);
-    args.extend(["--sensor", "auto"]);
+    let mut args = vec!["reconstruct", &f, "--out", &o, "--no-report", "--resume", "--sensor", "auto"];
+    args.extend(FAST);
     let refused = nlos(&args);
     assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
     assert!(text(&refused).contains("started with sensor = null"), "{}", text(&refused));
