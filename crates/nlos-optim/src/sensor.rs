@@ -292,7 +292,7 @@ impl SensorFit {
     /// with and without a face.
     ///
     /// # Errors
-    /// [`OptimError::LengthMismatch`] for rows of different lengths, [`OptimError::Sensor`] for an empty row.
+    /// [`OptimError::LengthMismatch`] for rows of different lengths or an empty row.
     pub fn row_value(&self, rendered_row: &[f32], counts_row: &[f32], background: f64, scale: f64) -> Result<f64> {
         self.row_value_in(rendered_row, counts_row, background, scale, 0..rendered_row.len())
     }
@@ -319,12 +319,16 @@ impl SensorFit {
                 got: counts_row.len(),
             });
         }
-        let a = self.jitter(rendered_row, rendered_row.len())?;
+        if rendered_row.is_empty() {
+            return Err(OptimError::LengthMismatch { what: "rendered row", expected: 1, got: 0 });
+        }
         let reach = self.kernel.first().unsigned_abs() as usize + self.kernel.weights().len();
-        let (lo, hi) = (window.start.saturating_sub(reach), window.end.saturating_add(reach).min(a.len()));
+        let n = rendered_row.len();
+        let (lo, hi) = (window.start.saturating_sub(reach), window.end.saturating_add(reach).min(n));
         let lo = lo.min(hi);
-        Ok(a[lo..hi]
-            .iter()
+        // `J I` on those bins only (a row of a real capture is a thousand bins, a face's window a few dozen).
+        let a = self.kernel.apply_window(rendered_row, lo..hi);
+        Ok(a.iter()
             .zip(&counts_row[lo..hi])
             .map(|(&ak, &nk)| half_deviance((scale * ak + background).max(MU_FLOOR), f64::from(nk)))
             .sum())

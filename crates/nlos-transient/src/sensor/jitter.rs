@@ -443,6 +443,26 @@ impl BinKernel {
         Ok(())
     }
 
+    /// `(A x)[k]` for the bins `k` in `window` of one histogram `x` (`window` clamped to it), summed in the
+    /// same order as [`BinKernel::apply_f64`], so the values are bit-identical to the whole row's: what a
+    /// data term over a few bins needs without convolving the whole histogram.
+    pub fn apply_window(&self, x: &[f32], window: std::ops::Range<usize>) -> Vec<f64> {
+        let bins = x.len() as i64;
+        let (lo, hi) = (window.start.min(x.len()), window.end.min(x.len()));
+        (lo..hi.max(lo))
+            .map(|k| {
+                let mut acc = 0.0;
+                for (i, &w) in self.weights.iter().enumerate() {
+                    let j = k as i64 - (self.first + i as i64);
+                    if (0..bins).contains(&j) {
+                        acc += w * f64::from(x[j as usize]);
+                    }
+                }
+                acc
+            })
+            .collect()
+    }
+
     /// `out = Aᵀ y` per histogram: `(Aᵀ y)[j] = Σ_d K[d]·y[j + d]`.
     ///
     /// # Errors

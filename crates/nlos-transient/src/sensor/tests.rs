@@ -522,3 +522,25 @@ fn response_from_the_direct_return_recovers_the_impulse_response() {
     // a run of blanks where a line continuation had been lost.
     assert!(!e.to_string().contains("  "), "{e}");
 }
+
+/// `apply_window` gives exactly (bit for bit) the whole histogram's `apply_f64` on the bins of its window,
+/// for kernels that reach before and after the bin, windows at either end, and windows past the row.
+#[test]
+fn apply_window_is_the_whole_rows_convolution_on_its_bins() {
+    let bins = 40;
+    let x: Vec<f32> = (0..bins).map(|k| ((k * 37 % 11) as f32 + 0.5) * 0.1).collect();
+    let xd: Vec<f64> = x.iter().map(|&v| f64::from(v)).collect();
+    for (first, weights) in [(0, vec![1.0]), (-2, vec![0.1, 0.2, 0.4, 0.2, 0.1]), (3, vec![0.5, 0.3, 0.2])] {
+        let kern = BinKernel::new(first, weights).unwrap();
+        let mut whole = vec![0.0; bins];
+        kern.apply_f64(&xd, bins, &mut whole).unwrap();
+        for window in [0..bins, 0..5, 17..23, 35..bins, 38..60, 50..70] {
+            let part = kern.apply_window(&x, window.clone());
+            let (lo, hi) = (window.start.min(bins), window.end.min(bins));
+            assert_eq!(part.len(), hi.saturating_sub(lo), "{window:?}");
+            for (k, v) in (lo..hi).zip(&part) {
+                assert_eq!(v.to_bits(), whole[k].to_bits(), "bin {k}, kernel from {first}");
+            }
+        }
+    }
+}
