@@ -451,12 +451,13 @@ impl BinKernel {
         let (lo, hi) = (window.start.min(x.len()), window.end.min(x.len()));
         (lo..hi.max(lo))
             .map(|k| {
+                // Weight i reads x[k − first − i]: inside the row for i ∈ [k − first − bins + 1, k − first].
+                let top = k as i64 - self.first;
+                let i0 = (top - bins + 1).max(0) as usize;
+                let i1 = (top + 1).clamp(0, self.weights.len() as i64) as usize;
                 let mut acc = 0.0;
-                for (i, &w) in self.weights.iter().enumerate() {
-                    let j = k as i64 - (self.first + i as i64);
-                    if (0..bins).contains(&j) {
-                        acc += w * f64::from(x[j as usize]);
-                    }
+                for i in i0..i1.max(i0) {
+                    acc += self.weights[i] * f64::from(x[(top - i as i64) as usize]);
                 }
                 acc
             })
