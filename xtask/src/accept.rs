@@ -123,7 +123,7 @@ fn children_cpu_s() -> f64 {
 
 fn utc_now() -> String {
     Command::new("date")
-        .args(["-u", "+%Y-%m-%d %H:%M UTC"])
+        .args(["-u", "+%Y-%m-%d"])
         .output()
         .ok()
         .and_then(|o| String::from_utf8(o.stdout).ok())
@@ -703,7 +703,13 @@ fn append_doc(root: &Path, md: &str) -> Result<(), String> {
          figures, the machine load and the commands. Sections are never edited afterwards.\n"
             .to_string()
     });
-    doc.push_str(md);
+    // No machine paths in a tracked file: the workspace and the shared data are named relative to the root.
+    let shared = root.join("../shared/data");
+    let md = md.replace(&format!("{}/", root.display()), "").replace(
+        &format!("{}/", shared.canonicalize().unwrap_or(shared.clone()).display()),
+        "../shared/data/",
+    );
+    doc.push_str(&md);
     std::fs::write(&f, doc).map_err(|e| format!("{}: {e}", f.display()))
 }
 
