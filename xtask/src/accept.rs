@@ -705,10 +705,9 @@ fn append_doc(root: &Path, md: &str) -> Result<(), String> {
     });
     // No machine paths in a tracked file: the workspace and the shared data are named relative to the root.
     let shared = root.join("../shared/data");
-    let md = md.replace(&format!("{}/", root.display()), "").replace(
-        &format!("{}/", shared.canonicalize().unwrap_or(shared.clone()).display()),
-        "../shared/data/",
-    );
+    let md = md
+        .replace(&format!("{}/", root.display()), "")
+        .replace(&format!("{}/", shared.canonicalize().unwrap_or(shared.clone()).display()), "../shared/data/");
     doc.push_str(&md);
     std::fs::write(&f, doc).map_err(|e| format!("{}: {e}", f.display()))
 }
