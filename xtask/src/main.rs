@@ -8,11 +8,12 @@
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs of issues 8 and 9 (see `accept.rs`), appended to `docs/acceptance.md`.
-//! - `cargo xtask fixtures`: regenerates `fixtures/` from `../shared/data` (see `fixtures/README.md`).
+//! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
+//! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
+//!   the shared data.
 //! - `cargo xtask help`.
 
 mod accept;
-mod builtin;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -24,6 +25,7 @@ fn main() -> ExitCode {
         Some("reconstruct") => demo(),
         Some("accept") => accept::accept(&workspace_root(), &args[1..]),
         Some("fixtures") => fixtures(),
+        Some("test") => test(&args[1..]),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
@@ -32,7 +34,10 @@ fn main() -> ExitCode {
             );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, sensor or all; docs/acceptance.md");
-            println!("       cargo xtask fixtures                regenerate fixtures/ from ../shared/data");
+            println!(
+                "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"
+            );
+            println!("       cargo xtask test [ARGS...]          every test, then how many skipped for want of data");
             Ok(())
         }
         Some(other) => Err(format!("unknown task `{other}`; try `cargo xtask help`")),
@@ -53,7 +58,7 @@ fn workspace_root() -> PathBuf {
 fn demo() -> Result<(), String> {
     let out = workspace_root().join("out/reconstruct");
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let scene = builtin::BuiltinScene::default();
+    let scene = nlos_optim::builtin::BuiltinScene::default();
     println!(
         "[1/5] built-in scene: {:.2} m Lambertian patch at {:.2} m with a {:.0} mm bump toward the wall; \
          {}×{} confocal scan, {} bins of {:.1} mm, {} photons per measurement",
@@ -66,10 +71,10 @@ fn demo() -> Result<(), String> {
         scene.bin_width * 1e3,
         scene.photons
     );
-    let truth = scene.mesh()?;
+    let truth = scene.mesh().map_err(|e| e.to_string())?;
     let truth_file = out.join("truth.obj");
     nlos_mesh::io::save(&truth, &truth_file).map_err(|e| e.to_string())?;
-    let (_, noisy) = scene.capture(&truth)?;
+    let (_, noisy) = scene.capture(&truth).map_err(|e| e.to_string())?;
     let capture = out.join("capture.hdf5");
     nlos_transient::write(&noisy, &capture, nlos_transient::Format::Tal).map_err(|e| e.to_string())?;
     let s = |p: &Path| p.to_string_lossy().into_owned();
@@ -112,30 +117,64 @@ fn demo() -> Result<(), String> {
 }
 
 /// Runs the `nlos` CLI (built in release mode) with `args`.
-/// `fixtures/bunny_lct_start.obj`: the LCT start of the shared bunny at the seed's setup, as `nlos reconstruct`
-/// makes it — the ground truth rendered by `nlos render` (confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins
-/// of 1.2 mm), 1000 photons per measurement (Poisson, seed 1), `nlos init` (LCT, default settings). The
-/// renderer's loop benchmark (`crates/nlos-render/benches/loop_cost.rs`) remeshes it as the optimiser does.
+/// Regenerates `fixtures/`: the built-in scene's ground truth, capture and start (`fixtures/builtin/`, from
+/// [`nlos_optim::builtin::BuiltinScene::write_fixtures`]; no data needed, seconds) and, when the shared data
+/// are present, `fixtures/bunny_lct_start.obj`: the LCT start of the shared bunny at the seed's setup, as
+/// `nlos reconstruct` makes it — the ground truth rendered by `nlos render` (confocal 64 × 64 over
+/// [−0.25, 0.25]² m, 1200 bins of 1.2 mm), 1000 photons per measurement (Poisson, seed 1), `nlos init`
+/// (LCT, default settings); the loop benchmark (`benches/loop_cost.rs`) remeshes it as the optimiser does.
+/// Idempotent: every step is seeded and deterministic, so a second run writes the same bytes.
 fn fixtures() -> Result<(), String> {
     let root = workspace_root();
+    let dir = root.join("fixtures");
+    let builtin = dir.join("builtin");
+    println!("[1/3] built-in scene → {}", builtin.display());
+    nlos_optim::builtin::BuiltinScene::default().write_fixtures(&builtin).map_err(|e| e.to_string())?;
     let bunny = root.join("../shared/data/meshes/bunny_centered.obj");
     if !bunny.exists() {
-        return Err(format!("{} not found: the fixtures are made from the shared data", bunny.display()));
+        println!("[2/3] {} is absent: fixtures/bunny_lct_start.obj left as it is", bunny.display());
+        return Ok(());
     }
     let tmp = root.join("out/fixtures");
     std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
     let capture = tmp.join("bunny_1000ph.hdf5");
     let s = |p: &Path| p.to_string_lossy().into_owned();
-    println!("[1/2] nlos render (the shared bunny, seed setup, 1000 photons, seed 1; a few minutes)");
+    println!("[2/3] nlos render (the shared bunny, seed setup, 1000 photons, seed 1; a few minutes)");
     nlos(&["render", &s(&bunny), "--out", &s(&capture), "--photons", "1000", "--seed", "1"])?;
-    let dir = root.join("fixtures");
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let start = dir.join("bunny_lct_start.obj");
-    println!("[2/2] nlos init → {}", start.display());
+    println!("[3/3] nlos init → {}", start.display());
     nlos(&["init", &s(&capture), "--out", &s(&start)])?;
     // `nlos init` writes a figure beside the mesh; the fixture is the mesh alone.
     let _ = std::fs::remove_file(start.with_extension("png"));
     Ok(())
+}
+
+/// `cargo xtask test`: every test of the workspace (`cargo test --workspace`, with `ARGS` appended), then
+/// the count of tests that skipped for want of the shared data, printed once at the end (each skip appends
+/// a line to `target/nlos-data-skips.log`; see `nlos-testdata`). `NLOS_REQUIRE_DATA=1` makes those skips
+/// failures instead.
+fn test(args: &[String]) -> Result<(), String> {
+    let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| workspace_root().join("target"), PathBuf::from);
+    let log = target.join("nlos-data-skips.log");
+    let _ = std::fs::remove_file(&log);
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(workspace_root())
+        .args(["test", "--workspace"])
+        .args(args)
+        .status()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    let skips = std::fs::read_to_string(&log).unwrap_or_default();
+    let skips: Vec<&str> = skips.lines().collect();
+    if skips.is_empty() {
+        println!("xtask test: no test skipped for want of shared data");
+    } else {
+        println!("xtask test: {} tests skipped for want of shared data (../shared/data):", skips.len());
+        for line in &skips {
+            println!("  {line}");
+        }
+    }
+    if status.success() { Ok(()) } else { Err(format!("`cargo test --workspace` failed ({status})")) }
 }
 
 fn nlos(args: &[&str]) -> Result<(), String> {

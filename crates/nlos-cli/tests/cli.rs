@@ -7,8 +7,6 @@ use std::process::{Command, Output};
 use glam::Vec3;
 use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
 
-const MEASURED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured");
-
 fn nlos(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
 }
@@ -198,7 +196,7 @@ fn missing_truncated_and_garbage_files_exit_2_naming_the_file() {
     let missing = dir.join("does-not-exist.mat");
     let truncated = dir.join("truncated.mat");
     let garbage = dir.join("garbage.bin");
-    let real = Path::new(MEASURED).join("data_diffuse_s.mat");
+    let real = nlos_testdata::root().join("measured/data_diffuse_s.mat");
     let head = std::fs::read(&real).map(|b| b[..b.len().min(5000)].to_vec()).unwrap_or_else(|_| {
         let mut b = b"MATLAB 5.0 MAT-file, Platform: GLNXA64".to_vec();
         b.resize(300, b' ');
@@ -233,13 +231,7 @@ fn unwritable_output_exits_1() {
 
 /// The real captures, when present.
 fn measured(name: &str) -> Option<PathBuf> {
-    let p = Path::new(MEASURED).join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not present", p.display());
-        None
-    }
+    nlos_testdata::shared(&format!("measured/{name}"))
 }
 
 #[test]

@@ -8,8 +8,6 @@ use glam::Vec3;
 use nlos_mesh::{SurfaceMesh, shapes};
 use serde_json::Value;
 
-const SOAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/soap_centered.obj");
-
 fn nlos(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
 }
@@ -104,11 +102,9 @@ fn map_draws_the_coverage_picture() {
 
 #[test]
 fn soap_against_itself() {
-    if !Path::new(SOAP).exists() {
-        eprintln!("skipping: {SOAP} is absent (shared data not checked out)");
-        return;
-    }
-    let v = eval_json(&["eval", SOAP, "--gt", SOAP]);
+    let Some(soap) = nlos_testdata::shared("meshes/soap_centered.obj") else { return };
+    let soap = soap.to_str().expect("utf8");
+    let v = eval_json(&["eval", soap, "--gt", soap]);
     assert_eq!(num(&v, "coverage"), 1.0);
     assert!(v["gt_pixels"].as_u64().expect("count") > 1000, "{v}");
     assert_eq!(num(&v, "depth_error_max"), 0.0);

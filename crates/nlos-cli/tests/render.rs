@@ -154,14 +154,11 @@ fn jitter_widens_the_summed_histogram_by_its_variance() {
     assert!((s1 / s0 - 1.0).abs() < 0.005, "photon totals {s0} vs {s1}");
     assert!((m1 - m0).abs() < 5e-4, "mean path moved from {m0} to {m1}");
     // The shared SPAD jitter file, when present, loads and widens the histogram too.
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/sensor/spad_jitter.mat");
-    if file.is_file() {
+    if let Some(file) = nlos_testdata::shared("sensor/spad_jitter.mat") {
         let f = file.to_string_lossy().into_owned();
         let real = render_with(&dir, &mesh, &setup, "real", &["--photons", "100000", "--seed", "3", "--jitter", &f]);
         let (_, _, v2) = moments(&real);
         assert!(v2 > v0 * 1.001, "the measured SPAD response did not widen the histogram ({v0} → {v2})");
-    } else {
-        eprintln!("skipping the jitter-file part: {} not found", file.display());
     }
 }
 

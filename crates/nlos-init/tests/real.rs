@@ -10,14 +10,8 @@ use nlos_init::{
 };
 use nlos_transient::Transient;
 
-const MEASURED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/");
-
 fn load(name: &str) -> Option<Transient> {
-    let path = PathBuf::from(MEASURED).join(name);
-    if !path.exists() {
-        eprintln!("skipping: {} is absent (the shared measured data are not checked out)", path.display());
-        return None;
-    }
+    let path = nlos_testdata::shared(&format!("measured/{name}"))?;
     let start = Instant::now();
     let t = nlos_transient::read(&path).expect("readable capture");
     eprintln!("read {name} in {:.2} s", start.elapsed().as_secs_f64());

@@ -12,25 +12,14 @@
 //! columns kept and 69 off it, median |depth error| 1.28 mm (90th percentile 10 mm, at the silhouette's
 //! edges), mesh coverage 0.872 (64² rays).
 
-use std::path::PathBuf;
-
 use nlos_init::{Gate, LctParams, SurfaceParams, Threshold, lct, volume_to_surface};
 use nlos_mesh::metrics::{EvalParams, depth_map, evaluate, load_for_eval};
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/reference/");
-
 #[test]
 fn lct_bunny_depth_and_coverage() {
-    let dir = PathBuf::from(REFERENCE);
-    let (data, obj) = (dir.join("bunny_mc.hdf5"), dir.join("bunny_world.obj"));
-    if !data.exists() || !obj.exists() {
-        eprintln!(
-            "skipping: {} or {} is absent (the shared reference data are not checked out)",
-            data.display(),
-            obj.display()
-        );
+    let Some([data, obj]) = nlos_testdata::shared_all(["reference/bunny_mc.hdf5", "reference/bunny_world.obj"]) else {
         return;
-    }
+    };
     let t = nlos_transient::read(&data).expect("bunny_mc.hdf5");
     let gt = load_for_eval(&obj).expect("bunny_world.obj");
     // Rendered data: no direct light to gate, little noise (so a higher Wiener SNR than the measured
@@ -90,16 +79,9 @@ fn lct_bunny_depth_and_coverage() {
 /// silhouette, where the true surface curves back 15–60 mm within a column or two.
 #[test]
 fn object_settings_cover_the_bunny_with_a_receding_rim() {
-    let dir = PathBuf::from(REFERENCE);
-    let (data, obj) = (dir.join("bunny_mc.hdf5"), dir.join("bunny_world.obj"));
-    if !data.exists() || !obj.exists() {
-        eprintln!(
-            "skipping: {} or {} is absent (the shared reference data are not checked out)",
-            data.display(),
-            obj.display()
-        );
+    let Some([data, obj]) = nlos_testdata::shared_all(["reference/bunny_mc.hdf5", "reference/bunny_world.obj"]) else {
         return;
-    }
+    };
     let t = nlos_transient::read(&data).expect("bunny_mc.hdf5");
     let gt = load_for_eval(&obj).expect("bunny_world.obj");
     let vol = lct(&t, &LctParams::default()).expect("lct");

@@ -429,12 +429,8 @@ fn stress_open_grid_folded_onto_itself() {
 
 /// The shared bunny remeshed at 1/25 of its size, or `None` (with the reason printed) when the data is absent.
 fn remeshed_bunny() -> Option<(SurfaceMesh, f32)> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} not found");
-        return None;
-    }
-    let mut m = nlos_mesh::io::load(path).expect("bunny loads");
+    let path = nlos_testdata::shared("meshes/bunny_centered.obj")?;
+    let mut m = nlos_mesh::io::load(&path).expect("bunny loads");
     let (lo, hi) = m.bounds().expect("non-empty");
     let l = (hi - lo).max_element() / 25.0;
     nlos_mesh::remeshing::uniform_remeshing(&mut m, l, &nlos_mesh::remeshing::RemeshParams::fast()).expect("remeshes");

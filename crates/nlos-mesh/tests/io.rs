@@ -209,11 +209,7 @@ fn obj_groups_are_welded() {
 
 #[test]
 fn loads_the_shared_bunny() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} not found (the shared data directory is not checked out)");
-        return;
-    }
+    let Some(path) = nlos_testdata::shared("meshes/bunny_centered.obj") else { return };
     let m = io::load(path).expect("bunny loads");
     m.validate().expect("valid");
     assert_eq!(m.n_faces(), 69_630);

@@ -174,11 +174,7 @@ fn bad_parameters_are_typed_errors() {
 fn bunny_acceptance_at_3mm() {
     // Issue 4's acceptance: every criterion asserted. Release-friendly (the test profile is optimised):
     // about 5 s on the 2-core development machine.
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping: {path} not found (the shared data directory is not checked out)");
-        return;
-    }
+    let Some(path) = nlos_testdata::shared("meshes/bunny_centered.obj") else { return };
     let input = io::load(path).expect("bunny loads");
     assert_eq!(input.n_faces(), 69_630);
     let mut m = input.clone();

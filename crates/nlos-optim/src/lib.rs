@@ -39,6 +39,7 @@
 pub mod adam;
 pub mod albedo;
 pub mod boundary_smoothing;
+pub mod builtin;
 pub mod error;
 pub mod loss;
 pub mod params;

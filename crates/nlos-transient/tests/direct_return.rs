@@ -3,21 +3,15 @@
 //! a fall to half within about 11 mm of path, and the heavy tail that the shared SPAD response lacks
 //! (docs/chart-depth.md, section 2).
 
-use std::path::PathBuf;
-
 use nlos_transient::sensor::JitterResponse;
-
-const CHART: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/data_resolution_chart_40cm.mat");
-const JITTER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/sensor/spad_jitter.mat");
 
 #[test]
 fn chart_capture_response_has_its_heavy_tail() {
-    let (chart, jitter) = (PathBuf::from(CHART), PathBuf::from(JITTER));
-    if !chart.is_file() || !jitter.is_file() {
-        eprintln!("skipping: {} or {} not found (the shared data live beside the checkout)", CHART, JITTER);
+    let Some([chart, jitter]) =
+        nlos_testdata::shared_all(["measured/data_resolution_chart_40cm.mat", "sensor/spad_jitter.mat"])
+    else {
         return;
-    }
+    };
     let t = nlos_transient::read(&chart).expect("chart capture");
     let r = JitterResponse::from_direct_return(&t).expect("the chart holds a direct return");
     let spad = JitterResponse::load(&jitter).expect("shared SPAD response");

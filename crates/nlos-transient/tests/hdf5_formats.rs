@@ -9,16 +9,8 @@ use hdf5_pure::{AttrValue, FileBuilder};
 use nlos_transient::formats::{self, Format, hdf5};
 use nlos_transient::{Layout, PointSet, Scan, ScanPattern, TimeAxis, Transient, TransientError};
 
-const SHARED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data");
-
 fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(SHARED).join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} is absent (shared data not checked out beside the repository)", p.display());
-        None
-    }
+    nlos_testdata::shared(rel)
 }
 
 /// Parses a NumPy v1.0 little-endian float32 C-order `.npy`: (shape, values).

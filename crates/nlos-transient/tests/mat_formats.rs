@@ -4,22 +4,16 @@
 #[path = "support/mat5_writer.rs"]
 mod mat5_writer;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use mat5_writer::{Options, Stored, Var, cell_var, char_var, double, scalar, stored, write};
 use nlos_transient::formats::{Format, detect_bytes, read_bytes_as};
 use nlos_transient::{Layout, Transient, TransientError};
 
-const MEASURED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/measured/");
-
 /// Reads a real capture, or `None` (with a reason on stderr) when the shared data are absent.
 fn real(name: &str) -> Option<Transient> {
-    let path = PathBuf::from(MEASURED).join(name);
-    if !path.is_file() {
-        eprintln!("skipping: {} not found (the shared data live beside the checkout)", path.display());
-        return None;
-    }
+    let path = nlos_testdata::shared(&format!("measured/{name}"))?;
     assert_eq!(nlos_transient::detect(&path).expect("detect"), Format::LctMat);
     let start = Instant::now();
     let t = nlos_transient::read(&path).expect("read real LCT capture");

@@ -146,13 +146,7 @@ fn npy_shapes_follow_the_scan() -> R {
 }
 
 fn reference(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/reference/")).join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: reference data {} not found (the shared data directory is absent)", p.display());
-        None
-    }
+    nlos_testdata::shared(&format!("reference/{name}"))
 }
 
 #[test]

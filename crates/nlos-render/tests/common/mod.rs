@@ -6,14 +6,7 @@ use nlos_transient::{Layout, PointSet, Scan, TimeAxis};
 
 /// Path of a file of the shared reference data, or None (with the reason printed) when absent.
 pub fn reference(name: &str) -> Option<std::path::PathBuf> {
-    let p =
-        std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/reference/")).join(name);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: reference file {} is absent (shared data not mounted)", p.display());
-        None
-    }
+    nlos_testdata::shared(&format!("reference/{name}"))
 }
 
 /// Loads a float .npy cube as (values, shape).

@@ -6,9 +6,6 @@
 use super::*;
 use crate::{PointSet, Scan, TimeAxis};
 
-const JITTER_MAT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/sensor/spad_jitter.mat");
-const IMPULSE_H5: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/sensor/spad_impulse_response.hdf5");
-
 /// A transient of `m` measurements (a 1×m grid) of `bins` bins of 1.2 mm, each a Gaussian pulse
 /// (different centres) on zero.
 fn pulses(m: usize, bins: usize, centre: f64, sigma: f64) -> Transient {
@@ -340,12 +337,9 @@ fn afterpulses_match_expected_counts() {
 
 #[test]
 fn jitter_files_load_and_report_fwhm() {
-    for (path, name) in [(JITTER_MAT, "spad_jitter.mat"), (IMPULSE_H5, "spad_impulse_response.hdf5")] {
-        if !std::path::Path::new(path).exists() {
-            eprintln!("skipping {name}: {path} is absent (the shared data directory is not checked out)");
-            continue;
-        }
-        let j = JitterResponse::load(path).unwrap();
+    for name in ["spad_jitter.mat", "spad_impulse_response.hdf5"] {
+        let Some(path) = nlos_testdata::shared(&format!("sensor/{name}")) else { continue };
+        let j = JitterResponse::load(&path).unwrap();
         let fwhm = j.fwhm();
         eprintln!(
             "{name}: FWHM {:.2} ps = {:.3} mm of path; mean delay {:.2} ps; {} samples of {:.4} ps; \
@@ -361,9 +355,9 @@ fn jitter_files_load_and_report_fwhm() {
         let k = j.to_bins(0.0012).unwrap();
         assert!((k.weights().iter().sum::<f64>() - 1.0).abs() < 1e-12);
     }
-    if std::path::Path::new(JITTER_MAT).exists() {
+    if let Some(path) = nlos_testdata::shared("sensor/spad_jitter.mat") {
         // The file's times are seconds: 0.814 ps spacing, so the samples are ~0.244 mm of path apart.
-        let j = JitterResponse::load(JITTER_MAT).unwrap();
+        let j = JitterResponse::load(&path).unwrap();
         assert!((j.spacing() / crate::SPEED_OF_LIGHT * 1e12 - 0.814).abs() < 0.01);
     }
 }

@@ -5,7 +5,7 @@
 //! bunny (`fixtures/bunny_lct_start.obj`, from `cargo xtask fixtures`) remeshed isotropically as the
 //! optimiser's stages do: (a) 7.8 mm edges (stage 0, about 3.2k faces), (b) about 20k faces, (c) about 200k
 //! faces (100k vertices, the seed's scale; visibility off there: its cache takes minutes to build). The
-//! former rule and the others are compared by `examples/loop_cost.rs` (the adaptive quadrature the
+//! former rule and the others are compared by `crates/nlos-render/examples/loop_cost.rs` (the adaptive quadrature the
 //! optimiser ran before takes 20 s an iteration, too long for a benchmark). Figures: docs/performance.md.
 #![allow(missing_docs)]
 
@@ -16,7 +16,7 @@ use nlos_render::{Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Vis
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/bunny_lct_start.obj");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny_lct_start.obj");
     let start = match nlos_mesh::io::load(path) {
         Ok(m) => m,
         Err(e) => {

@@ -1,13 +1,7 @@
-//! Remeshing the shared bunny at L = 3 mm (5 iterations) and closest-point query throughput.
-//! Target on the 2-core development machine: the remesh in under 1 s.
-//!
-//! Measured 2026-11-22 on the 2-core machine while five other engineers were building (load average 8–10,
-//! so every figure is inflated several times over an idle machine): `bunny_3mm_5_iterations` (pmp) 1.04 s
-//! and 1.42 s in two runs, `..._features22` 0.89 s, `..._5_iterations_bounded_error` 1.37 s,
-//! `..._10_iterations_bounded_error` (the acceptance setting) 2.50 s. Process CPU time of the 10-round
-//! runs (/proc/self/stat, same load): pmp 1.0 CPU-s, bounded_error(0.3 mm) 2.1 CPU-s. Closest point on
-//! the 69,630-face bunny, one thread: 134k queries/s within 1 mm of the surface, 33k/s for points
-//! anywhere in the grown bounding box.
+//! Remeshing the shared bunny at L = 3 mm (5 and 10 iterations, plain and bounded-error) and closest-point
+//! query throughput on it. Target on a 2-core machine: the 5-iteration remesh in under 1 s.
+//! `cargo bench --bench remesh`; figures in docs/performance.md.
+#![allow(missing_docs)]
 
 use std::hint::black_box;
 
@@ -17,12 +11,8 @@ use nlos_mesh::remeshing::{RemeshParams, uniform_remeshing};
 use nlos_mesh::{SurfaceMesh, TriangleBvh, io, shapes};
 
 fn bunny() -> Option<SurfaceMesh> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    if !std::path::Path::new(path).exists() {
-        eprintln!("skipping the bunny benchmarks: {path} not found");
-        return None;
-    }
-    io::load(path).ok()
+    let path = nlos_testdata::shared("meshes/bunny_centered.obj")?;
+    io::load(&path).ok()
 }
 
 fn remesh(c: &mut Criterion) {

@@ -19,8 +19,8 @@ use nlos_transient::{PointSet, Scan, TimeAxis};
 /// The shared bunny as positions + triangles, read with `nlos-mesh` (a dev-dependency only: the renderer
 /// itself takes plain arrays); `None`, with the reason printed, when the file is absent or unreadable.
 fn load() -> Option<(Vec<Vec3>, Vec<[u32; 3]>)> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/meshes/bunny_centered.obj");
-    match nlos_mesh::io::load(path) {
+    let path = nlos_testdata::shared("meshes/bunny_centered.obj")?;
+    match nlos_mesh::io::load(&path) {
         Ok(mesh) => Some(mesh.to_triangles()),
         Err(e) => {
             eprintln!("skipping: {e}");

@@ -1,0 +1,131 @@
+//! The `nlos` command line: inspect, convert, preview and render transient captures, reconstruct hidden
+//! surfaces, evaluate and report. The binary is `nlos`; [`run`] is the same command as a function (for
+//! tests and tools that drive the command in-process).
+//!
+//! Every subcommand composes calls into the library crates ([`nlos_transient`] for data and operations,
+//! [`nlos_viz`] for figures); the command line itself only parses arguments and prints.
+//!
+//! Exit codes: 0 on success, 2 for bad input (an unreadable, truncated or malformed file, an argument out
+//! of range, a usage error), 1 for other failures (an output that cannot be written, a figure that cannot
+//! be encoded). Errors are printed to stderr as `error: <message>`.
+
+mod choices;
+mod convert;
+mod eval;
+mod info;
+mod init;
+mod preview;
+mod reconstruct;
+mod render;
+mod report;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use nlos_transient::TransientError;
+
+/// Non-line-of-sight imaging: inspect, convert and preview transient captures.
+#[derive(Debug, Parser)]
+#[command(name = "nlos", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print the format, scan geometry, time axis, total counts and peak depth of a capture.
+    Info {
+        /// The capture file (any readable format, detected from its content).
+        file: PathBuf,
+        /// Print machine-readable JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a capture to another format, optionally transforming it on the way.
+    ///
+    /// Transformations apply in this order: --remove-legs, --crop-bins, --gate, --rebin, --subsample.
+    Convert(convert::Args),
+    /// Draw a PNG preview: the time-summed image beside an x–t slice (log scale), axes in metres.
+    ///
+    /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
+    /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
+    Preview(preview::Args),
+    /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage and depth error
+    /// (mean, median, RMS) from a +z ray grid over the wall, Chamfer distance, normal angular error.
+    Eval(eval::Args),
+    /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
+    Init(init::Args),
+    /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
+    Reconstruct(Box<reconstruct::Args>),
+    /// Simulate the measurements of a mesh (box kernel), optionally as SPAD photon counts.
+    Render(render::Args),
+    /// (Re)write the report of a reconstruction run: figures and `report.html` in the run directory.
+    Report(report::Args),
+}
+
+/// A failure, with the exit code it maps to.
+#[derive(Debug)]
+pub(crate) enum CliError {
+    /// Bad input: exit code 2.
+    Input(String),
+    /// Anything else: exit code 1.
+    Failure(String),
+}
+
+impl CliError {
+    /// An error from reading or transforming the input: bad input (exit 2).
+    pub(crate) fn input(e: TransientError) -> Self {
+        CliError::Input(e.to_string())
+    }
+
+    /// An error from writing an output: exit 2 when the transient cannot be represented in the format
+    /// (the user's choice), 1 otherwise.
+    pub(crate) fn output(e: TransientError) -> Self {
+        match e {
+            TransientError::CannotWrite { .. } | TransientError::InvalidArgument { .. } => {
+                CliError::Input(e.to_string())
+            }
+            other => CliError::Failure(other.to_string()),
+        }
+    }
+}
+
+/// Runs the `nlos` command with `args` (the first is the program name, as in `std::env::args_os`): parses,
+/// runs the subcommand, prints errors as `error: <message>` and returns the exit code.
+pub fn run<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version are successes; usage errors are bad input (exit 2), as clap's own exit.
+            let _ = e.print();
+            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
+        }
+    };
+    let result = match cli.command {
+        Command::Info { file, json } => info::run(&file, json),
+        Command::Convert(args) => convert::run(&args),
+        Command::Preview(args) => preview::run(&args),
+        Command::Eval(args) => eval::run(&args),
+        Command::Init(args) => init::run(&args),
+        Command::Reconstruct(args) => reconstruct::run(&args),
+        Command::Render(args) => render::run(&args),
+        Command::Report(args) => report::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Input(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(2)
+        }
+        Err(CliError::Failure(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(1)
+        }
+    }
+}
