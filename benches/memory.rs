@@ -57,7 +57,7 @@ fn main() {
     let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.25, 0.25).expect("grid"));
     let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
     let brdf = Lambertian::new(1.0f32).expect("valid");
-    let measured = vec![0.0f32; scan.measurements() * time.bins()];
+    let measured = vec![0.0f32; scan.measurements() * time.bins];
     let cases = [
         ("stage0_3k", 0.5 / 64.0, Visibility::Cached { level: 1 }),
         ("remeshed_20k", 0.0031, Visibility::Cached { level: 1 }),
