@@ -7,7 +7,8 @@
 //!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
-//!   the acceptance runs of issues 8 and 9 (see `accept.rs`), appended to `docs/acceptance.md`.
+//!   the acceptance runs (see `accept.rs`); each replaces its scenario's section of `docs/results.md`.
+//! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`.
 //! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
 //! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
 //!   the shared data.
@@ -26,6 +27,7 @@ fn main() -> ExitCode {
         Some("accept") => accept::accept(&workspace_root(), &args[1..]),
         Some("fixtures") => fixtures(),
         Some("test") => test(&args[1..]),
+        Some("status") => accept::update_readme(&workspace_root()),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
@@ -33,7 +35,8 @@ fn main() -> ExitCode {
                 "       cargo xtask accept SCENARIO [--quick] [--photons N] [--photon-seed S] [-- RECONSTRUCT_ARGS...]"
             );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
-            println!("                                           ggx, real, sensor or all; docs/acceptance.md");
+            println!("                                           ggx, real, sensor or all; writes docs/results.md");
+            println!("       cargo xtask status                  the README's status table from docs/results.md");
             println!(
                 "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"
             );

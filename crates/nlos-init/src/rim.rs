@@ -18,7 +18,7 @@
 //! the surface tangentially at `d = R`.
 //!
 //! Measured with `nlos reconstruct --init lct --rim-radius R` in the acceptance configuration (3 stages × 4
-//! blocks × 20 steps, `--subsample 2 --max-level 3 --resolution 48`; docs/coverage.md § 6), against the
+//! blocks × 20 steps, `--subsample 2 --max-level 3 --resolution 48`; docs/accuracy.md), against the
 //! same runs without rounding (coverage / mean depth error / RMS / Chamfer distance / normal error):
 //! - seed-setup bunny, 1000 photons, photon seed 1: 85.0 % / 1.32 / 6.33 / 31.1 mm / 26.2° →
 //!   R = 15 mm: 85.8 % / 1.41 / 6.27 / 30.4 mm / 27.4°; R = 20 mm: 87.7 % / 1.47 / 6.15 / 29.1 mm / 26.2°;

@@ -90,7 +90,7 @@ pub struct SurfaceParams {
     /// Turn the mesh back toward its boundary: every vertex within this distance (metres) of the boundary
     /// recedes along +z by a quarter circle of this radius ([`crate::rim::round_rim`]; the per-column
     /// [`Surface::depth`] is not changed). Default `None`: on the seed-setup bunny it trades mean depth error
-    /// for coverage (docs/coverage.md § 6).
+    /// for coverage (docs/accuracy.md).
     pub rim_radius: Option<f64>,
     /// Jacobi passes averaging each kept depth with its kept 4-neighbours. Default 0.
     pub smoothing_iterations: usize,

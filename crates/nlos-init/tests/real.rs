@@ -73,7 +73,7 @@ fn lct_params() -> LctParams {
 
 /// The issue asked for the chart plane at 0.425 ± 0.005 m, the depth of the summed histogram's peak
 /// (`Transient::summed_peak_depth`: 0.4257 m; 0.4245 m after a 5-bin box). The evidence puts the plane
-/// at 0.410 ± 0.005 m instead, and the summed peak ~15 mm behind it (`docs/chart-depth.md`,
+/// at 0.410 ± 0.005 m instead, and the summed peak ~15 mm behind it (`docs/accuracy.md`,
 /// `examples/chart_depth.rs`, whose numbers these are):
 /// - the data: over the 912 chart columns the median 50 % onset of the histograms is at 0.4093 m of depth
 ///   (the summed histogram's at 0.4085 m), their median peak at 0.4203 m;

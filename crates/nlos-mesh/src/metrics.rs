@@ -15,7 +15,7 @@
 //! changes by centimetres within one pixel, and a reconstruction's depth there is off by far more than
 //! inside (seed-setup bunny at 1000 photons, default fit: 5.1 mm mean over the band's 355 pixels hit on
 //! both, 0.54 mm over the 1,734 interior ones; the band, a sixth of the pixels, carries two thirds of the
-//! 1.32 mm mean; docs/coverage.md). The mean depth error is therefore also given apart
+//! 1.32 mm mean; docs/accuracy.md). The mean depth error is therefore also given apart
 //! for the *interior* pixels — ground-truth pixels whose `(2·SILHOUETTE_BAND + 1)²` neighbourhood
 //! ([`SILHOUETTE_BAND`] pixels each way) lies wholly on the ground truth and inside the grid — and for the
 //! rest of the ground truth's pixels, the silhouette band.

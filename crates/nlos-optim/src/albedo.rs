@@ -3,7 +3,7 @@
 //! The seed's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies — the
 //! printed bars of a resolution chart, a label — then has only the shape to explain its intensity
 //! variations, and the fit turns them into relief (the 40 cm chart came out as bumps over 0.395–0.49 m,
-//! `docs/acceptance.md`). With a map the same variations become albedo.
+//! `docs/results.md`). With a map the same variations become albedo.
 //!
 //! **Model.** The albedo is a function `a(x, y) = exp θ(x, y)` of the position projected onto the wall
 //! (the scene is seen from the wall along its normal, +z, so every visible point has its own (x, y)):

@@ -165,7 +165,7 @@ pub struct ReconstructParams {
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
     /// lowers the data term by more than the margin are deleted (default `Some(PruneParams::default())`:
     /// 3 rounds, margin 0.5). Measured on the seed-setup bunny from LCT (1000 photons, 3 stages × 4 blocks
-    /// × 20 steps; docs/acceptance.md): mean depth error 1.89 → 1.39 mm, RMS 8.45 → 6.39 mm, Chamfer
+    /// × 20 steps; docs/results.md): mean depth error 1.89 → 1.39 mm, RMS 8.45 → 6.39 mm, Chamfer
     /// 35.7 → 34.6 mm, normal error 29.3 → 27.1°, coverage 87.8 → 85.1 %; on the independent renderer's
     /// bunny 1.47 → 0.84 mm, normal error 23.6 → 16.8°, coverage 90.3 → 88.5 %.
     pub prune: Option<PruneParams>,

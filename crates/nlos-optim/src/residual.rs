@@ -19,7 +19,7 @@
 //! (its optimal amplitude was 0.1). Each region is therefore tried untilted and turned about its centroid
 //! so that its normal tilts by each of [`ResidualParams::tilts`] toward the four azimuths. Per orientation,
 //! faces join by the test of [`crate::prune`] with the sign reversed (`I_f` a face's rendered share, alone:
-//! the mesh's shadow is not in it; rendering it in that shadow let a patch of noise join, docs/coverage.md § 5)
+//! the mesh's shadow is not in it; rendering it in that shadow let a patch of noise join, docs/accuracy.md)
 //! ```text
 //! ΔE_f = E(I + I_f) − E(I),   joins when ΔE_f + κ · ½ c_f < 0
 //! ```

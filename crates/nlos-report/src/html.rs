@@ -1,4 +1,4 @@
-//! The one-page HTML report: inline CSS, relative image links, no script.
+//! The one-page HTML report: inline CSS, relative image links, and the inline 3-D view ([`crate::view3d`]).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -21,6 +21,8 @@ pub(crate) struct PageInputs<'a> {
     pub dir: &'a Path,
     pub eval: &'a EvalParams,
     pub gate_note: &'a str,
+    /// The 3-D view's HTML ([`crate::view3d::section`]).
+    pub view3d: &'a str,
 }
 
 /// Escapes text for HTML element content and attribute values.
@@ -131,6 +133,8 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
          th {{ background: #eee; }}\n\
          img {{ max-width: 100%; border: 1px solid #ddd; margin: 0.3em; vertical-align: top; }}\n\
          .row {{ display: flex; flex-wrap: wrap; align-items: flex-start; }}\n\
+         canvas {{ border: 1px solid #ddd; max-width: 100%; cursor: grab; }}\n\
+         .note {{ color: #555; font-size: 90%; }}\n\
          </style>\n</head>\n<body>\n<h1>{title}</h1>\n"
     );
     let log = p.log;
@@ -207,6 +211,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         }
         o.push_str("</div>\n");
     };
+    o.push_str(p.view3d);
     section(&mut o, "Measured vs rendered", &["summed.png", "xt_slice.png"]);
     section(&mut o, "Loss", &["loss.png"]);
     section(

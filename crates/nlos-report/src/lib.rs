@@ -15,7 +15,7 @@
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo map where the final mesh is seen (runs with an albedo map only) |
-//! | `report.html` | one self-contained page: run parameters, metrics, per-stage table, the images |
+//! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth or by distance to the ground truth, embedded so it works offline from the folder alone ([`view3d`]) |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
 //! with the run's reflectance and albedo map (from the checkpoint) and the renderer settings of the run
@@ -36,6 +36,7 @@
 pub mod error;
 pub mod figures;
 mod html;
+pub mod view3d;
 
 use std::path::{Path, PathBuf};
 
@@ -347,6 +348,12 @@ pub fn write_report(
 
     let report =
         Report { html: dir.join(REPORT_FILE), images, scale, relative_residual, gate, metrics_init, metrics_final };
+    let mut shown = Vec::new();
+    if let Some(m) = &init_mesh {
+        shown.push(view3d::ViewMesh { name: "initial surface", mesh: m });
+    }
+    shown.push(view3d::ViewMesh { name: "final mesh", mesh: &final_mesh });
+    let view3d = view3d::section(&shown, ground_truth)?;
     let page = html::page(&html::PageInputs {
         opts,
         log: &log,
@@ -357,6 +364,7 @@ pub fn write_report(
         dir,
         eval: &eval,
         gate_note: &gate_note,
+        view3d: &view3d,
     });
     let tmp = dir.join(format!("{REPORT_FILE}.tmp"));
     std::fs::write(&tmp, page).map_err(|source| ReportError::Io { file: tmp.clone(), source })?;

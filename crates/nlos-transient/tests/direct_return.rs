@@ -1,7 +1,7 @@
 //! The capture's own timing response from its direct reflection off the wall
 //! (`JitterResponse::from_direct_return`), on the real 40 cm chart capture: a peak at the start of the axis,
 //! a fall to half within about 11 mm of path, and the heavy tail that the shared SPAD response lacks
-//! (docs/chart-depth.md, section 2).
+//! (docs/accuracy.md).
 
 use nlos_transient::sensor::JitterResponse;
 
@@ -19,7 +19,7 @@ fn chart_capture_response_has_its_heavy_tail() {
     assert!(r.origin() <= 0.0 && r.origin() > -r.spacing(), "origin {}", r.origin());
     let w = r.weights();
     let at = |mm: f64| w[(mm * 1e-3 / r.spacing()).round() as usize] / w[0];
-    // Half maximum after 9–10 bins (11 mm of path); 5 % of the peak 120 mm later (docs/chart-depth.md).
+    // Half maximum after 9–10 bins (11 mm of path); 5 % of the peak 120 mm later (docs/accuracy.md).
     let half = w.iter().position(|&v| v < 0.5 * w[0]).expect("falls to half") as f64 * r.spacing();
     eprintln!(
         "own response: falls to half after {:.1} mm of path, {:.3} of the peak at 48 mm, {:.3} at 120 mm; mean delay \
