@@ -450,7 +450,7 @@ fn stress_remeshed_bunny() {
 }
 
 /// The longer bunny run (`--ignored`): 200 calls of random fields of ±L/2 per axis, the mesh crumpling more
-/// with every call. Measured 2026-11-22: passes, 58 CPU-s in release (112 s wall at load 9 on 2 cores); the
+/// with every call. It takes about a minute of CPU in release; the
 /// calls get slower as the crumpled surface brings more pairs within ε.
 #[test]
 #[ignore]

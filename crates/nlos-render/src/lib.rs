@@ -127,7 +127,7 @@
 //! The fixed rule at the seed's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent
 //! kernel, `fixed(1)`, which the optimiser does not run; `benches/render.rs`, `examples/profile.rs`) on this
 //! project's machine: 2 cores of an AMD EPYC
-//! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, idle (load average below 2), criterion medians:
+//! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, otherwise idle, criterion medians:
 //!
 //! | mesh (faces), visibility | forward | forward + adjoint | pairs / s (f + a) | CPU-s (f + a) |
 //! |---|---|---|---|---|

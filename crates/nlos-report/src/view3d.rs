@@ -169,7 +169,7 @@ const SCRIPT: &str = r#"(function () {
     // Rotation: yaw about y, then pitch about x (column-major).
     const R = [cy, sp * sy, -cp * sy, 0, 0, cp, sp, 0, sy, -sp * cy, cp * cy, 0, 0, 0, 0, 1];
     const T = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, -centre[0], -centre[1], -centre[2], 1];
-    const dist = 3 * radius / zoom, aspect = canvas.width / canvas.height, f = 1 / Math.tan(0.35);
+    const dist = 2.4 * radius / zoom, aspect = canvas.width / canvas.height, f = 1 / Math.tan(0.35);
     const near = Math.max(1e-4, dist - 2 * radius), far = dist + 2 * radius;
     const V = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, -dist, 1];
     const Pm = [f / aspect, 0, 0, 0, 0, f, 0, 0, 0, 0, (far + near) / (near - far), -1, 0, 0, 2 * far * near / (near - far), 0];

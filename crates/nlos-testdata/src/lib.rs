@@ -73,6 +73,24 @@ pub fn shared_all<const N: usize>(rels: [&str; N]) -> Option<[PathBuf; N]> {
     }
 }
 
+/// The first of `names` found on `PATH` (or the file named by the environment variable `env`, when set),
+/// or `None` — after recording the skip — when none is installed. A tool a test needs is an input like
+/// the shared data: CI installs it, and under `NLOS_REQUIRE_DATA=1` its absence fails.
+///
+/// # Panics
+/// As [`shared`].
+pub fn tool(env: &str, names: &[&str]) -> Option<PathBuf> {
+    if let Some(path) = std::env::var_os(env) {
+        return Some(PathBuf::from(path));
+    }
+    let paths = std::env::var_os("PATH").unwrap_or_default();
+    let found = names.iter().find_map(|name| std::env::split_paths(&paths).map(|d| d.join(name)).find(|p| p.is_file()));
+    if found.is_none() {
+        skip(&format!("none of {} is installed (or set {env})", names.join(", ")));
+    }
+    found
+}
+
 /// Records that the running test skipped for want of data: `reason` names what is missing.
 ///
 /// # Panics

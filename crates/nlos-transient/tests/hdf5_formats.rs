@@ -505,7 +505,7 @@ fn every_prefix_of_a_small_tal_file_is_an_error() {
 }
 
 /// Writes one TAL file per scan kind into `$NLOS_TAL_SAMPLES` for an external check with h5py / y-tal
-/// (not needed in CI): `NLOS_TAL_SAMPLES=/tmp/tal cargo test --test hdf5_formats -- --ignored samples`.
+/// (not needed in CI): `NLOS_TAL_SAMPLES=out/tal cargo test --test hdf5_formats -- --ignored samples`.
 #[test]
 #[ignore = "writes files for an external h5py check"]
 fn write_tal_samples_for_h5py() {

@@ -29,16 +29,16 @@
 //! The broad phase builds BVHs of swept boxes once per pass; after the first pass, detection and proximity
 //! re-test only pairs with a vertex whose end position changed (`resolve::Changes`). The narrow phase
 //! rejects most pairs with a distance/relative-speed bound before the cubic ([`ccd`]). Improvement checks
-//! each operation against a uniform grid of face boxes. Measured with `cargo bench -p nlos-mesh --bench
-//! evolve` (51 200-face open height field, random displacements up to 0.1·L per axis, fixed `L`) on the
-//! 2-core development machine at load ≈ 9 (other builds running), 2026-11-22:
+//! each operation against a uniform grid of face boxes. Measured with `cargo bench --bench evolve` (51 200-face
+//! open height field, random displacements up to 0.1·L per axis, fixed `L`) on a 2-core machine shared with
+//! other builds (so the times are upper bounds):
 //!
 //! | call | time | broad | narrow | static checks | improvement |
 //! |---|---|---|---|---|---|
 //! | evolve + improve | 2.85 s | 8 % | 2 % | 14 % | 76 % (29 k splits, 23 k flips, 51 k smoothing moves) |
 //! | evolve only | 0.69 s | 30 % | 9 % | 60 % | — |
 //!
-//! (Before this tuning: 12.6 s with improvement, 88 % of it in improvement.) The two exact static checks
+//! The two exact static checks
 //! (input and end state) dominate a motion-only call: a caller that evolves repeatedly can set
 //! [`EvolveParams::check_input`] to false after the first call, since each output is checked.
 
