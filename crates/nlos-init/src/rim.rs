@@ -17,22 +17,9 @@
 //! the profile of a quarter circle of radius `R` that is vertical at the boundary (`Δz(0) = R`) and meets
 //! the surface tangentially at `d = R`.
 //!
-//! Measured with `nlos reconstruct --init lct --rim-radius R` in the acceptance configuration (3 stages × 4
-//! blocks × 20 steps, `--subsample 2 --max-level 3 --resolution 48`; docs/accuracy.md), against the
-//! same runs without rounding (coverage / mean depth error / RMS / Chamfer distance / normal error):
-//! - seed-setup bunny, 1000 photons, photon seed 1: 85.0 % / 1.32 / 6.33 / 31.1 mm / 26.2° →
-//!   R = 15 mm: 85.8 % / 1.41 / 6.27 / 30.4 mm / 27.4°; R = 20 mm: 87.7 % / 1.47 / 6.15 / 29.1 mm / 26.2°;
-//!   R = 30 mm: 85.7 % / 1.61 / 7.30 / 29.2 mm / 27.5°; R = 40 mm: 86.3 % / 1.97 / 8.36 / 28.5 mm / 29.9°;
-//! - photon seed 2, R = 20 mm: 86.1 % / 1.56 / 6.91 / 30.0 mm / 24.8° → 87.2 % / 1.67 / 7.51 / 28.9 mm / 26.4°;
-//! - the independent renderer's bunny, R = 20 mm: 90.2 % / 0.85 / 2.30 / 34.6 mm / 14.9° → 90.1 % / 0.93 /
-//!   2.42 / 33.0 mm / 16.3°;
-//! - the soap bar (seed setup, 1000 photons), R = 20 mm: 91.6 % / 0.68 / 1.38 / 16.0 mm / 15.9° → 93.5 % /
-//!   0.62 / 1.15 / 14.0 mm / 15.4°;
-//! - the glossy bunny (GGX α = 0.2 / 0.4, fitted from α = 0.3), R = 20 mm: coverage 63.1 → 72.1 % / 77.3 →
-//!   80.7 %, Chamfer distance 36.1 → 31.0 / 34.3 → 26.9 mm, but mean depth error 0.97 → 2.14 / 1.30 → 1.98 mm.
-//!
-//! Coverage and Chamfer distance gain, but on the bunnies the mean depth error loses 0.1–1.2 mm: the
-//! rounding is off by default
+//! Why it is an option, off by default: with R = 20 mm it is better on every metric on the soap bar and
+//! gains coverage and Chamfer distance on the bunnies, but there it costs 0.1–1.2 mm of mean depth error
+//! (docs/accuracy.md). Use it where a start's rim visibly stands in front of the object
 //! ([`crate::SurfaceParams::rim_radius`]).
 
 use std::cmp::Ordering;

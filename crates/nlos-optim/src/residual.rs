@@ -30,15 +30,9 @@
 //! component of the mesh: the next stage remeshes it, the shape steps fit it, and pruning deletes what of
 //! it the data stop supporting.
 //!
-//! Measured (3 stages × 4 blocks × 20 steps from the LCT start, `--subsample 2 --max-level 3
-//! --resolution 48`, seed 1, against the same runs without it):
-//! - seed-setup bunny, 1000 photons: after stage 0 the residual held two regions, the ears' tips and the
-//!   underside of the body at 0.48 m, and 11 faces joined. Chamfer distance 34.6 → 31.2 mm, coverage
-//!   85.1 → 85.4 %, mean depth error 1.39 → 1.49 mm, normal error 27.1 → 28.1°.
-//! - the independent renderer's bunny: 12 faces after stage 0. Coverage 88.5 → 90.6 %, Chamfer distance
-//!   37.2 → 34.1 mm, mean depth error 0.84 → 0.89 mm, RMS 2.56 → 2.41 mm, normal error 16.8 → 17.2°.
-//!   Proposing after stage 1 as well added 44 faces in 6 patches for 3.5·10⁻⁵ of the normalised data term
-//!   (noise) and raised the normal error to 26.7°, hence [`ResidualParams::stages`] = 1.
+//! Why after the first stage only: on the shared bunnies it adds the ears' tips and the body's underside
+//! (Chamfer distance down 3 mm, coverage up to 2 points), while proposing after later stages as well
+//! added patches worth only noise in the data term and raised the normal error (docs/accuracy.md).
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -67,10 +61,9 @@ pub struct ResidualParams {
     pub snr: f64,
     /// A residual column becomes surface only when its point lies more than this far from the mesh
     /// (metres, > 0; default 0.005: several LCT depth voxels and bins of the seed setup, so that the fit's
-    /// own error around the mesh is not taken for a missing part). At 0.02 the bunny's ears, whose lower
-    /// halves lie within 2 cm of the head, were cut to their tips (12 faces over y = 0.147–0.179 m; at
-    /// 0.005: 24 faces over 0.115–0.179 m): coverage 85.4 → 86.1 %, Chamfer distance 31.2 → 30.5 mm on the
-    /// seed-setup bunny, the independent renderer's bunny unchanged (90.6 %, 0.89 mm).
+    /// own error around the mesh is not taken for a missing part). Larger values cut parts that lie close
+    /// to the mesh: at 0.02 the bunny's ears, whose lower halves lie within 2 cm of the head, were cut to
+    /// their tips.
     pub separation: f64,
     /// Margin κ ≥ 0 of the acceptance test (module docs; default 0.5, as pruning).
     pub margin: f64,

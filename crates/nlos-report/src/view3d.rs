@@ -129,13 +129,15 @@ const SCRIPT: &str = r#"(function () {
     return { name: m.name, p: p, n: n, idx: idx, depth: depth, dist: m.d ? new Float32Array(bytes(m.d)) : null };
   });
   if (meshes.length === 0) { fail("no mesh to show"); return; }
-  // Shared bounds: every mesh in the same frame, the depth colours on one scale.
+  // Shared bounds: every mesh in the same frame.
   let lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   for (const m of meshes) for (let v = 0; v < m.p.length; v += 3) for (let k = 0; k < 3; k++) { lo[k] = Math.min(lo[k], m.p[v + k]); hi[k] = Math.max(hi[k], m.p[v + k]); }
   const centre = [0, 1, 2].map(function (k) { return (lo[k] + hi[k]) / 2; });
   const radius = Math.max(1e-6, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
   function percentile(arrays, q) { const all = []; for (const a of arrays) if (a) for (const x of a) if (isFinite(x)) all.push(x); if (!all.length) return 1; all.sort(function (x, y) { return x - y; }); return all[Math.min(all.length - 1, Math.floor(q * (all.length - 1)))]; }
   const distMax = Math.max(0.1, percentile(meshes.map(function (m) { return m.dist; }), 0.95));
+  // Depth colours per mesh over its 2nd-98th percentile, so a few far fragments do not flatten the ramp.
+  for (const m of meshes) { m.zlo = percentile([m.depth], 0.02); m.zhi = Math.max(m.zlo + 1e-6, percentile([m.depth], 0.98)); }
   const vs = "attribute vec3 P; attribute vec3 N; attribute float S; uniform mat4 M; uniform mat3 R; varying vec3 n; varying float s; void main() { gl_Position = M * vec4(P, 1.0); n = R * N; s = S; }";
   const fs = "precision mediump float; varying vec3 n; varying float s; " +
     "vec3 ramp(float t) { t = clamp(t, 0.0, 1.0); " +
@@ -161,10 +163,10 @@ const SCRIPT: &str = r#"(function () {
     const m = meshes[Math.min(meshes.length - 1, Number(choice("v3mesh") || 0))];
     const byDist = choice("v3col") === "dist" && m.dist;
     const s = new Float32Array(m.depth.length);
-    for (let v = 0; v < s.length; v++) s[v] = byDist ? m.dist[v] / distMax : (m.depth[v] - lo[2]) / Math.max(1e-9, hi[2] - lo[2]);
+    for (let v = 0; v < s.length; v++) s[v] = byDist ? m.dist[v] / distMax : (m.depth[v] - m.zlo) / Math.max(1e-9, m.zhi - m.zlo);
     gl.bindBuffer(gl.ARRAY_BUFFER, m.bs); gl.bufferData(gl.ARRAY_BUFFER, s, gl.DYNAMIC_DRAW);
     document.getElementById("v3legend").textContent = m.name + ": " + m.idx.length / 3 + " faces; colour " +
-      (byDist ? "distance to the ground truth, 0 (dark) to " + distMax.toFixed(1) + " mm (light) and beyond" : "depth, " + lo[2].toFixed(3) + " m (dark) to " + hi[2].toFixed(3) + " m (light)");
+      (byDist ? "distance to the ground truth, 0 (dark) to " + distMax.toFixed(1) + " mm (light) and beyond" : "depth, " + m.zlo.toFixed(3) + " m (dark) to " + m.zhi.toFixed(3) + " m (light)");
     const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
     // Rotation: yaw about y, then pitch about x (column-major).
     const R = [cy, sp * sy, -cp * sy, 0, 0, cp, sp, 0, sy, -sp * cy, cp * cy, 0, 0, 0, 0, 1];
