@@ -102,10 +102,9 @@ pub fn skip(reason: &str) {
     let line = format!("{} :: {test}: {reason}", exe_name());
     // Straight to the terminal: `eprintln!` would be captured by the harness and shown only on failure.
     let _ = writeln!(std::io::stderr(), "nlos: SKIPPED for want of shared data: {line} ({hint})");
-    if let Some(log) = skip_log() {
-        if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(log) {
-            let _ = writeln!(f, "{line}");
-        }
+    if let Some(mut f) = skip_log().and_then(|log| std::fs::OpenOptions::new().create(true).append(true).open(log).ok())
+    {
+        let _ = writeln!(f, "{line}");
     }
 }
 

@@ -1,0 +1,210 @@
+//! `nlos.Capture`: a transient capture whose histograms live in a NumPy array.
+//!
+//! The array is the capture's storage: [`load`] moves the reader's buffer into NumPy without a copy, and
+//! `Capture.data` returns that same array every time (writes to it change the capture). The geometry
+//! (scan points, laser points, grid) and the time axis are read-only properties.
+
+use std::path::PathBuf;
+
+use numpy::PyArray2;
+use numpy::ndarray::Array2;
+use pyo3::prelude::*;
+
+use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
+
+use crate::{arrays, errors};
+
+/// A transient capture: `data[m, k]` is measurement `m`'s bin `k`, the integral over path lengths
+/// `[t0 + k·dt, t0 + (k+1)·dt)` of the light that went laser spot → hidden scene → sensor spot.
+#[pyclass(module = "nlos")]
+pub(crate) struct Capture {
+    pub(crate) scan: Scan,
+    pub(crate) time: TimeAxis,
+    pub(crate) format: Option<Format>,
+    pub(crate) data: Py<PyArray2<f32>>,
+}
+
+impl Capture {
+    /// Wraps a transient, moving its buffer into NumPy.
+    pub(crate) fn new(py: Python<'_>, t: Transient, format: Option<Format>) -> PyResult<Self> {
+        let (m, bins) = (t.measurements(), t.bins());
+        let (scan, time, data) = t.into_parts();
+        let array = Array2::from_shape_vec((m, bins), data).map_err(errors::capture)?;
+        Ok(Self { scan, time, format, data: PyArray2::from_owned_array(py, array).unbind() })
+    }
+
+    /// The capture as the library's type (one copy of the histograms, checked finite).
+    pub(crate) fn transient(&self, py: Python<'_>) -> PyResult<Transient> {
+        let data = self.data.bind(py);
+        let (values, _) =
+            arrays::floats_2d("Capture.data", data.as_any(), Some(self.scan.measurements()), Some(self.time.bins))?;
+        Transient::new(self.scan.clone(), self.time, values).map_err(errors::capture)
+    }
+}
+
+fn points_array<'py>(py: Python<'py>, points: &PointSet) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let flat: Vec<f32> = points.points.iter().flat_map(|p| p.to_array()).collect();
+    let array = Array2::from_shape_vec((points.len(), 3), flat).map_err(errors::capture)?;
+    Ok(PyArray2::from_owned_array(py, array))
+}
+
+#[pymethods]
+impl Capture {
+    /// The histograms, measurements × bins, float32: the capture's own storage (no copy).
+    #[getter]
+    fn data(&self, py: Python<'_>) -> Py<PyArray2<f32>> {
+        self.data.clone_ref(py)
+    }
+
+    /// Sensor spots on the wall, (n, 3) metres (for a confocal scan also the laser spots).
+    #[getter]
+    fn scan_points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        points_array(py, self.scan.sensors())
+    }
+
+    /// Laser spots on the wall, (n, 3) metres.
+    #[getter]
+    fn laser_points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        points_array(py, self.scan.lasers())
+    }
+
+    /// Whether laser and sensor spots coincide (one measurement per spot).
+    #[getter]
+    fn confocal(&self) -> bool {
+        self.scan.is_confocal()
+    }
+
+    /// `(nx, ny)` when the sensor spots form a grid (x fastest), else None.
+    #[getter]
+    fn grid(&self) -> Option<(usize, usize)> {
+        self.scan.sensors().grid_dims()
+    }
+
+    /// Path length at the start of bin 0, metres.
+    #[getter]
+    fn t0(&self) -> f64 {
+        self.time.t0
+    }
+
+    /// Bin width, metres of path.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.time.bin_width
+    }
+
+    /// Number of time bins.
+    #[getter]
+    fn bins(&self) -> usize {
+        self.time.bins
+    }
+
+    /// Number of measurements (rows of `data`).
+    #[getter]
+    fn measurements(&self) -> usize {
+        self.scan.measurements()
+    }
+
+    /// The format the capture was read from (`"lct-mat"`, `"tal"`, …), or None.
+    #[getter]
+    fn format(&self) -> Option<&'static str> {
+        self.format.map(Format::name)
+    }
+
+    /// A capture from arrays: `data` (measurements × bins), `scan_points` (n, 3), `laser_points` (n_l, 3)
+    /// for a non-confocal scan (every laser spot with every sensor spot, `m = il·n + is`; None: confocal),
+    /// the time axis `t0`, `dt` (metres of path), and `grid = (nx, ny)` when the sensor spots are a grid.
+    #[staticmethod]
+    #[pyo3(signature = (data, scan_points, *, dt, t0 = 0.0, laser_points = None, grid = None))]
+    fn from_arrays(
+        py: Python<'_>,
+        data: &Bound<'_, PyAny>,
+        scan_points: &Bound<'_, PyAny>,
+        dt: f64,
+        t0: f64,
+        laser_points: Option<&Bound<'_, PyAny>>,
+        grid: Option<(usize, usize)>,
+    ) -> PyResult<Self> {
+        let sensors = arrays::points("scan_points", scan_points, None)?;
+        let mut sensor_set = PointSet::list(sensors);
+        if let Some((nx, ny)) = grid {
+            if nx * ny != sensor_set.len() {
+                return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                    "grid: {nx} × {ny} = {} spots, but scan_points has {}",
+                    nx * ny,
+                    sensor_set.len()
+                )));
+            }
+            sensor_set.layout = nlos_transient::Layout::Grid { nx, ny };
+        }
+        let scan = match laser_points {
+            None => Scan::confocal(sensor_set),
+            Some(l) => Scan::exhaustive(PointSet::list(arrays::points("laser_points", l, None)?), sensor_set),
+        };
+        let (values, [_, bins]) = arrays::floats_2d("data", data, Some(scan.measurements()), None)?;
+        let time =
+            TimeAxis::new(t0, dt, bins).map_err(|e| pyo3::exceptions::PyValueError::new_err(format!("t0, dt: {e}")))?;
+        let t = Transient::new(scan, time, values).map_err(errors::capture)?;
+        Self::new(py, t, None)
+    }
+
+    /// Writes the capture: format from `format` (`"tal"`, `"npy"`, `"exr"`) or from the extension
+    /// (`.hdf5`/`.h5` y-tal HDF5, `.npy` with its `.json` sidecar, `.exr`).
+    #[pyo3(signature = (path, format = None))]
+    fn save(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let format = match format {
+            Some(name) => Format::from_name(name).filter(|f| f.can_write()).ok_or_else(|| {
+                pyo3::exceptions::PyValueError::new_err(format!("format: {name:?} is not one of tal, npy, exr"))
+            })?,
+            None => Format::for_writing_extension(&path).ok_or_else(|| {
+                pyo3::exceptions::PyValueError::new_err(format!(
+                    "path: cannot tell the format of {} from its extension; use .hdf5, .npy or .exr or pass format",
+                    path.display()
+                ))
+            })?,
+        };
+        let t = self.transient(py)?;
+        py.detach(|| nlos_transient::write(&t, &path, format)).map_err(errors::capture)
+    }
+
+    fn __repr__(&self) -> String {
+        let geometry = match (self.scan.is_confocal(), self.scan.sensors().grid_dims()) {
+            (true, Some((nx, ny))) => format!("confocal {nx} × {ny} grid"),
+            (true, None) => format!("confocal, {} spots", self.scan.sensors().len()),
+            (false, _) => format!("{} lasers × {} sensors", self.scan.lasers().len(), self.scan.sensors().len()),
+        };
+        format!(
+            "Capture({geometry}, {} bins of {:.4} m from t0 = {:.4} m{})",
+            self.time.bins,
+            self.time.bin_width,
+            self.time.t0,
+            self.format.map_or_else(String::new, |f| format!(", read as {}", f.name()))
+        )
+    }
+}
+
+/// Reads a capture in any supported format (detected from the content).
+#[pyfunction]
+pub(crate) fn load(py: Python<'_>, path: PathBuf) -> PyResult<Capture> {
+    let (t, format) = py
+        .detach(|| nlos_transient::detect(&path).and_then(|f| nlos_transient::read(&path).map(|t| (t, f))))
+        .map_err(errors::capture)?;
+    Capture::new(py, t, Some(format))
+}
+
+/// An empty capture (zeros) that only carries a geometry and a time axis: the setup to render with.
+/// Defaults are the seed's setup: confocal 64 × 64 spots over [−0.25, 0.25]² m, 1200 bins of 1.2 mm.
+#[pyfunction]
+#[pyo3(signature = (n = 64, half_width = 0.25, bins = 1200, dt = 0.0012, t0 = 0.0))]
+pub(crate) fn confocal_setup(
+    py: Python<'_>,
+    n: usize,
+    half_width: f64,
+    bins: usize,
+    dt: f64,
+    t0: f64,
+) -> PyResult<Capture> {
+    let value = |e: nlos_transient::TransientError| pyo3::exceptions::PyValueError::new_err(e.to_string());
+    let scan = Scan::confocal(PointSet::wall_grid(n, n, half_width, half_width).map_err(value)?);
+    let time = TimeAxis::new(t0, dt, bins).map_err(value)?;
+    Capture::new(py, Transient::zeros(scan, time).map_err(value)?, None)
+}

@@ -1,0 +1,181 @@
+//! Volumes (LCT, f-k, FBP), the start surface and the reconstruction, all through the library pipeline
+//! ([`nlos_optim::pipeline`]) with the settings of `nlos reconstruct --config`, given as JSON by the
+//! Python side (a dict with the TOML file's sections).
+
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use numpy::PyArray3;
+use numpy::ndarray::Array3;
+use pyo3::exceptions::PyKeyboardInterrupt;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use nlos_init::{FbpParams, FkParams, LctParams};
+use nlos_optim::pipeline::{Config, Prepared};
+use nlos_optim::{Hooks, Progress};
+
+use crate::capture::Capture;
+use crate::errors::{self, ConfigError};
+
+/// The settings, from the Python side's JSON (absent fields keep their defaults). They go through the TOML
+/// reader of `nlos reconstruct --config`, whose errors quote the offending line (so name the field).
+fn config(settings: &str) -> PyResult<Config> {
+    let json: serde_json::Value =
+        serde_json::from_str(settings).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
+    let toml = toml::Value::try_from(json)
+        .and_then(|v| toml::to_string(&v))
+        .map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
+    Config::from_toml(&toml).map_err(errors::optim)
+}
+
+/// The default settings as JSON (every field; the same values `nlos reconstruct --print-config` prints).
+#[pyfunction]
+pub(crate) fn default_settings() -> PyResult<String> {
+    serde_json::to_string(&Config::default()).map_err(|e| ConfigError::new_err(e.to_string()))
+}
+
+/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"` or `"fbp"`, the
+/// library's default settings (direct light gated automatically). Returns `(volume, axes)`: the volume
+/// (nx, ny, nz) float32 and `{"x"|"y"|"z": (first voxel centre, spacing)}` in metres.
+#[pyfunction]
+#[pyo3(signature = (capture, method = "lct", snr = None))]
+pub(crate) fn volume<'py>(
+    py: Python<'py>,
+    capture: PyRef<'py, Capture>,
+    method: &str,
+    snr: Option<f64>,
+) -> PyResult<(Py<PyArray3<f32>>, Bound<'py, PyDict>)> {
+    let t = capture.transient(py)?;
+    let vol = match method {
+        "lct" => {
+            let mut p = LctParams::default();
+            if let Some(s) = snr {
+                p.snr = s;
+            }
+            py.detach(|| nlos_init::lct(&t, &p))
+        }
+        "fk" => py.detach(|| nlos_init::fk(&t, &FkParams::default())),
+        "fbp" => py.detach(|| nlos_init::fbp(&t, &FbpParams::default())),
+        other => {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "method: {other:?} is not \"lct\", \"fk\" or \"fbp\""
+            )));
+        }
+    }
+    .map_err(errors::init)?;
+    let axes = PyDict::new(py);
+    for (name, axis) in [("x", vol.x), ("y", vol.y), ("z", vol.z)] {
+        axes.set_item(name, (axis.start, axis.step))?;
+    }
+    // `data[(ix + nx·iy)·nz + iz]` is C order for the shape (ny, nx, nz); swap to (nx, ny, nz) as a view.
+    let array = Array3::from_shape_vec((vol.ny, vol.nx, vol.nz), vol.data).map_err(errors::init)?;
+    let array = array.permuted_axes([1, 0, 2]);
+    Ok((PyArray3::from_owned_array(py, array).unbind(), axes))
+}
+
+/// The start surface `nlos reconstruct` would begin from with these settings: `(vertices, faces)`.
+#[pyfunction]
+pub(crate) fn initial_surface(
+    py: Python<'_>,
+    capture: PyRef<'_, Capture>,
+    settings: &str,
+) -> PyResult<crate::mesh::MeshArrays> {
+    let config = config(settings)?;
+    let t = capture.transient(py)?;
+    let mesh =
+        py.detach(|| Prepared::new(t, &config).and_then(|p| p.initial_surface(&config))).map_err(errors::optim)?;
+    crate::mesh::to_arrays(py, &mesh)
+}
+
+/// Reconstructs the hidden surface, as `nlos reconstruct` does: returns a dict with `vertices`, `faces`,
+/// `reflectance`, `scale`, `stop`, `notes` and `log` (the run log as JSON text). With `out`, the run
+/// directory gets `mesh.obj`, `init.obj`, `settings.toml`, the run log and checkpoints (`resume=True`
+/// continues from them). `progress(dict)` is called after every iteration; Ctrl-C stops the run after the
+/// current block's checkpoint and raises `KeyboardInterrupt`.
+#[pyfunction]
+#[pyo3(signature = (capture, settings, out = None, resume = false, progress = None))]
+pub(crate) fn reconstruct<'py>(
+    py: Python<'py>,
+    capture: PyRef<'py, Capture>,
+    settings: &str,
+    out: Option<PathBuf>,
+    resume: bool,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let config = config(settings)?;
+    let t = capture.transient(py)?;
+    if resume && out.is_none() {
+        return Err(ConfigError::new_err("resume: a run directory (out) is needed to resume from"));
+    }
+    let prepared = py.detach(|| Prepared::new(t, &config)).map_err(errors::optim)?;
+    let params = prepared.params(&config, out.clone()).map_err(errors::optim)?;
+    if let Some(dir) = &out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| errors::optim(nlos_optim::OptimError::Io { path: dir.clone(), source: e }))?;
+        let toml = config.to_toml().map_err(errors::optim)?;
+        std::fs::write(dir.join("settings.toml"), toml)
+            .map_err(|e| errors::optim(nlos_optim::OptimError::Io { path: dir.join("settings.toml"), source: e }))?;
+    }
+    let mut interrupt: Option<PyErr> = None;
+    let mut callback_error: Option<PyErr> = None;
+    let outcome = py.detach(|| {
+        let mut on_progress = |p: &Progress| -> ControlFlow<()> {
+            Python::attach(|py| {
+                if let Err(e) = py.check_signals() {
+                    if e.is_instance_of::<PyKeyboardInterrupt>(py) {
+                        interrupt.get_or_insert(e);
+                    } else {
+                        callback_error.get_or_insert(e);
+                    }
+                }
+                if let Some(cb) = &progress {
+                    let record = PyDict::new(py);
+                    let _ = record.set_item("stage", p.stage);
+                    let _ = record.set_item("iteration", p.iteration);
+                    let _ = record.set_item("iterations_planned", p.iterations_planned);
+                    let _ = record.set_item("loss", p.loss);
+                    let _ = record.set_item("faces", p.faces);
+                    let _ = record.set_item("elapsed_s", p.elapsed_s);
+                    if let Err(e) = cb.call1(py, (record,)) {
+                        callback_error.get_or_insert(e);
+                    }
+                }
+            });
+            if interrupt.is_some() || callback_error.is_some() {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        };
+        let hooks = Hooks { progress: Some(&mut on_progress), evolve: None };
+        if resume {
+            nlos_optim::resume(&prepared.measured, &params, hooks)
+        } else {
+            let init = prepared.initial_surface(&config)?;
+            if let Some(dir) = &out {
+                nlos_mesh::io::save(&init, dir.join("init.obj"))?;
+            }
+            nlos_optim::reconstruct_with(&prepared.measured, &init, &params, hooks)
+        }
+    });
+    if let Some(e) = interrupt.or(callback_error) {
+        return Err(e);
+    }
+    let outcome = outcome.map_err(errors::optim)?;
+    let result = PyDict::new(py);
+    let (v, f) = crate::mesh::to_arrays(py, &outcome.mesh)?;
+    result.set_item("vertices", v)?;
+    result.set_item("faces", f)?;
+    result.set_item("reflectance", to_json(&outcome.reflectance)?)?;
+    result.set_item("log", to_json(&outcome.log)?)?;
+    result.set_item("stop", to_json(&outcome.stop)?)?;
+    result.set_item("scale", outcome.scale)?;
+    result.set_item("notes", prepared.notes.clone())?;
+    Ok(result)
+}
+
+/// JSON text of a serialisable part of the outcome (the Python side parses it).
+fn to_json<T: serde::Serialize>(value: &T) -> PyResult<String> {
+    serde_json::to_string(value).map_err(|e| errors::ReconstructError::new_err(format!("encoding the outcome: {e}")))
+}

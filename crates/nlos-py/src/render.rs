@@ -1,0 +1,280 @@
+//! `nlos.Renderer` (forward, adjoint, loss and gradient of a mesh) and `nlos.render` (a simulated capture,
+//! as `nlos render` makes it).
+
+use numpy::PyArray2;
+use numpy::ndarray::Array2;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use nlos_brdf::{Fresnel, Ggx, Lambertian};
+use nlos_render::{
+    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
+};
+use nlos_transient::Transient;
+use nlos_transient::sensor::{PhotonBudget, SpadModel};
+
+use crate::capture::Capture;
+use crate::{arrays, errors};
+
+/// The reflectance a renderer evaluates.
+#[derive(Debug, Clone, Copy)]
+enum Brdf {
+    Lambertian(Lambertian<f32>),
+    Ggx(Ggx<f32>),
+}
+
+/// Calls `$body` with `$b` bound to the concrete BRDF.
+macro_rules! with_brdf {
+    ($brdf:expr, $b:ident => $body:expr) => {
+        match $brdf {
+            Brdf::Lambertian($b) => $body,
+            Brdf::Ggx($b) => $body,
+        }
+    };
+}
+
+impl Brdf {
+    /// `"lambertian"` (albedo) or `"ggx"` (diffuse albedo, specular weight, roughness α, no Fresnel term).
+    fn new(name: &str, albedo: f32, alpha: f32, specular: f32) -> PyResult<Self> {
+        match name {
+            "lambertian" | "lambert" => {
+                Lambertian::new(albedo).map(Brdf::Lambertian).map_err(|e| PyValueError::new_err(format!("albedo: {e}")))
+            }
+            "ggx" => Ggx::new(albedo, specular, alpha, Fresnel::One)
+                .map(Brdf::Ggx)
+                .map_err(|e| PyValueError::new_err(format!("albedo, specular, alpha: {e}"))),
+            other => Err(PyValueError::new_err(format!("brdf: {other:?} is not \"lambertian\" or \"ggx\""))),
+        }
+    }
+
+    fn param_names(&self) -> &'static [&'static str] {
+        with_brdf!(self, b => param_names_of(b))
+    }
+}
+
+fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {
+    B::PARAM_NAMES
+}
+
+fn kernel(name: &str) -> PyResult<Kernel> {
+    match name {
+        "box" => Ok(Kernel::Box),
+        "tent" => Ok(Kernel::Tent),
+        other => Err(PyValueError::new_err(format!("kernel: {other:?} is not \"box\" or \"tent\""))),
+    }
+}
+
+fn sampling(name: &str) -> PyResult<Sampling> {
+    match name {
+        "splat" => Ok(Sampling::Splat(SplatRule::default())),
+        "exact" => Ok(Sampling::Deterministic(DeterministicRule::default())),
+        "fixed" => Ok(Sampling::Deterministic(DeterministicRule::fixed(1))),
+        other => Err(PyValueError::new_err(format!("sampling: {other:?} is not \"splat\", \"exact\" or \"fixed\""))),
+    }
+}
+
+fn visibility(name: &str, level: u32) -> PyResult<Visibility> {
+    match name {
+        "off" => Ok(Visibility::Off),
+        "live" => Ok(Visibility::Live),
+        "cached" if (1..=16).contains(&level) => Ok(Visibility::Cached { level }),
+        "cached" => Err(PyValueError::new_err(format!("vis_level: {level} is not in 1..=16"))),
+        other => Err(PyValueError::new_err(format!("visibility: {other:?} is not \"cached\", \"live\" or \"off\""))),
+    }
+}
+
+fn matrix(py: Python<'_>, values: Vec<f32>, rows: usize, cols: usize) -> PyResult<Py<PyArray2<f32>>> {
+    let array = Array2::from_shape_vec((rows, cols), values).map_err(errors::render)?;
+    Ok(PyArray2::from_owned_array(py, array).unbind())
+}
+
+/// The differentiable transient renderer of a triangle mesh for one setup (scan and time axis).
+///
+/// Defaults are the reconstruction loop's: tent kernel, the splat rule, visibility cached per triangle
+/// and measurement (level 1), one-sided faces.
+#[pyclass(module = "nlos")]
+pub(crate) struct Renderer {
+    inner: Inner,
+    brdf: Brdf,
+    vertices: usize,
+    measurements: usize,
+    bins: usize,
+}
+
+#[pymethods]
+impl Renderer {
+    #[new]
+    #[pyo3(signature = (vertices, faces, setup, *, brdf = "lambertian", albedo = 1.0, alpha = 0.3, specular = 1.0,
+        kernel = "tent", sampling = "splat", visibility = "cached", vis_level = 1, two_sided = false))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        vertices: &Bound<'_, PyAny>,
+        faces: &Bound<'_, PyAny>,
+        setup: PyRef<'_, Capture>,
+        brdf: &str,
+        albedo: f32,
+        alpha: f32,
+        specular: f32,
+        kernel: &str,
+        sampling: &str,
+        visibility: &str,
+        vis_level: u32,
+        two_sided: bool,
+    ) -> PyResult<Self> {
+        let positions = arrays::points("vertices", vertices, None)?;
+        let triangles = arrays::faces("faces", faces, positions.len())?;
+        let params = RenderParams {
+            kernel: self::kernel(kernel)?,
+            sampling: self::sampling(sampling)?,
+            visibility: self::visibility(visibility, vis_level)?,
+            two_sided,
+        };
+        let brdf = Brdf::new(brdf, albedo, alpha, specular)?;
+        let (scan, time) = (setup.scan.clone(), setup.time);
+        let inner = py.detach(|| Inner::new(&positions, &triangles, &scan, &time, params)).map_err(errors::render)?;
+        Ok(Self { inner, brdf, vertices: positions.len(), measurements: scan.measurements(), bins: time.bins })
+    }
+
+    /// Moves the vertices (same count, same faces); the visibility cache is kept, as in the loop.
+    fn set_vertices(&mut self, vertices: &Bound<'_, PyAny>) -> PyResult<()> {
+        let positions = arrays::points("vertices", vertices, Some(self.vertices))?;
+        self.inner.set_positions(&positions).map_err(errors::render)
+    }
+
+    /// The rendered transient, measurements × bins, float32 (a new array each call, no further copy).
+    fn forward(&self, py: Python<'_>) -> PyResult<Py<PyArray2<f32>>> {
+        let brdf = self.brdf;
+        let values = py.detach(|| with_brdf!(brdf, b => self.inner.forward(&b)));
+        matrix(py, values, self.measurements, self.bins)
+    }
+
+    /// Gradients of a loss E through the renderer given `d_loss` = dE/dI (measurements × bins): returns
+    /// `(dE/dvertices (n, 3), {BRDF parameter: dE/dparameter})` (Proposition 1 of Tsai et al. 2019).
+    fn adjoint<'py>(
+        &self,
+        py: Python<'py>,
+        d_loss: &Bound<'py, PyAny>,
+    ) -> PyResult<(Py<PyArray2<f32>>, Bound<'py, PyDict>)> {
+        let (d, _) = arrays::floats_2d("d_loss", d_loss, Some(self.measurements), Some(self.bins))?;
+        let brdf = self.brdf;
+        let g = py.detach(|| with_brdf!(brdf, b => self.inner.adjoint(&b, &d))).map_err(errors::render)?;
+        self.gradient_out(py, g)
+    }
+
+    /// `(E, dE/dvertices, {parameter: dE/dparameter})` for the loss against `measured` (an array or a
+    /// Capture of this setup's shape): `loss="l2"` (½ Σ (I − Ĩ)²) or `"poisson"` (negative log-likelihood).
+    #[pyo3(signature = (measured, loss = "l2"))]
+    fn loss_and_grad<'py>(
+        &self,
+        py: Python<'py>,
+        measured: &Bound<'py, PyAny>,
+        loss: &str,
+    ) -> PyResult<(f64, Py<PyArray2<f32>>, Bound<'py, PyDict>)> {
+        let loss = match loss {
+            "l2" => Loss::L2,
+            "poisson" => Loss::PoissonNll { floor: 1e-12 },
+            other => return Err(PyValueError::new_err(format!("loss: {other:?} is not \"l2\" or \"poisson\""))),
+        };
+        let measured = match measured.cast::<Capture>() {
+            Ok(c) => c.borrow().data.bind(py).clone().into_any(),
+            Err(_) => measured.clone(),
+        };
+        let (m, _) = arrays::floats_2d("measured", &measured, Some(self.measurements), Some(self.bins))?;
+        let brdf = self.brdf;
+        let out = py
+            .detach(|| with_brdf!(brdf, b => self.inner.loss_and_gradient(&b, &m, loss, None)))
+            .map_err(errors::render)?;
+        let (dv, dp) = self.gradient_out(py, out.gradient)?;
+        Ok((out.loss, dv, dp))
+    }
+
+    /// The BRDF's parameter names, in the order of the gradient dictionary.
+    #[getter]
+    fn brdf_params(&self) -> Vec<&'static str> {
+        self.brdf.param_names().to_vec()
+    }
+
+    /// `(measurements, bins)` of a rendering.
+    #[getter]
+    fn shape(&self) -> (usize, usize) {
+        (self.measurements, self.bins)
+    }
+}
+
+impl Renderer {
+    fn gradient_out<'py>(
+        &self,
+        py: Python<'py>,
+        g: nlos_render::Gradient,
+    ) -> PyResult<(Py<PyArray2<f32>>, Bound<'py, PyDict>)> {
+        let flat: Vec<f32> = g.vertices.iter().flat_map(|v| v.to_array()).collect();
+        let dv = matrix(py, flat, self.vertices, 3)?;
+        let dict = PyDict::new(py);
+        for (name, value) in self.brdf.param_names().iter().zip(&g.brdf) {
+            dict.set_item(*name, *value)?;
+        }
+        Ok((dv, dict))
+    }
+}
+
+/// A simulated capture of a mesh, as `nlos render` makes it: box kernel (a measurement integrates its
+/// bin), the exact adaptive rule, visibility cached at level 2 (or as given), Lambertian albedo 1 or GGX
+/// (`alpha`); with `photons`, SPAD photon counts (Poisson, expected `photons` per measurement, `seed`).
+#[pyfunction]
+#[pyo3(signature = (vertices, faces, setup = None, *, brdf = "lambertian", alpha = 0.3, visibility = "cached",
+    vis_level = 2, two_sided = false, photons = None, seed = 0))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn render(
+    py: Python<'_>,
+    vertices: &Bound<'_, PyAny>,
+    faces: &Bound<'_, PyAny>,
+    setup: Option<PyRef<'_, Capture>>,
+    brdf: &str,
+    alpha: f32,
+    visibility: &str,
+    vis_level: u32,
+    two_sided: bool,
+    photons: Option<f64>,
+    seed: u64,
+) -> PyResult<Capture> {
+    let positions = arrays::points("vertices", vertices, None)?;
+    let triangles = arrays::faces("faces", faces, positions.len())?;
+    let (scan, time) = match &setup {
+        Some(s) => (s.scan.clone(), s.time),
+        None => {
+            let s = crate::capture::confocal_setup(py, 64, 0.25, 1200, 0.0012, 0.0)?;
+            (s.scan, s.time)
+        }
+    };
+    let params = RenderParams {
+        kernel: Kernel::Box,
+        sampling: Sampling::Deterministic(DeterministicRule::default()),
+        visibility: self::visibility(visibility, vis_level)?,
+        two_sided,
+    };
+    // `nlos render`'s GGX: no diffuse part, specular weight 1.
+    let brdf = match brdf {
+        "ggx" => Brdf::new("ggx", 0.0, alpha, 1.0)?,
+        other => Brdf::new(other, 1.0, alpha, 1.0)?,
+    };
+    let model = match photons {
+        Some(n) if !(n.is_finite() && n > 0.0) => {
+            return Err(PyValueError::new_err(format!("photons: {n} must be finite and > 0")));
+        }
+        Some(n) => Some(SpadModel::ideal(PhotonBudget::PerMeasurement(n))),
+        None => None,
+    };
+    let out: Transient = py
+        .detach(|| -> Result<Transient, String> {
+            let r = Inner::new(&positions, &triangles, &scan, &time, params).map_err(|e| e.to_string())?;
+            let clean = with_brdf!(brdf, b => r.forward_transient(&b)).map_err(|e| e.to_string())?;
+            match &model {
+                Some(m) => m.simulate(&clean, seed).map_err(|e| e.to_string()),
+                None => Ok(clean),
+            }
+        })
+        .map_err(errors::render)?;
+    Capture::new(py, out, None)
+}

@@ -1,0 +1,85 @@
+"""Volumes, the start surface, the reconstruction pipeline and the metrics, on the built-in fixture."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import nlos
+
+FAST = {"schedule": {"max_stages": 1, "initial_resolution": 12, "max_blocks_per_stage": 1, "shape_iterations": 3}}
+DEMO = {"schedule": {"max_stages": 2, "initial_resolution": 20, "max_blocks_per_stage": 2, "shape_iterations": 15}}
+
+
+@pytest.mark.parametrize("method", ["lct", "fk", "fbp"])
+def test_volumes_peak_at_the_patch_depth(builtin_capture, method):
+    volume, axes = getattr(nlos, method)(nlos.load(builtin_capture))
+    assert volume.ndim == 3 and volume.dtype == np.float32 and volume.shape[:2] == (24, 24)
+    z0, dz = axes["z"]
+    iz = np.unravel_index(np.argmax(np.abs(volume)), volume.shape)[2]
+    # The built-in patch lies at 0.36-0.40 m.
+    assert 0.33 < z0 + iz * dz < 0.43
+
+
+def test_reconstruct_improves_on_its_start(builtin_capture, builtin_truth, tmp_path):
+    capture = nlos.load(builtin_capture)
+    start = nlos.initial_surface(capture)
+    seen = []
+    result = nlos.reconstruct(capture, tmp_path / "run", progress=seen.append, seed=1, **DEMO)
+    assert result["stop"] and result["faces"].shape[1] == 3 and result["vertices"].dtype == np.float32
+    assert seen and seen[-1]["iteration"] >= 1 and "loss" in seen[-1]
+    for name in ["mesh.obj", "init.obj", "settings.toml", "run_log.json", "checkpoint.json"]:
+        assert (tmp_path / "run" / name).is_file(), name
+    before, after = nlos.eval(start, builtin_truth), nlos.eval((result["vertices"], result["faces"]), builtin_truth)
+    assert after["depth_error_mean"] < 0.5 * before["depth_error_mean"]
+    assert after["chamfer"] < 0.5 * before["chamfer"]
+    assert after["coverage"] > 0.9
+    # The same settings through the command line give the same mesh.
+    cli_run = tmp_path / "cli"
+    args = ["reconstruct", str(builtin_capture), "--out", str(cli_run), "--quiet", "--no-report", "--seed", "1"]
+    for key, value in DEMO["schedule"].items():
+        args += ["--set", f"schedule.{key}={value}"]
+    assert nlos.main(args) == 0
+    v, f = nlos.read_mesh(cli_run / "mesh.obj")
+    assert np.array_equal(v, result["vertices"]) and np.array_equal(f, result["faces"])
+
+
+def test_a_finished_run_resumes_to_the_same_mesh(builtin_capture, tmp_path):
+    first = nlos.reconstruct(builtin_capture, tmp_path, **FAST)
+    again = nlos.reconstruct(builtin_capture, tmp_path, resume=True, **FAST)
+    assert np.array_equal(first["vertices"], again["vertices"])
+    with pytest.raises(nlos.ConfigError, match="shape_iterations"):
+        nlos.reconstruct(builtin_capture, tmp_path, resume=True, schedule={**FAST["schedule"], "shape_iterations": 4})
+
+
+def test_bad_settings_raise_config_errors(builtin_capture):
+    with pytest.raises(nlos.ConfigError, match="no_such_section"):
+        nlos.reconstruct(builtin_capture, no_such_section={})
+    with pytest.raises(nlos.ConfigError, match="max_stages"):
+        nlos.reconstruct(builtin_capture, schedule={"max_stages": "many"})
+    with pytest.raises(nlos.ConfigError):
+        nlos.reconstruct(builtin_capture, resume=True)
+    assert "schedule" in nlos.default_settings()
+
+
+def test_a_progress_callback_that_raises_stops_the_run(builtin_capture):
+    def boom(_):
+        raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        nlos.reconstruct(builtin_capture, progress=boom, **FAST)
+
+
+def test_eval_and_mesh_files(builtin_truth, tmp_path):
+    v, f = nlos.read_mesh(builtin_truth)
+    m = nlos.eval((v, f), builtin_truth)
+    assert m["coverage"] == 1.0 and m["depth_error_max"] == 0.0
+    nlos.write_mesh(tmp_path / "t.ply", v, f)
+    v2, f2 = nlos.read_mesh(tmp_path / "t.ply")
+    assert np.array_equal(v, v2) and np.array_equal(f, f2)
+    with pytest.raises(nlos.MeshError, match="nope.obj"):
+        nlos.read_mesh(tmp_path / "nope.obj")
+    with pytest.raises(TypeError, match="mesh"):
+        nlos.eval(3.0, builtin_truth)
+    with pytest.raises(ValueError, match="grid"):
+        nlos.eval((v, f), builtin_truth, grid=0)
