@@ -83,3 +83,32 @@ def test_eval_and_mesh_files(builtin_truth, tmp_path):
         nlos.eval(3.0, builtin_truth)
     with pytest.raises(ValueError, match="grid"):
         nlos.eval((v, f), builtin_truth, grid=0)
+
+
+def test_ctrl_c_stops_after_the_block_checkpoint_and_the_run_resumes(builtin_capture, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(
+        f"""
+        import sys, nlos
+        def progress(p):
+            if p["iteration"] == 1:
+                print("started", flush=True)
+        try:
+            nlos.reconstruct({str(builtin_capture)!r}, {str(tmp_path)!r}, progress=progress, **{DEMO!r})
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(3)
+        """
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert p.stdout is not None and p.stdout.readline().strip() == "started"
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=120)
+    assert p.returncode == 3 and "interrupted" in out
+    assert (tmp_path / "checkpoint.json").is_file(), "the block's checkpoint is written before stopping"
+    done = nlos.reconstruct(builtin_capture, tmp_path, resume=True, **DEMO)
+    assert done["stop"] != "interrupted" and len(done["faces"]) > 0
