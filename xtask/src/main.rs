@@ -154,20 +154,22 @@ fn fixtures() -> Result<(), String> {
 
 /// `cargo xtask test`: every test of the workspace (`cargo test --workspace`, with `ARGS` appended), then
 /// the count of tests that skipped for want of the shared data, printed once at the end (each skip appends
-/// a line to `target/nlos-data-skips.log`; see `nlos-testdata`). `NLOS_REQUIRE_DATA=1` makes those skips
+/// a line to `target/nlos-data-skips-<pid of that cargo>.log`; see `nlos-testdata`). `NLOS_REQUIRE_DATA=1` makes those skips
 /// failures instead.
 fn test(args: &[String]) -> Result<(), String> {
     let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| workspace_root().join("target"), PathBuf::from);
-    let log = target.join("nlos-data-skips.log");
-    let _ = std::fs::remove_file(&log);
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let status = Command::new(cargo)
+    let mut child = Command::new(cargo)
         .current_dir(workspace_root())
         .args(["test", "--workspace"])
         .args(args)
-        .status()
+        .spawn()
         .map_err(|e| format!("cannot run cargo: {e}"))?;
+    // The test binaries are children of this cargo process: their skips go to the log named after it.
+    let log = target.join(format!("nlos-data-skips-{}.log", child.id()));
+    let status = child.wait().map_err(|e| format!("waiting for cargo: {e}"))?;
     let skips = std::fs::read_to_string(&log).unwrap_or_default();
+    let _ = std::fs::remove_file(&log);
     let skips: Vec<&str> = skips.lines().collect();
     if skips.is_empty() {
         println!("xtask test: no test skipped for want of shared data");

@@ -9,8 +9,9 @@
 //! ```
 //!
 //! When the file is absent the test is **skipped visibly**: one line goes straight to the terminal (past
-//! the test harness's output capture) and one line is appended to `target/nlos-data-skips.log`, which
-//! `cargo xtask test` counts and prints once at the end of the run. With `NLOS_REQUIRE_DATA=1` (set by
+//! the test harness's output capture) with the number of skips so far in this `cargo test` run, and one
+//! line is appended to `target/nlos-data-skips-<pid of cargo>.log` (every test binary of a run is a child
+//! of the same `cargo` process), which `cargo xtask test` counts and prints once at the end of the run. With `NLOS_REQUIRE_DATA=1` (set by
 //! CI) an absent file is a failure instead, so a missing data folder can never pass as green.
 
 use std::io::Write;
@@ -22,8 +23,9 @@ pub const REQUIRE_DATA: &str = "NLOS_REQUIRE_DATA";
 /// The environment variable naming the shared data folder (default: `../shared/data` beside the workspace).
 pub const SHARED_DATA: &str = "NLOS_SHARED_DATA";
 
-/// The file (under the target directory) where skips are logged, one line each.
-pub const SKIP_LOG: &str = "nlos-data-skips.log";
+/// The prefix of the files (under the target directory) where skips are logged, one line each; the
+/// file of a `cargo test` run is `{SKIP_LOG}-{pid of cargo}.log`.
+pub const SKIP_LOG: &str = "nlos-data-skips";
 
 /// The workspace root (this crate lives in `crates/nlos-testdata`).
 pub fn workspace_root() -> PathBuf {
@@ -100,15 +102,20 @@ pub fn skip(reason: &str) {
     let hint = format!("put the shared data at {} or set {SHARED_DATA}", root().display());
     assert!(!data_required(), "{test}: {reason}, and {REQUIRE_DATA} is set ({hint})");
     let line = format!("{} :: {test}: {reason}", exe_name());
-    // Straight to the terminal: `eprintln!` would be captured by the harness and shown only on failure.
-    let _ = writeln!(std::io::stderr(), "nlos: SKIPPED for want of shared data: {line} ({hint})");
-    if let Some(mut f) = skip_log().and_then(|log| std::fs::OpenOptions::new().create(true).append(true).open(log).ok())
-    {
-        let _ = writeln!(f, "{line}");
+    let mut count = None;
+    if let Some(log) = skip_log() {
+        if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(&log) {
+            let _ = writeln!(f, "{line}");
+        }
+        count = std::fs::read_to_string(&log).ok().map(|text| text.lines().count());
     }
+    let count = count.map_or_else(String::new, |n| format!(" (skip {n} of this cargo run)"));
+    // Straight to the terminal: `eprintln!` would be captured by the harness and shown only on failure.
+    let _ = writeln!(std::io::stderr(), "nlos: SKIPPED for want of shared data{count}: {line} ({hint})");
 }
 
-/// `target/nlos-data-skips.log` for a test, bench or example binary under `target/<profile>/{deps,examples}`.
+/// `target/nlos-data-skips-<parent pid>.log` for a test, bench or example binary under
+/// `target/<profile>/{deps,examples}` (the parent is the `cargo` process that runs it).
 pub fn skip_log() -> Option<PathBuf> {
     let exe = std::env::current_exe().ok()?;
     let dir = exe.parent()?;
@@ -116,7 +123,8 @@ pub fn skip_log() -> Option<PathBuf> {
     if name != "deps" && name != "examples" {
         return None;
     }
-    Some(dir.parent()?.parent()?.join(SKIP_LOG))
+    let cargo = std::os::unix::process::parent_id();
+    Some(dir.parent()?.parent()?.join(format!("{SKIP_LOG}-{cargo}.log")))
 }
 
 fn exe_name() -> String {
@@ -138,6 +146,7 @@ mod tests {
     #[test]
     fn the_log_lies_in_the_target_directory() {
         let log = skip_log().expect("a test binary lives in target/<profile>/deps");
-        assert_eq!(log.file_name().and_then(|n| n.to_str()), Some(SKIP_LOG));
+        let name = log.file_name().and_then(|n| n.to_str()).expect("a file name");
+        assert!(name.starts_with(SKIP_LOG) && name.ends_with(".log"), "{name}");
     }
 }
