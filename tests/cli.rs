@@ -2,40 +2,22 @@
 //! `reconstruct` (a short schedule, with the report and the ground truth), `eval`, and `--resume` of the
 //! finished run; bad input exits 2.
 
-use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/builtin").join(name).to_string_lossy().into_owned()
-}
+mod common;
+use common::{FAST, fixture_arg as fixture, scratch};
 
 fn nlos(args: &[&str]) -> ExitCode {
     nlos_cli::run(std::iter::once("nlos").chain(args.iter().copied()))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("suite-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
 }
 
 #[test]
 fn reconstruct_eval_and_resume_on_the_builtin_capture() {
     let (capture, truth) = (fixture("capture.hdf5"), fixture("truth.obj"));
     assert_eq!(nlos(&["info", &capture]), ExitCode::SUCCESS);
-    let run = scratch("run");
+    let run = scratch("cli-run");
     let out = run.to_string_lossy().into_owned();
-    let fast = [
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=12",
-        "--set",
-        "schedule.max_blocks_per_stage=1",
-        "--set",
-        "schedule.shape_iterations=3",
-    ];
-    let args = [&["reconstruct", &capture, "--out", &out, "--gt", &truth, "--quiet", "--glb"][..], &fast].concat();
+    let args = [&["reconstruct", &capture, "--out", &out, "--gt", &truth, "--quiet", "--glb"][..], &FAST].concat();
     assert_eq!(nlos(&args), ExitCode::SUCCESS);
     for file in ["mesh.obj", "mesh.glb", "init.obj", "report.html", "settings.toml", "run_log.json"] {
         assert!(run.join(file).is_file(), "{file} missing");
@@ -50,8 +32,7 @@ fn reconstruct_eval_and_resume_on_the_builtin_capture() {
 
 #[test]
 fn bad_input_exits_2() {
-    let dir = scratch("bad");
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = scratch("cli-bad");
     let garbage = dir.join("garbage.hdf5");
     std::fs::write(&garbage, b"not a capture").expect("write");
     let g = garbage.to_string_lossy().into_owned();

@@ -2,22 +2,12 @@
 //! fixtures (`fixtures/builtin/`: ground truth, photon-count capture, LCT start), so a fresh clone runs the
 //! real pipeline without the shared data.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{fixture, scratch};
 
 use nlos_mesh::metrics::{EvalParams, evaluate};
 use nlos_optim::builtin::{BuiltinScene, FIXTURE_FILES};
 use nlos_optim::pipeline::{Config, Prepared};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/builtin").join(name)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("suite-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
 
 /// The schedule of `cargo xtask reconstruct`: two coarse-to-fine stages, two blocks each.
 fn demo_config() -> Config {
@@ -33,7 +23,7 @@ fn demo_config() -> Config {
 #[test]
 fn the_fixtures_are_current() {
     // `cargo xtask fixtures` writes them from the same function; every step is seeded and deterministic.
-    let dir = scratch("fixtures");
+    let dir = scratch("pipeline-fixtures");
     BuiltinScene::default().write_fixtures(&dir).expect("fixtures written");
     for name in FIXTURE_FILES {
         let (fresh, committed) = (std::fs::read(dir.join(name)).expect("fresh"), std::fs::read(fixture(name)));
@@ -49,7 +39,7 @@ fn the_builtin_capture_reconstructs_closer_to_the_truth_than_its_start() {
     let start = prepared.initial_surface(&config).expect("LCT start");
     let committed = nlos_mesh::io::load(fixture("start.obj")).expect("the fixture start loads");
     assert_eq!(start.n_faces(), committed.n_faces(), "the pipeline's start is the committed one");
-    let dir = scratch("pipeline");
+    let dir = scratch("pipeline-run");
     let params = prepared.params(&config, Some(dir.clone())).expect("params");
     let outcome = nlos_optim::reconstruct(&prepared.measured, &start, &params).expect("reconstructs");
     assert!(dir.join("mesh.obj").is_file() && dir.join("run_log.json").is_file());

@@ -5,15 +5,11 @@
 //!
 //! Needs `chromium` (Debian's package; `$NLOS_CHROMIUM` names another binary); CI installs it.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, ExitCode, Output};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("suite-view-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
+mod common;
+use common::{FAST, fixture, scratch};
 
 fn chromium(browser: &Path, args: &[&str], page: &Path) -> Output {
     Command::new(browser)
@@ -32,10 +28,9 @@ fn report_html_shows_the_meshes_in_headless_chromium() {
     let Some(browser) = nlos_testdata::tool("NLOS_CHROMIUM", &["chromium", "chromium-browser", "google-chrome"]) else {
         return;
     };
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/builtin");
-    let (capture, truth) = (fixtures.join("capture.hdf5"), fixtures.join("truth.obj"));
-    let run = scratch("run");
-    let code = nlos_cli::run([
+    let (capture, truth) = (fixture("capture.hdf5"), fixture("truth.obj"));
+    let run = scratch("view-run");
+    let args = [
         "nlos",
         "reconstruct",
         capture.to_str().expect("utf8"),
@@ -44,19 +39,12 @@ fn report_html_shows_the_meshes_in_headless_chromium() {
         "--gt",
         truth.to_str().expect("utf8"),
         "--quiet",
-        "--set",
-        "schedule.max_stages=1",
-        "--set",
-        "schedule.initial_resolution=12",
-        "--set",
-        "schedule.max_blocks_per_stage=1",
-        "--set",
-        "schedule.shape_iterations=3",
-    ]);
+    ];
+    let code = nlos_cli::run(args.iter().chain(FAST.iter()));
     assert_eq!(code, ExitCode::SUCCESS);
     let html = std::fs::read_to_string(run.join("report.html")).expect("report.html");
     assert!(!html.contains("http://") && !html.contains("https://"), "the page must not need the network");
-    let alone = scratch("alone");
+    let alone = scratch("view-alone");
     let page = alone.join("report.html");
     std::fs::write(&page, &html).expect("copy");
 
