@@ -60,7 +60,7 @@ impl Default for FbpParams {
 /// [module docs](self)).
 ///
 /// # Errors
-/// Confocal: as [`crate::lct`] (`snr` aside). Exhaustive: [`InitError::NotGrid`] / [`InitError::BadGrid`]
+/// Confocal: as [`crate::lct()`] (`snr` aside). Exhaustive: [`InitError::NotGrid`] / [`InitError::BadGrid`]
 /// for sensor points that are not a regular `≥ 2 × 2` grid, [`InitError::DeviceLegs`],
 /// [`InitError::InvalidParameter`] (bin_merge, gate, max_depth), [`InitError::Empty`],
 /// [`InitError::NonFinite`].

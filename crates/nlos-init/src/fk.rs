@@ -47,7 +47,7 @@ impl Default for FkParams {
 /// Reconstructs a volume from a confocal grid capture with f-k (Stolt) migration.
 ///
 /// # Errors
-/// As [`crate::lct`] (the input requirements are the same).
+/// As [`crate::lct()`] (the input requirements are the same).
 pub fn fk(t: &Transient, params: &FkParams) -> Result<Volume> {
     let g = prep::prepare(t, "f-k migration", params.gate, params.max_depth, params.bin_merge)?;
     let data = fk_grid(&g);

@@ -167,7 +167,7 @@ pub(crate) fn volume_from_grid(g: &ConfocalGrid, data: Vec<f32>) -> Volume {
 }
 
 /// The LCT pipeline; with `laplacian`, the negative second difference along u is taken before resampling
-/// back to t (filtered backprojection, see [`crate::fbp`]).
+/// back to t (filtered backprojection, see [`crate::fbp()`]).
 pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) -> Vec<f32> {
     let (nx, ny) = (g.nx, g.ny);
     // Pad the time axis to a fast FFT size; the extra bins are zero and extend the range T.

@@ -3,12 +3,12 @@
 //! Volumetric non-line-of-sight reconstructions and the step that turns them into the initial surface
 //! of the optimiser (Tsai, Sankaranarayanan & Gkioulekas, CVPR 2019, Sec. 6–7):
 //!
-//! - [`lct`]: the light-cone transform with Wiener deconvolution (O'Toole, Lindell & Wetzstein,
+//! - [`lct()`]: the light-cone transform with Wiener deconvolution (O'Toole, Lindell & Wetzstein,
 //!   Nature 2018), confocal grid scans;
-//! - [`fk`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
-//! - [`fbp`]: Laplacian-filtered backprojection (the LCT's adjoint) for confocal grid scans, direct
+//! - [`fk()`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
+//! - [`fbp()`]: Laplacian-filtered backprojection (the LCT's adjoint) for confocal grid scans, direct
 //!   ellipsoidal backprojection for exhaustive scans with a sensor grid;
-//! - [`carve`]: space carving from first-returning photons (Tsai et al., CVPR 2017), confocal or
+//! - [`carve()`]: space carving from first-returning photons (Tsai et al., CVPR 2017), confocal or
 //!   exhaustive scans with a sensor grid;
 //! - [`volume_to_surface`]: per-column maximum, threshold (Otsu or explicit), largest connected region,
 //!   grid triangulation facing the wall, optional smoothing and isotropic remeshing.

@@ -7,8 +7,8 @@
 //! - Arrays cross without a copy where the layout allows: a capture's histograms, a rendering and the
 //!   volumes are Rust buffers handed to NumPy ([`numpy::PyArray::from_owned_array`]); inputs are read from
 //!   NumPy's memory and checked (shape, dtype, finiteness, index range) with a `ValueError` naming the
-//!   argument ([`arrays`]).
-//! - Errors are typed exceptions (`nlos.NlosError` and its subclasses, [`errors`]); no input may make the
+//!   argument (module `arrays`).
+//! - Errors are typed exceptions (`nlos.NlosError` and its subclasses, module `errors`); no input may make the
 //!   library panic, and PyO3 turns any panic that still happens into a Python exception at the boundary.
 //! - Long work (rendering, volumes, reconstruction) runs with the GIL released; a reconstruction calls its
 //!   progress callback and checks for Ctrl-C after every iteration, stopping after the current block's
