@@ -110,6 +110,9 @@ def test_sigint_during_the_run_stops_it_after_the_block_checkpoint(builtin_captu
     script = textwrap.dedent(
         f"""
         import os, signal, sys, threading, nlos
+        # Python maps SIGINT to KeyboardInterrupt unless it started with SIGINT ignored (as a background
+        # job of a non-interactive shell does): install the mapping, as an interactive session has it.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         def progress(p):
             if p["iteration"] == 1:
                 threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
