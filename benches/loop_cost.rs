@@ -11,35 +11,16 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nlos_brdf::Lambertian;
-use nlos_mesh::remeshing::{BoundaryMode, RemeshParams, uniform_remeshing};
-use nlos_render::{Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Visibility};
-use nlos_transient::{PointSet, Scan, TimeAxis};
+use nlos_render::{Loss, Renderer};
+
+mod common;
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny_lct_start.obj");
-    let start = match nlos_mesh::io::load(path) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("skipping: {e} (run `cargo xtask fixtures`)");
-            return;
-        }
-    };
-    let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.25, 0.25).expect("grid"));
-    let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
+    let (scan, time) = common::seed_setup();
     let brdf = Lambertian::new(1.0f32).expect("valid");
-    let splat = Sampling::Splat(SplatRule::default());
-    let cached = Visibility::Cached { level: 1 };
-    let cases = [
-        ("stage0_3k", 0.5 / 64.0, splat, cached),
-        ("remeshed_20k", 0.0031, splat, cached),
-        ("remeshed_200k", 0.00099, splat, Visibility::Off),
-    ];
-    for (name, edge, sampling, visibility) in cases {
-        let mut mesh = start.clone();
-        let rp = RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() };
-        uniform_remeshing(&mut mesh, edge, &rp).expect("remesh");
-        let (v, f) = mesh.to_triangles();
-        let params = RenderParams { kernel: Kernel::Tent, sampling, visibility, two_sided: false };
+    for (name, edge, visibility) in common::CASES {
+        let (v, f) = common::remeshed_start(edge);
+        let params = common::loop_params(visibility);
         let r = Renderer::new(&v, &f, &scan, &time, params).expect("valid");
         eprintln!("{name}: {} faces, {} vertices", f.len(), v.len());
         // A measurement that differs from the render, so the adjoint is non-zero wherever the signal is.

@@ -13,9 +13,9 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nlos_brdf::Lambertian;
-use nlos_mesh::remeshing::{BoundaryMode, RemeshParams, uniform_remeshing};
-use nlos_render::{Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Visibility};
-use nlos_transient::{PointSet, Scan, TimeAxis};
+use nlos_render::{Loss, Renderer};
+
+mod common;
 
 struct Counting;
 
@@ -46,37 +46,14 @@ unsafe impl GlobalAlloc for Counting {
 static ALLOCATOR: Counting = Counting;
 
 fn main() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny_lct_start.obj");
-    let start = match nlos_mesh::io::load(path) {
-        Ok(m) => m,
-        Err(e) => {
-            eprintln!("skipping: {e} (run `cargo xtask fixtures`)");
-            return;
-        }
-    };
-    let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.25, 0.25).expect("grid"));
-    let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
+    let (scan, time) = common::seed_setup();
     let brdf = Lambertian::new(1.0f32).expect("valid");
     let measured = vec![0.0f32; scan.measurements() * time.bins];
-    let cases = [
-        ("stage0_3k", 0.5 / 64.0, Visibility::Cached { level: 1 }),
-        ("remeshed_20k", 0.0031, Visibility::Cached { level: 1 }),
-        ("remeshed_200k", 0.00099, Visibility::Off),
-    ];
-    for (name, edge, visibility) in cases {
-        let mut mesh = start.clone();
-        let rp = RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() };
-        uniform_remeshing(&mut mesh, edge, &rp).expect("remesh");
-        let (v, f) = mesh.to_triangles();
-        drop(mesh);
+    for (name, edge, visibility) in common::CASES {
+        let (v, f) = common::remeshed_start(edge);
         let before = CURRENT.load(Ordering::Relaxed);
         PEAK.store(before, Ordering::Relaxed);
-        let params = RenderParams {
-            kernel: Kernel::Tent,
-            sampling: Sampling::Splat(SplatRule::default()),
-            visibility,
-            two_sided: false,
-        };
+        let params = common::loop_params(visibility);
         let r = Renderer::new(&v, &f, &scan, &time, params).expect("valid");
         let out = r.loss_and_gradient(&brdf, &measured, Loss::L2, None).expect("ok");
         drop(out);
