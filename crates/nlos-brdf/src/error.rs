@@ -43,6 +43,16 @@ pub enum BrdfError {
         /// The value given.
         value: f64,
     },
+    /// The lobe width σ of a [`crate::Retroreflective`] surface is NaN or outside `[1e-4, 1]` rad.
+    #[error(
+        "retroreflector lobe width = {value} rad is outside [1e-4, 1]: it is the observation-angle width of \
+         the return (about 0.0175 rad = 1 degree for retroreflective sheeting); below 1e-4 f32 cannot resolve \
+         it, above 1 rad the surface is no longer a retroreflector"
+    )]
+    InvalidLobeWidth {
+        /// The value given.
+        value: f64,
+    },
 }
 
 /// `Result` with [`BrdfError`].

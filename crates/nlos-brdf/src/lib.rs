@@ -81,6 +81,7 @@ pub mod lambert;
 pub mod microfacet;
 pub mod param;
 pub mod real;
+pub mod retro;
 pub mod sampling;
 
 pub use brdf::{Brdf, BrdfSample, ConfocalGrad, Grad, Lobe};
@@ -91,3 +92,4 @@ pub use lambert::{Lambertian, LambertianGrad};
 pub use microfacet::Masking;
 pub use param::{GgxTheta, LambertianTheta};
 pub use real::{Real, V3, Vector3};
+pub use retro::{RETRO_LOBE_WIDTH, Retroreflective, RetroreflectiveGrad};

@@ -1,7 +1,7 @@
 //! [`RenderBrdf`]: what the renderer needs from an `nlos_brdf` model beyond [`Brdf`] — its parameters as a
 //! flat vector, so gradients and finite differences can be written once for every model.
 
-use nlos_brdf::{Brdf, Fresnel, Ggx, GgxGrad, Lambertian, LambertianGrad};
+use nlos_brdf::{Brdf, Fresnel, Ggx, GgxGrad, Lambertian, LambertianGrad, Retroreflective, RetroreflectiveGrad};
 
 use crate::error::Result;
 
@@ -18,6 +18,10 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn with_params(&self, params: &[f32]) -> Result<Self>;
     /// `∂f/∂(parameters)` as an array (first `PARAM_NAMES.len()` entries used).
     fn param_grad_array(g: &Self::ParamGrad) -> [f32; 4];
+    /// The power of the path length τ by which the measurement of a small face falls along a confocal path:
+    /// 4 for models whose value does not depend on distance (the `1/(|a|²|b|²)` of eq. 2), 2 for
+    /// [`Retroreflective`] (its value grows as `|a||b|`). The splat rule's fall-off correction uses it.
+    const DISTANCE_POWER: f32 = 4.0;
     /// The roughness α of a glossy (microfacet) lobe worth importance sampling, None for none (the
     /// default). Used by the lobe sampling of `Renderer::set_lobe_sampling`.
     fn lobe_alpha(&self) -> Option<f32> {
@@ -62,5 +66,20 @@ impl RenderBrdf for Ggx<f32> {
     }
     fn lobe_alpha(&self) -> Option<f32> {
         (self.specular() > 0.0).then_some(self.alpha())
+    }
+}
+
+impl RenderBrdf for Retroreflective<f32> {
+    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
+    const DISTANCE_POWER: f32 = 2.0;
+    fn params(&self) -> Vec<f32> {
+        vec![self.albedo()]
+    }
+    fn with_params(&self, params: &[f32]) -> Result<Self> {
+        Ok(Retroreflective::with_lobe_width(params.first().copied().unwrap_or(f32::NAN), self.lobe_width())?)
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &RetroreflectiveGrad<f32>) -> [f32; 4] {
+        [g.albedo, 0.0, 0.0, 0.0]
     }
 }

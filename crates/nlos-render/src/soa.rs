@@ -1142,6 +1142,7 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
             corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[2], tent).0,
             (tc - tent.t0) * tent.inv_dt - 0.5,
             tc * tent.inv_dt,
+            B::DISTANCE_POWER,
         );
         (k0[i], k1[i], k2[i]) = (t0, t1, t2);
     }
@@ -1151,12 +1152,14 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
 /// (as [`adjoint_lengths`] without a kernel), the corner path lengths `kn` (node units) and their gradients
 /// `dir` with respect to the corner positions.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn splat_lengths<const CONFOCAL: bool>(
     isa: Isa,
     b: &Block<'_>,
     fr: &Frame,
     sub: &Sub,
     tent: &TentAxis,
+    power: f32,
     sc: &mut Scratch,
 ) {
     let len = b.len;
@@ -1187,14 +1190,14 @@ pub(crate) fn splat_lengths<const CONFOCAL: bool>(
         #[allow(unsafe_code)]
         unsafe {
             splat_lengths_avx2::<CONFOCAL>(
-                b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+                b, fr, sub, tent, power, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
             );
         }
         prepare_lanes(isa, len, sc);
         return;
     }
     splat_lengths_body::<CONFOCAL>(
-        b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+        b, fr, sub, tent, power, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
     );
     prepare_lanes(isa, len, sc);
 }
@@ -1208,6 +1211,7 @@ fn splat_lengths_avx2<const CONFOCAL: bool>(
     fr: &Frame,
     sub: &Sub,
     tent: &TentAxis,
+    power: f32,
     sign: &[f32],
     vis: &[f32],
     ra: &mut [f32],
@@ -1227,7 +1231,7 @@ fn splat_lengths_avx2<const CONFOCAL: bool>(
     d8: &mut [f32],
 ) {
     splat_lengths_body::<CONFOCAL>(
-        b, fr, sub, tent, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
+        b, fr, sub, tent, power, sign, vis, ra, rb, ok, k0, k1, k2, d0, d1, d2, d3, d4, d5, d6, d7, d8,
     );
 }
 
@@ -1238,6 +1242,7 @@ fn splat_lengths_body<const CONFOCAL: bool>(
     fr: &Frame,
     sub: &Sub,
     tent: &TentAxis,
+    power: f32,
     sign: &[f32],
     vis: &[f32],
     ra: &mut [f32],
@@ -1285,7 +1290,8 @@ fn splat_lengths_body<const CONFOCAL: bool>(
         let (t1, g1) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[1], tent);
         let (t2, g2) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[2], tent);
         let tc = r + r2;
-        let (t0, t1, t2) = crate::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt);
+        let (t0, t1, t2) =
+            crate::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt, power);
         (k0[i], k1[i], k2[i]) = (t0, t1, t2);
         (d0[i], d1[i], d2[i]) = (g0.x, g0.y, g0.z);
         (d3[i], d4[i], d5[i]) = (g1.x, g1.y, g1.z);

@@ -81,13 +81,15 @@ pub(crate) fn prepare(u0: f32, u1: f32, u2: f32) -> [f32; 10] {
 ///   for a confocal pair, a function of τ alone) falls across the face by 4 Δτ/τ (±4 % on those faces),
 ///   weighting the early part of each face's profile more than the late part. To first order a density
 ///   tilted by `1 − β (τ − τ_c)` is the density shifted by `−β Var(τ)`; with `β = 4/τ_c` and the splat's
-///   variance `Var = ((u0 − u1)² + (u1 − u2)² + (u0 − u2)²)/36`, shift by `−4 Var/t_c`.
+///   variance `Var = ((u0 − u1)² + (u1 − u2)² + (u0 − u2)²)/36`, shift by `−4 Var/t_c`. The 4 is `power`,
+///   the BRDF's [`crate::RenderBrdf::DISTANCE_POWER`]: 2 for a retroreflector, whose value grows as
+///   `|a||b|` and leaves a `1/τ²` falloff.
 ///
 /// [`centred_grad`] gives the derivatives.
 #[inline(always)]
-pub(crate) fn centred(u0: f32, u1: f32, u2: f32, uc: f32, tc: f32) -> (f32, f32, f32) {
+pub(crate) fn centred(u0: f32, u1: f32, u2: f32, uc: f32, tc: f32, power: f32) -> (f32, f32, f32) {
     let var = ((u0 - u1) * (u0 - u1) + (u1 - u2) * (u1 - u2) + (u0 - u2) * (u0 - u2)) * (1.0 / 36.0);
-    let s = 0.75 * (uc - (u0 + u1 + u2) * (1.0 / 3.0)) - 4.0 * var / tc;
+    let s = 0.75 * (uc - (u0 + u1 + u2) * (1.0 / 3.0)) - power * var / tc;
     (u0 + s, u1 + s, u2 + s)
 }
 
@@ -95,11 +97,11 @@ pub(crate) fn centred(u0: f32, u1: f32, u2: f32, uc: f32, tc: f32) -> (f32, f32,
 /// `u_c` and `t_c` (∂u_c = ∂t_c: both are τ_c/Δ up to a constant). `u` may be the shifted values (the
 /// variance does not see a common shift).
 #[inline(always)]
-pub(crate) fn centred_grad(u: [f32; 3], tc: f32) -> ([f32; 3], f32) {
+pub(crate) fn centred_grad(u: [f32; 3], tc: f32, power: f32) -> ([f32; 3], f32) {
     let sum = u[0] + u[1] + u[2];
     let var =
         ((u[0] - u[1]) * (u[0] - u[1]) + (u[1] - u[2]) * (u[1] - u[2]) + (u[0] - u[2]) * (u[0] - u[2])) * (1.0 / 36.0);
-    let k = 4.0 / tc;
+    let k = power / tc;
     (u.map(|x| -0.25 - k * (3.0 * x - sum) * (1.0 / 18.0)), 0.75 + k * var / tc)
 }
 

@@ -2,7 +2,7 @@
 //! without an occluder; reciprocity of exhaustive scans; an occluder removes exactly the shadowed part.
 
 use glam::Vec3;
-use nlos_brdf::{Fresnel, Ggx, Lambertian};
+use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
     DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
@@ -166,6 +166,18 @@ fn adjoint_matches_finite_differences_ggx() {
     let brdf = Ggx::new(0.2f32, 0.8, 0.35, Fresnel::Schlick { f0: 0.6 }).expect("valid");
     check_gradients(&brdf, false, false, 4);
     check_gradients(&brdf, true, true, 5);
+}
+
+/// The retroreflector's value grows with the distances (`|a||b|`): its direction gradients carry a length
+/// term the other models lack, and the exhaustive scan its lobe's gradient (a 0.2 rad lobe, so that the
+/// scan's pairs of spots fall inside it).
+#[test]
+fn adjoint_matches_finite_differences_retroreflective() {
+    let brdf = Retroreflective::new(0.9f32).expect("valid");
+    check_gradients(&brdf, false, false, 6);
+    check_gradients(&brdf, true, false, 7);
+    let wide = Retroreflective::with_lobe_width(0.9f32, 0.2).expect("valid");
+    check_gradients(&wide, false, true, 8);
 }
 
 #[test]

@@ -1007,7 +1007,14 @@ impl Renderer {
             let fs = if self.wall.confocal { brdf.eval_confocal(a, n) } else { brdf.eval(a, b, n) };
             let g = sub.w * vis_c * fs * (cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2));
             let c = sub.corners.map(|(cu, cv)| node(self.point(t, cu, cv)));
-            let (c0, c1, c2) = splat::centred(c[0], c[1], c[2], node(x), (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt);
+            let (c0, c1, c2) = splat::centred(
+                c[0],
+                c[1],
+                c[2],
+                node(x),
+                (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt,
+                B::DISTANCE_POWER,
+            );
             if let Some(kn) = Knots::new([c0, c1, c2]) {
                 kn.weights(0, last, |k, w| hist[k as usize] += g * w);
             }
@@ -1043,9 +1050,9 @@ impl Renderer {
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let (confocal, isa) = (self.wall.confocal, self.isa);
         if confocal {
-            soa::splat_lengths::<true>(isa, &blk, &fr, sub, axis, sc);
+            soa::splat_lengths::<true>(isa, &blk, &fr, sub, axis, B::DISTANCE_POWER, sc);
         } else {
-            soa::splat_lengths::<false>(isa, &blk, &fr, sub, axis, sc);
+            soa::splat_lengths::<false>(isa, &blk, &fr, sub, axis, B::DISTANCE_POWER, sc);
         }
         let last = adj.len() as i64 - 2;
         let (u, v) = sub.centroid;
@@ -1079,7 +1086,7 @@ impl Renderer {
             // Through the shift of `splat::centred` (∂s/∂u_j, ∂s/∂τ_c): the corners carry ∂/∂u_j + Σ ∂s/∂u_j,
             // the centroid Σ ∂s/∂τ_c (its path-length term of stage 3); node units → metres of path.
             let sum = out.1[0] + out.1[1] + out.1[2];
-            let (ds_du, ds_dtc) = splat::centred_grad(corners, (sc.tau[i] + sc.g[i]) * axis.inv_dt);
+            let (ds_du, ds_dtc) = splat::centred_grad(corners, (sc.tau[i] + sc.g[i]) * axis.inv_dt, B::DISTANCE_POWER);
             sc.a_der[i] = sum * ds_dtc * axis.inv_dt;
             for ((ct, d), ds) in sc.ct.iter_mut().zip(out.1).zip(ds_du) {
                 ct[i] = (d + sum * ds) * axis.inv_dt;
