@@ -1,10 +1,12 @@
 //! The `nlos` command end to end, in-process ([`nlos_cli::run`]), on the built-in fixtures: `info`,
 //! `reconstruct` (a short schedule, with the report and the ground truth), `eval`, and `--resume` of the
-//! finished run; bad input exits 2.
+//! finished run; a capture in the seed's own `.mat` format whose point list forms a grid; bad input exits 2.
 
 use std::process::ExitCode;
 
 mod common;
+#[path = "../crates/nlos-transient/tests/support/mat5_writer.rs"]
+mod mat5_writer;
 use common::{FAST, fixture_arg as fixture, scratch};
 
 fn nlos(args: &[&str]) -> ExitCode {
@@ -44,4 +46,38 @@ fn bad_input_exits_2() {
         ExitCode::from(2)
     );
     assert_eq!(nlos(&["no-such-command"]), ExitCode::from(2));
+}
+
+/// A capture in Tsai et al.'s `.mat` format (`transient` M×T, `lighting` M×3 with x fastest, `bin_width`),
+/// written here from the built-in capture: its point list forms a 2-D grid, so `nlos init` (LCT) and
+/// `nlos reconstruct` run on it with no option about the layout.
+#[test]
+fn a_tsai_capture_whose_points_form_a_grid_runs_with_defaults() {
+    let t = nlos_transient::read(common::fixture("capture.hdf5")).expect("fixture");
+    let (m, bins) = (t.measurements(), t.bins());
+    assert_eq!(t.time().t0, 0.0, "the Tsai format has no time origin");
+    let mut transient = vec![0.0f64; m * bins];
+    for r in 0..m {
+        for (k, v) in t.histogram(r).iter().enumerate() {
+            transient[r + m * k] = f64::from(*v); // column-major M×T
+        }
+    }
+    let pts = &t.scan().lasers().points;
+    let lighting: Vec<f64> = (0..3).flat_map(|c| pts.iter().map(move |p| f64::from(p[c]))).collect();
+    let vars = vec![
+        mat5_writer::double("transient", &[m as i32, bins as i32], transient),
+        mat5_writer::double("lighting", &[m as i32, 3], lighting),
+        mat5_writer::scalar("bin_width", t.time().bin_width),
+    ];
+    let dir = scratch("cli-tsai");
+    let file = dir.join("capture.mat");
+    std::fs::write(&file, mat5_writer::write(&vars, mat5_writer::Options::default())).expect("write");
+    let read = nlos_transient::read(&file).expect("read back");
+    assert_eq!(read.scan().lasers().layout, t.scan().lasers().layout, "read as the grid it is");
+    let f = file.to_string_lossy().into_owned();
+    let start = dir.join("start.obj").to_string_lossy().into_owned();
+    assert_eq!(nlos(&["init", &f, "--out", &start]), ExitCode::SUCCESS);
+    let out = dir.join("run").to_string_lossy().into_owned();
+    assert_eq!(nlos(&[&["reconstruct", &f, "--out", &out, "--quiet"][..], &FAST].concat()), ExitCode::SUCCESS);
+    assert!(dir.join("run/mesh.obj").is_file());
 }

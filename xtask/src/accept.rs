@@ -399,6 +399,7 @@ fn fitted_alpha(run_dir: &Path) -> Result<f64, String> {
     match refl.brdf().map_err(|e| e.to_string())? {
         nlos_optim::ConcreteBrdf::Ggx(g) => Ok(f64::from(g.alpha())),
         nlos_optim::ConcreteBrdf::Lambertian(_) => Err("the run fitted a Lambertian model".into()),
+        nlos_optim::ConcreteBrdf::Retroreflective(_) => Err("the run fitted a retroreflective model".into()),
     }
 }
 

@@ -7,6 +7,8 @@ pub(crate) enum BrdfArg {
     Lambert,
     /// GGX microfacet lobe.
     Ggx,
+    /// A retroreflector: the confocal return falls as 1/r² (`nlos_brdf::Retroreflective`).
+    Retroreflective,
 }
 
 /// `--visibility`: how occlusion between the surface and the wall is computed.

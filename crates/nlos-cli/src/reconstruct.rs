@@ -45,7 +45,9 @@ pub(crate) struct Args {
     /// returns), or a mesh file (OBJ/PLY/GLB) whose faces face the wall [default: lct].
     #[arg(long, value_name = "lct|fk|carve|MESH")]
     init: Option<InitMethod>,
-    /// Reflectance model to fit (GGX's α starts at `reflectance.alpha`) [default: lambert].
+    /// Reflectance model to fit (GGX's α starts at `reflectance.alpha`; `retroreflective` also weights the
+    /// LCT start for a 1/r² return, as the Stanford captures' reference code does for every scene but the
+    /// diffuse S) [default: lambert].
     #[arg(long, value_enum)]
     brdf: Option<BrdfArg>,
     /// Fit photon counts through this SPAD timing response: a jitter file, `ideal` for no jitter, `direct`
@@ -112,6 +114,7 @@ fn config(args: &Args) -> Result<Config, CliError> {
         config.reflectance.model = match brdf {
             BrdfArg::Lambert => BrdfModel::Lambert,
             BrdfArg::Ggx => BrdfModel::Ggx,
+            BrdfArg::Retroreflective => BrdfModel::Retroreflective,
         };
     }
     if let Some(sensor) = &args.sensor {

@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use nlos_brdf::{Fresnel, Ggx, Lambertian};
+use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{DeterministicRule, Kernel, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient};
@@ -29,7 +29,8 @@ pub(crate) struct Args {
     /// setup — confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins of 1.2 mm from path length 0.
     #[arg(long, value_name = "FILE")]
     setup: Option<PathBuf>,
-    /// Reflectance: `lambert` (albedo 1) or `ggx` (specular 1, no diffuse, F = 1, roughness --alpha).
+    /// Reflectance: `lambert` (albedo 1), `ggx` (specular 1, no diffuse, F = 1, roughness --alpha) or
+    /// `retroreflective` (return 1, 1° lobe).
     #[arg(long, value_enum, default_value = "lambert")]
     brdf: BrdfArg,
     /// GGX roughness α in [0.001, 1].
@@ -173,6 +174,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let rendered: Transient = match args.brdf {
         BrdfArg::Lambert => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
         BrdfArg::Ggx => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
+        BrdfArg::Retroreflective => renderer.forward_transient(&Retroreflective::new(1.0f32).map_err(bad)?),
     }
     .map_err(bad)?;
     let out = match &model {

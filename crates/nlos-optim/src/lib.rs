@@ -45,6 +45,7 @@ pub mod loss;
 pub mod params;
 pub mod pipeline;
 pub mod prune;
+pub mod radiometry;
 pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;

@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use nlos_brdf::{Fresnel, Ggx};
-use nlos_init::{CarveParams, FkParams, Gate, LctParams, SurfaceParams, carve, fk, lct, volume_to_surface};
+use nlos_init::{CarveParams, FkParams, Gate, Material, SurfaceParams, carve, fk, volume_to_surface};
 use nlos_mesh::SurfaceMesh;
 use nlos_render::{SplatRule, Visibility};
 use nlos_transient::Transient;
@@ -192,6 +192,9 @@ pub enum BrdfModel {
     Lambert,
     /// GGX microfacet lobe (albedo, specular weight, roughness α), α starting at [`ReflectanceConfig::alpha`].
     Ggx,
+    /// A retroreflector (`nlos_brdf::Retroreflective`): the confocal return falls as `1/r²`; the LCT start
+    /// is weighted for it.
+    Retroreflective,
 }
 
 /// The noise model of the smoothing weight ([`crate::DataTerm::counts`]).
@@ -248,7 +251,7 @@ impl Default for CaptureConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ReflectanceConfig {
-    /// `"lambert"` or `"ggx"`.
+    /// `"lambert"`, `"ggx"` or `"retroreflective"` ([`BrdfModel`]).
     pub model: BrdfModel,
     /// Initial GGX roughness α, in [0.001, 1] (with `"ggx"`).
     pub alpha: f32,
@@ -463,7 +466,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
     ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),
     ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
-    ("reflectance.model", "\"lambert\" or \"ggx\""),
+    ("reflectance.model", "\"lambert\", \"ggx\" or \"retroreflective\" (1/r² confocal return; LCT start weighted for it)"),
     ("reflectance.alpha", "initial GGX roughness, in [0.001, 1]"),
     ("sensor.response", "\"auto\", \"off\" (L2), \"ideal\", \"direct\" (the capture's own) or a jitter file"),
     ("sensor.background", "background counts per bin of the sensor fit, or \"auto\""),
@@ -592,6 +595,15 @@ impl Prepared {
         Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes })
     }
 
+    /// The LCT weighting of the run's model (retroreflective for `retroreflective`, else diffuse).
+    pub fn material(config: &Config) -> Material {
+        if config.reflectance.model == BrdfModel::Retroreflective {
+            Material::Retroreflective
+        } else {
+            Material::Diffuse
+        }
+    }
+
     /// The optimiser's parameters: `config` resolved against this capture (noise model, sensor fit,
     /// background), writing into `out_dir`.
     ///
@@ -608,6 +620,7 @@ impl Prepared {
         p.reflectance = match r.model {
             BrdfModel::Lambert => Reflectance::default(),
             BrdfModel::Ggx => Reflectance::from_ggx(&Ggx::new(0.0, 1.0, r.alpha, Fresnel::One)?),
+            BrdfModel::Retroreflective => Reflectance::retroreflective(),
         };
         p.render.visibility = match config.render.visibility {
             VisibilityChoice::Cached => Visibility::Cached { level: 1 },
@@ -748,16 +761,17 @@ impl Prepared {
     /// [`OptimError::Init`] when the volume or its surface fails, [`OptimError::Mesh`] for an unreadable mesh.
     pub fn initial_surface(&self, config: &Config) -> Result<SurfaceMesh> {
         let volume = match &config.init {
-            InitMethod::Lct => lct(&self.full, &LctParams::default())?,
+            // LCT's volume, weighted for the reflectance model (`crate::radiometry`), gets the settings for
+            // compact objects, as `nlos init --method lct` without a threshold: Otsu's threshold alone keeps
+            // only the brightest columns (about half the bunny's silhouette).
+            InitMethod::Lct => {
+                return crate::radiometry::lct_start(&self.full, Self::material(config), self.surface_depth);
+            }
             InitMethod::Fk => fk(&self.full, &FkParams::default())?,
             InitMethod::Carve => carve(&self.full, &CarveParams::default())?,
             InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(file)?),
         };
-        // LCT's volume gets the settings for compact objects, as `nlos init --method lct` without a threshold:
-        // Otsu's threshold alone keeps only the brightest columns (about half the bunny's silhouette).
-        let mut surface_params =
-            if config.init == InitMethod::Lct { SurfaceParams::object() } else { SurfaceParams::default() };
-        surface_params.max_depth = surface_params.max_depth.or(self.surface_depth);
+        let surface_params = SurfaceParams { max_depth: self.surface_depth, ..SurfaceParams::default() };
         Ok(volume_to_surface(&volume, &surface_params)?.mesh)
     }
 }

@@ -1,7 +1,9 @@
 //! The surface reflectance being optimised, held in the unconstrained θ space of `nlos_brdf::param`
 //! (softplus albedos, logistic α and F0), and the dispatch of renderer calls to the concrete BRDF type.
 
-use nlos_brdf::{Fresnel, Ggx, GgxGrad, GgxTheta, Lambertian, LambertianTheta, Masking, param::sigmoid};
+use nlos_brdf::{
+    Fresnel, Ggx, GgxGrad, GgxTheta, Lambertian, LambertianTheta, Masking, Retroreflective, param::sigmoid,
+};
 use nlos_render::{Gradient, RenderBrdf, Renderer};
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +30,12 @@ pub enum Reflectance {
         /// Masking-shadowing model.
         masking: Masking,
     },
+    /// Retroreflective (`nlos_brdf::Retroreflective`, default 1° lobe), `albedo = softplus(theta)`: the
+    /// confocal return falls as `1/r²`.
+    Retroreflective {
+        /// θ of the return ρ.
+        theta: f64,
+    },
 }
 
 impl Default for Reflectance {
@@ -44,12 +52,34 @@ pub enum ConcreteBrdf {
     Lambertian(Lambertian<f32>),
     /// GGX.
     Ggx(Ggx<f32>),
+    /// Retroreflective.
+    Retroreflective(Retroreflective<f32>),
 }
 
 impl Reflectance {
     /// From a Lambertian BRDF.
     pub fn from_lambertian(b: &Lambertian<f32>) -> Self {
         Reflectance::Lambertian { theta: f64::from(LambertianTheta::from_lambertian(b).albedo) }
+    }
+
+    /// A retroreflector of return 1.
+    pub fn retroreflective() -> Self {
+        Reflectance::Retroreflective { theta: nlos_brdf::param::softplus_inv(1.0f64) }
+    }
+
+    /// Whether the model is one albedo (Lambertian or retroreflective): a pure scale factor of the
+    /// rendering, which the closed-form scale absorbs.
+    pub fn is_scale_only(&self) -> bool {
+        matches!(self, Reflectance::Lambertian { .. } | Reflectance::Retroreflective { .. })
+    }
+
+    /// The model's name as the settings write it: `lambert`, `ggx` or `retroreflective`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Reflectance::Lambertian { .. } => "lambert",
+            Reflectance::Ggx { .. } => "ggx",
+            Reflectance::Retroreflective { .. } => "retroreflective",
+        }
     }
 
     /// From a GGX BRDF.
@@ -80,13 +110,17 @@ impl Reflectance {
                 };
                 ConcreteBrdf::Ggx(t.to_ggx(*schlick, *masking)?)
             }
+            Reflectance::Retroreflective { theta } => {
+                let rho = LambertianTheta { albedo: *theta as f32 }.to_lambertian()?.albedo();
+                ConcreteBrdf::Retroreflective(Retroreflective::new(rho)?)
+            }
         })
     }
 
     /// θ as a vector (the optimised components only: F0 only with Schlick Fresnel).
     pub fn theta(&self) -> Vec<f64> {
         match self {
-            Reflectance::Lambertian { theta } => vec![*theta],
+            Reflectance::Lambertian { theta } | Reflectance::Retroreflective { theta } => vec![*theta],
             Reflectance::Ggx { theta, schlick, .. } => theta[..if *schlick { 4 } else { 3 }].to_vec(),
         }
     }
@@ -94,7 +128,9 @@ impl Reflectance {
     /// Adds `delta` (as from [`Reflectance::theta`]) to θ.
     pub fn add_theta(&mut self, delta: &[f64]) {
         match self {
-            Reflectance::Lambertian { theta } => *theta += delta.first().copied().unwrap_or(0.0),
+            Reflectance::Lambertian { theta } | Reflectance::Retroreflective { theta } => {
+                *theta += delta.first().copied().unwrap_or(0.0);
+            }
             Reflectance::Ggx { theta, .. } => {
                 for (t, d) in theta.iter_mut().zip(delta) {
                     *t += d;
@@ -107,7 +143,9 @@ impl Reflectance {
     pub fn chain(&self, physical: &[f32]) -> Vec<f64> {
         let get = |i: usize| physical.get(i).copied().unwrap_or(0.0);
         match self {
-            Reflectance::Lambertian { theta } => vec![f64::from(get(0)) * sigmoid(*theta)],
+            Reflectance::Lambertian { theta } | Reflectance::Retroreflective { theta } => {
+                vec![f64::from(get(0)) * sigmoid(*theta)]
+            }
             Reflectance::Ggx { theta, schlick, .. } => {
                 let t = GgxTheta { albedo_diffuse: theta[0], specular: theta[1], alpha: theta[2], f0: theta[3] };
                 let g = GgxGrad {
@@ -130,6 +168,7 @@ impl ConcreteBrdf {
         match self {
             ConcreteBrdf::Lambertian(b) => r.forward(b),
             ConcreteBrdf::Ggx(b) => r.forward(b),
+            ConcreteBrdf::Retroreflective(b) => r.forward(b),
         }
     }
 
@@ -141,6 +180,7 @@ impl ConcreteBrdf {
         Ok(match self {
             ConcreteBrdf::Lambertian(b) => r.forward_triangle(b, triangle)?,
             ConcreteBrdf::Ggx(b) => r.forward_triangle(b, triangle)?,
+            ConcreteBrdf::Retroreflective(b) => r.forward_triangle(b, triangle)?,
         })
     }
 
@@ -152,6 +192,7 @@ impl ConcreteBrdf {
         Ok(match self {
             ConcreteBrdf::Lambertian(b) => r.adjoint(b, d)?,
             ConcreteBrdf::Ggx(b) => r.adjoint(b, d)?,
+            ConcreteBrdf::Retroreflective(b) => r.adjoint(b, d)?,
         })
     }
 
@@ -160,6 +201,7 @@ impl ConcreteBrdf {
         match self {
             ConcreteBrdf::Lambertian(_) => <Lambertian<f32> as RenderBrdf>::PARAM_NAMES,
             ConcreteBrdf::Ggx(_) => <Ggx<f32> as RenderBrdf>::PARAM_NAMES,
+            ConcreteBrdf::Retroreflective(_) => <Retroreflective<f32> as RenderBrdf>::PARAM_NAMES,
         }
     }
 }

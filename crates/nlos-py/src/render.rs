@@ -7,7 +7,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nlos_brdf::{Fresnel, Ggx, Lambertian};
+use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
     DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
 };
@@ -22,6 +22,7 @@ use crate::{arrays, errors};
 enum Brdf {
     Lambertian(Lambertian<f32>),
     Ggx(Ggx<f32>),
+    Retroreflective(Retroreflective<f32>),
 }
 
 /// Calls `$body` with `$b` bound to the concrete BRDF.
@@ -30,12 +31,14 @@ macro_rules! with_brdf {
         match $brdf {
             Brdf::Lambertian($b) => $body,
             Brdf::Ggx($b) => $body,
+            Brdf::Retroreflective($b) => $body,
         }
     };
 }
 
 impl Brdf {
-    /// `"lambertian"` (albedo) or `"ggx"` (diffuse albedo, specular weight, roughness α, no Fresnel term).
+    /// `"lambertian"` (albedo), `"ggx"` (diffuse albedo, specular weight, roughness α, no Fresnel term) or
+    /// `"retroreflective"` (return `albedo`, 1° lobe).
     fn new(name: &str, albedo: f32, alpha: f32, specular: f32) -> PyResult<Self> {
         match name {
             "lambertian" | "lambert" => {
@@ -44,7 +47,12 @@ impl Brdf {
             "ggx" => Ggx::new(albedo, specular, alpha, Fresnel::One)
                 .map(Brdf::Ggx)
                 .map_err(|e| PyValueError::new_err(format!("albedo, specular, alpha: {e}"))),
-            other => Err(PyValueError::new_err(format!("brdf: {other:?} is not \"lambertian\" or \"ggx\""))),
+            "retroreflective" => Retroreflective::new(albedo)
+                .map(Brdf::Retroreflective)
+                .map_err(|e| PyValueError::new_err(format!("albedo: {e}"))),
+            other => Err(PyValueError::new_err(format!(
+                "brdf: {other:?} is not \"lambertian\", \"ggx\" or \"retroreflective\""
+            ))),
         }
     }
 

@@ -59,6 +59,7 @@ fn describe(r: &Reflectance) -> String {
             b.specular(),
             b.albedo_diffuse()
         ),
+        Ok(ConcreteBrdf::Retroreflective(b)) => format!("retroreflective, return {:.4}", b.albedo()),
         Err(e) => format!("invalid ({e})"),
     }
 }

@@ -117,6 +117,45 @@ impl Transient {
         Ok(out)
     }
 
+    /// The same capture with every point list that forms a regular grid ([`PointSet::regular_grid`]) laid out
+    /// as one ([`Layout::Grid`], x fastest): a list in row order is relabelled; a confocal list in column
+    /// order is reordered (points and histograms) into row order. Anything else is returned unchanged.
+    /// [`crate::read`] applies this to every format, so that the grid methods (LCT, f-k, subsampling)
+    /// accept a grid written as a list.
+    ///
+    /// [`PointSet::regular_grid`]: crate::PointSet::regular_grid
+    /// [`Layout::Grid`]: crate::Layout::Grid
+    pub fn with_grid_layout(self) -> Self {
+        let as_grid = |set: &mut crate::PointSet| match set.regular_grid() {
+            Some((nx, ny, true)) => {
+                set.layout = crate::Layout::Grid { nx, ny };
+                true
+            }
+            _ => false,
+        };
+        let (mut scan, time, data) = self.into_parts();
+        match &mut scan.pattern {
+            ScanPattern::Confocal(p) => {
+                if let (crate::Layout::List, Some((nx, ny, false))) = (p.layout, p.regular_grid()) {
+                    // Column order: measurement iy + ny·ix goes to ix + nx·iy.
+                    let order: Vec<usize> = (0..nx * ny).map(|m| (m / nx) + ny * (m % nx)).collect();
+                    let bins = time.bins;
+                    let data = order.iter().flat_map(|&m| data[m * bins..(m + 1) * bins].iter().copied()).collect();
+                    p.points = order.iter().map(|&m| p.points[m]).collect();
+                    p.normals = order.iter().map(|&m| p.normals[m]).collect();
+                    p.layout = crate::Layout::Grid { nx, ny };
+                    return Self::from_parts_unchecked(scan, time, data);
+                }
+                as_grid(p);
+            }
+            ScanPattern::Exhaustive { lasers, sensors } => {
+                as_grid(lasers);
+                as_grid(sensors);
+            }
+        }
+        Self::from_parts_unchecked(scan, time, data)
+    }
+
     /// Keeps every `step_x`-th column and `step_y`-th row of a grid scan (both laser and sensor grids of
     /// an exhaustive scan).
     ///

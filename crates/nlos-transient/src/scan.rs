@@ -55,6 +55,49 @@ impl PointSet {
         Ok(Self { normals: vec![Vec3::Z; points.len()], points, layout: Layout::Grid { nx, ny } })
     }
 
+    /// The grid a [`Layout::List`] forms, if any: `Some((nx, ny, x_fastest))` when the points lie on one
+    /// plane `z = const` with one normal, on an axis-aligned regular grid of at least 2 × 2 points, in row
+    /// order (`x_fastest`: index `ix + nx·iy`, as [`Layout::Grid`]) or column order (`iy + ny·ix`). Positions
+    /// may be off by 1 % of a spacing (the precision of decimal files). A [`Layout::Grid`] gives its own
+    /// dimensions.
+    pub fn regular_grid(&self) -> Option<(usize, usize, bool)> {
+        if let Layout::Grid { nx, ny } = self.layout {
+            return Some((nx, ny, true));
+        }
+        let p = &self.points;
+        let n = p.len();
+        if n < 4 || self.normals.iter().any(|m| *m != self.normals[0]) {
+            return None;
+        }
+        // The first run of points along one axis gives the fast dimension.
+        for x_fastest in [true, false] {
+            let fast = |v: Vec3| if x_fastest { v.x } else { v.y };
+            let slow = |v: Vec3| if x_fastest { v.y } else { v.x };
+            let step = fast(p[1]) - fast(p[0]);
+            if !(step.abs() > 0.0) || (slow(p[1]) - slow(p[0])).abs() > 0.01 * step.abs() {
+                continue;
+            }
+            let run = p.iter().position(|q| (slow(*q) - slow(p[0])).abs() > 0.01 * step.abs()).unwrap_or(n);
+            if run < 2 || n % run != 0 || n / run < 2 {
+                continue;
+            }
+            let rows = n / run;
+            let slow_step = slow(p[run]) - slow(p[0]);
+            let tol = 0.01 * step.abs().min(slow_step.abs());
+            let regular = slow_step.abs() > 0.0
+                && p.iter().enumerate().all(|(i, q)| {
+                    let (i_fast, i_slow) = ((i % run) as f32, (i / run) as f32);
+                    (fast(*q) - (fast(p[0]) + i_fast * step)).abs() <= tol
+                        && (slow(*q) - (slow(p[0]) + i_slow * slow_step)).abs() <= tol
+                        && (q.z - p[0].z).abs() <= tol
+                });
+            if regular {
+                return Some(if x_fastest { (run, rows, true) } else { (rows, run, false) });
+            }
+        }
+        None
+    }
+
     /// A list of points, all with wall normal +z.
     pub fn list(points: Vec<Vec3>) -> Self {
         Self { normals: vec![Vec3::Z; points.len()], points, layout: Layout::List }

@@ -172,6 +172,54 @@ fn tsai_bin_width_gt_transient_and_sensor() {
     assert!(matches!(r, Err(TransientError::Unsupported { .. })), "{r:?}");
 }
 
+/// A Tsai file whose `lighting` is a 4 × 3 grid (x fastest, as their `compute_init_su.m` writes it) reads as
+/// a grid; in column order it is reordered into one (points and histograms together); a list that is no
+/// grid stays a list.
+#[test]
+fn tsai_lighting_that_forms_a_grid_is_a_grid() {
+    let (nx, ny, bins) = (4usize, 3usize, 5usize);
+    let m = nx * ny;
+    let at = |i: usize, x_fastest: bool| {
+        let (ix, iy) = if x_fastest { (i % nx, i / nx) } else { (i / ny, i % ny) };
+        (-0.3 + 0.2 * ix as f64, -0.1 + 0.1 * iy as f64)
+    };
+    for x_fastest in [true, false] {
+        // Column-major M×3, and transient(r, k) = 100 ix + 10 iy + k: each histogram names its point.
+        let lighting: Vec<f64> =
+            (0..3).flat_map(|c| (0..m).map(move |r| [at(r, x_fastest).0, at(r, x_fastest).1, 0.0][c])).collect();
+        let label = |r: usize| {
+            let (x, y) = at(r, x_fastest);
+            100.0 * ((x + 0.3) / 0.2).round() + 10.0 * ((y + 0.1) / 0.1).round()
+        };
+        let transient: Vec<f64> = (0..bins).flat_map(|k| (0..m).map(move |r| label(r) + k as f64)).collect();
+        let vars = vec![
+            double("transient", &[m as i32, bins as i32], transient),
+            double("lighting", &[m as i32, 3], lighting),
+        ];
+        let t = read_bytes_as(&write(&vars, Options::default()), Format::TsaiMat, Path::new("grid.mat")).expect("read");
+        assert_eq!(t.scan().lasers().layout, Layout::Grid { nx, ny }, "x fastest: {x_fastest}");
+        for iy in 0..ny {
+            for ix in 0..nx {
+                let i = ix + nx * iy;
+                let p = t.scan().lasers().points[i];
+                assert!((f64::from(p.x) - (-0.3 + 0.2 * ix as f64)).abs() < 1e-6, "{x_fastest} {ix} {iy}: {p}");
+                assert!((f64::from(p.y) - (-0.1 + 0.1 * iy as f64)).abs() < 1e-6, "{x_fastest} {ix} {iy}: {p}");
+                assert_eq!(t.histogram(i)[2], (100 * ix + 10 * iy + 2) as f32);
+            }
+        }
+        // The grid methods accept it: subsampling keeps every other column.
+        assert_eq!(t.subsample(2, 1).expect("grid").scan().lasers().layout, Layout::Grid { nx: 2, ny });
+    }
+    // Five points on a line with one out of step: a list.
+    let t = read_bytes_as(
+        &write(&tsai_vars(5, 3, Stored::F64(vec![1.0; 15]), mat5_writer::DOUBLE), Options::default()),
+        Format::TsaiMat,
+        Path::new("list.mat"),
+    )
+    .expect("read");
+    assert_eq!(t.scan().lasers().layout, Layout::List);
+}
+
 /// An f-k file: rows × cols × bins, pixel (i, j) with one count at bin 20, tofgrid(i, j) in ps.
 fn fk_vars(rows: usize, cols: usize, bins: usize, tof: &dyn Fn(usize, usize) -> f64) -> Vec<Var> {
     let mut meas = vec![0u16; rows * cols * bins];

@@ -418,9 +418,9 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     let start = Instant::now();
     let t_base = st.elapsed_s;
     let elapsed = || t_base + start.elapsed().as_secs_f64();
-    // A Lambertian albedo is a pure scale factor: with the scale solved in closed form its gradient is zero,
-    // and a reflectance block would spend full forward/adjoint renders to leave θ where it is.
-    let scale_only = matches!(st.reflectance, Reflectance::Lambertian { .. }) && params.data.solve_scale;
+    // A Lambertian (or retroreflective) albedo is a pure scale factor: with the scale solved in closed form its
+    // gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ where it is.
+    let scale_only = st.reflectance.is_scale_only() && params.data.solve_scale;
     let fit_brdf = params.optimise_reflectance && !scale_only && !st.reflectance.theta().is_empty();
     // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
     let fit_albedo = params.optimise_reflectance && st.albedo.is_some();

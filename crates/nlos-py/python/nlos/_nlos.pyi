@@ -1,7 +1,7 @@
 """Type stubs of the compiled module ``nlos._nlos`` (the Rust side of the package)."""
 
 from os import PathLike
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -66,7 +66,7 @@ class Renderer:
         faces: npt.ArrayLike,
         setup: Capture,
         *,
-        brdf: str = "lambertian",
+        brdf: Literal["lambertian", "ggx", "retroreflective"] = "lambertian",
         albedo: float = 1.0,
         alpha: float = 0.3,
         specular: float = 1.0,

@@ -33,7 +33,8 @@
 //! optimization framework for non-line-of-sight imaging", CVPR 2019; code at
 //! <https://github.com/cmu-ci-lab/nlos_surface_optimization>)
 //! - `transient`: M×T (one row per measurement), `lighting`: M×3 laser = sensor positions (confocal),
-//!   read as an unstructured list ([`Layout::List`]) with wall normal +z. Their measured files are made
+//!   read as a list with wall normal +z, which [`crate::read`] lays out as a grid when the points form one
+//!   (`Transient::with_grid_layout`). Their measured files are made
 //!   by `exp_su/compute_init_su.m`: `transient = reshape(rect_data, 64*64, 2048)` with bins 1–600 zeroed,
 //!   `lighting = [x(:) y(:) 0]` from `ndgrid(linspace(-width, width, 64))`, saved with only those two
 //!   variables. Their synthetic setup files (`main_create_gt.py`) hold `gt_transient` instead of

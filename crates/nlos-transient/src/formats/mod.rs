@@ -203,7 +203,8 @@ pub fn read_bytes_as(bytes: &[u8], format: Format, file: &Path) -> Result<Transi
         Format::Exr => exr::read(bytes, file)?,
     };
     t.validate().map_err(|e| with_file(e, file))?;
-    Ok(t)
+    // A point list that forms a regular grid is a grid, whatever the format wrote.
+    Ok(t.with_grid_layout())
 }
 
 /// Writes `transient` to `path` in `format`, atomically: the bytes go to a temporary file beside `path`
