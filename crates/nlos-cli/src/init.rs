@@ -52,10 +52,12 @@ pub(crate) struct Args {
     /// Extract the surface only from voxels at least this deep (metres).
     #[arg(long, value_name = "METRES")]
     min_depth: Option<f64>,
-    /// Wiener signal-to-noise ratio of the LCT.
-    #[arg(long, default_value_t = 0.1)]
-    snr: f64,
-    /// Radiometric weighting for retroreflective instead of diffuse surfaces (LCT, FBP).
+    /// Wiener signal-to-noise ratio of the LCT [default: 0.1, or 0.8 with --retroreflective (the Stanford
+    /// captures' reference values are 0.08 and 0.8)].
+    #[arg(long)]
+    snr: Option<f64>,
+    /// Radiometric weighting for retroreflective instead of diffuse surfaces (LCT, FBP): the return falls as
+    /// 1/r², as the Stanford captures' reference code assumes for every scene but the diffuse S.
     #[arg(long)]
     retroreflective: bool,
     /// Mask threshold: `otsu`, a fraction of the maximum (`0.3`) or an absolute value (`abs:1e-6`). Given,
@@ -124,7 +126,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Method::Lct => lct(
             &t,
             &LctParams {
-                snr: args.snr,
+                snr: args.snr.unwrap_or(nlos_optim::radiometry::lct_params(material).snr),
                 material,
                 bin_merge: args.merge,
                 gate: args.gate,
