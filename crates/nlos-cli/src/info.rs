@@ -215,6 +215,7 @@ pub(crate) fn describe(f: Format) -> &'static str {
     match f {
         Format::LctMat => "Stanford LCT .mat",
         Format::TsaiMat => "Tsai 2019 .mat",
+        Format::ZNlosMat => "Z-NLOS .mat (NeTF)",
         Format::FkMat => "Stanford f-k .mat",
         Format::ZNlos => "Zaragoza Z-NLOS HDF5",
         Format::Tal => "y-tal HDF5_TAL",

@@ -220,6 +220,91 @@ fn tsai_lighting_that_forms_a_grid_is_a_grid() {
     assert_eq!(t.scan().lasers().layout, Layout::List);
 }
 
+/// A NeTF-preprocessed Z-NLOS file: 3 × 2 wall points on the plane y = `wall_y`, histogram p holding
+/// `p + 10 k`, plus the optional fields.
+fn netf_vars(wall_y: f64, centre: Option<[f64; 3]>, extra: Vec<Var>) -> Vec<Var> {
+    let (a, b, bins) = (3usize, 2usize, 4usize);
+    let pos: Vec<f64> =
+        (0..a * b).flat_map(|p| [0.1 * (p % a) as f64 - 0.1, wall_y, 0.2 * (p / a) as f64 - 0.1]).collect();
+    let data: Vec<f64> = (0..a * b).flat_map(|p| (0..bins).map(move |k| (p + 10 * k) as f64)).collect();
+    let mut vars = vec![
+        double("data", &[bins as i32, a as i32, b as i32], data),
+        double("cameraGridPositions", &[3, (a * b) as i32], pos),
+        double("deltaT", &[1, 1], vec![0.01]),
+    ];
+    if let Some(c) = centre {
+        vars.push(double("hiddenVolumePosition", &[3, 1], c.to_vec()));
+    }
+    vars.extend(extra);
+    vars
+}
+
+fn netf(vars: &[Var]) -> Result<Transient, TransientError> {
+    let bytes = write(vars, Options::default());
+    let f = Path::new("netf.mat");
+    assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::ZNlosMat);
+    read_bytes_as(&bytes, Format::ZNlosMat, f)
+}
+
+/// The axes: their wall y = w with the scene at y < w is our z = 0 with the scene at z > 0 by `(x, z, −(y − w))`
+/// — the rotation the Z-NLOS HDF5 reader applies to walls whose normals are −y (`hdf5_formats.rs`,
+/// `to_ours`) — and `(x, −z, y − w)` for a scene at y > w; data(:, a, b) pairs with point a + A·b.
+#[test]
+fn netf_znlos_axes_and_data_order() {
+    let t = netf(&netf_vars(0.3, Some([0.0, -0.2, 0.0]), vec![])).expect("read");
+    assert!(t.scan().is_confocal() && !t.time().includes_device_legs);
+    assert_eq!((t.time().t0, t.time().bin_width, t.bins()), (0.0, 0.01, 4));
+    assert_eq!(t.scan().lasers().layout, Layout::Grid { nx: 3, ny: 2 });
+    for p in 0..6 {
+        let q = t.scan().lasers().points[p];
+        let (x, z) = (0.1 * (p % 3) as f32 - 0.1, 0.2 * (p / 3) as f32 - 0.1);
+        assert!((q - glam::Vec3::new(x, z, 0.0)).length() < 1e-6, "point {p}: {q}");
+        assert_eq!(t.scan().lasers().normals[p], glam::Vec3::Z);
+        assert_eq!(t.histogram(p), &[p as f32, (p + 10) as f32, (p + 20) as f32, (p + 30) as f32]);
+    }
+    // The scene on the other side: z mirrored (the grid's rows run the other way, so they are relabelled).
+    let t = netf(&netf_vars(0.3, Some([0.0, 0.9, 0.0]), vec![])).expect("read");
+    let q = &t.scan().lasers().points;
+    assert!(q.iter().all(|p| p.z == 0.0) && q.iter().any(|p| (p.y - 0.1).abs() < 1e-6));
+}
+
+/// A file whose returns all begin after its hidden volume could return holds the device legs.
+#[test]
+fn netf_znlos_times_with_the_device_legs() {
+    let legs = vec![
+        double("cameraPosition", &[3, 1], vec![0.0, 1.3, 0.0]),
+        double("hiddenVolumeSize", &[1, 1], vec![0.001]),
+        scalar("t0", 2.0),
+    ];
+    // The box (1 mm, 0.2 m from the wall) returns within 0.5 m of path; the data begin at 2.0 m.
+    let t = netf(&netf_vars(0.0, Some([0.0, -0.2, 0.0]), legs)).expect("read");
+    assert!(t.time().includes_device_legs);
+    assert_eq!(t.scan().sensor_device, Some(glam::Vec3::new(0.0, 0.0, -1.3)));
+    assert_eq!(t.time().t0, 2.0);
+}
+
+#[test]
+fn netf_znlos_bad_input_is_typed() {
+    let mut vars = netf_vars(0.0, None, vec![]);
+    vars[1] = double("cameraGridPositions", &[3, 5], vec![0.0; 15]);
+    assert!(matches!(netf(&vars), Err(TransientError::WrongShape { ref field, .. }) if field == "cameraGridPositions"));
+    let mut vars = netf_vars(0.0, None, vec![]);
+    vars[2] = double("deltaT", &[1, 1], vec![-1.0]);
+    assert!(matches!(netf(&vars), Err(TransientError::InvalidValue { ref field, .. }) if field == "deltaT"));
+    let mut vars = netf_vars(0.0, None, vec![]);
+    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
+        v[4] = f64::NAN;
+    }
+    assert!(matches!(netf(&vars), Err(TransientError::NonFinite { ref field, .. }) if field == "cameraGridPositions"));
+    // A wall that is not a plane of constant y or z.
+    let mut vars = netf_vars(0.0, None, vec![]);
+    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
+        v[1] = 0.05;
+        v[5] = 0.03;
+    }
+    assert!(matches!(netf(&vars), Err(TransientError::Unsupported { .. })));
+}
+
 /// An f-k file: rows × cols × bins, pixel (i, j) with one count at bin 20, tofgrid(i, j) in ps.
 fn fk_vars(rows: usize, cols: usize, bins: usize, tof: &dyn Fn(usize, usize) -> f64) -> Vec<Var> {
     let mut meas = vec![0u16; rows * cols * bins];

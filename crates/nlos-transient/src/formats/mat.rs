@@ -1,4 +1,5 @@
-//! MATLAB level-5 MAT-files (v5/v6/v7): Stanford LCT, Tsai et al. 2019 and Stanford f-k captures.
+//! MATLAB level-5 MAT-files (v5/v6/v7): Stanford LCT, Tsai et al. 2019 and Stanford f-k captures (and
+//! Z-NLOS as NeTF preprocessed it, `super::znlos_mat`).
 //!
 //! The container is parsed by this crate's own defensive MAT v5 reader (`mat5`, see its docs for why not
 //! the `matfile` crate). MATLAB v7.3 files are HDF5 and go through [`super::hdf5`]; the f-k conversion
@@ -98,7 +99,8 @@ pub const FK_DEFAULT_HALF_WIDTH: f64 = 1.0;
 /// headers are read; compressed variables are inflated just far enough to read their names).
 ///
 /// `rect_data` → [`Format::LctMat`]; `meas` → [`Format::FkMat`]; `lighting` with `transient` (or
-/// `gt_transient`) → [`Format::TsaiMat`].
+/// `gt_transient`) → [`Format::TsaiMat`]; `data` with `cameraGridPositions` and `deltaT` →
+/// [`Format::ZNlosMat`].
 ///
 /// # Errors
 /// [`TransientError::UnknownFormat`] naming the variables found when they match no known layout;
@@ -113,12 +115,15 @@ pub fn classify(bytes: &[u8], file: &Path) -> Result<Format> {
         Ok(Format::FkMat)
     } else if has("lighting") && (has("transient") || has("gt_transient")) {
         Ok(Format::TsaiMat)
+    } else if has("data") && has("cameraGridPositions") && has("deltaT") {
+        Ok(Format::ZNlosMat)
     } else {
         Err(TransientError::UnknownFormat {
             file: file.into(),
             reason: format!(
                 "MAT v5 file with {}; expected `rect_data` + `width` (Stanford LCT), `transient` + `lighting` \
-                 (Tsai 2019) or `meas` + `tofgrid` (Stanford f-k)",
+                 (Tsai 2019), `meas` + `tofgrid` (Stanford f-k) or `data` + `cameraGridPositions` + `deltaT` \
+                 (Z-NLOS as NeTF preprocessed it)",
                 m.names()
             ),
         })
@@ -138,6 +143,7 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
         Format::LctMat => read_lct(&m, file),
         Format::TsaiMat => read_tsai(&m, file),
         Format::FkMat => read_fk(&m, file),
+        Format::ZNlosMat => super::znlos_mat::read(&m, file),
         other => Err(TransientError::UnknownFormat {
             file: file.into(),
             reason: format!("{other} is not a MAT-file format"),

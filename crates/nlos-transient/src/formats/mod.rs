@@ -21,6 +21,7 @@ pub mod mat;
 mod mat5;
 pub mod npy;
 mod sidecar;
+mod znlos_mat;
 
 /// A transient file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -34,6 +35,8 @@ pub enum Format {
     FkMat,
     /// Zaragoza Z-NLOS HDF5 (`data`, `deltaT`, `t0`, `cameraGridPositions`, `laserGridPositions`, …).
     ZNlos,
+    /// Z-NLOS as NeTF preprocessed it, MAT v5: `data` (T,A,B), `cameraGridPositions` (3,N), `deltaT`, …
+    ZNlosMat,
     /// y-tal HDF5_TAL (`H`, `H_format`, `sensor_grid_xyz`, `laser_grid_xyz`, `delta_t`, `t_start`, …).
     Tal,
     /// NumPy `.npy` (data) with a `.json` sidecar (geometry and time axis): this project's exchange format.
@@ -44,8 +47,16 @@ pub enum Format {
 
 impl Format {
     /// Every format, in detection order.
-    pub const ALL: [Format; 7] =
-        [Format::LctMat, Format::TsaiMat, Format::FkMat, Format::ZNlos, Format::Tal, Format::NpyJson, Format::Exr];
+    pub const ALL: [Format; 8] = [
+        Format::LctMat,
+        Format::TsaiMat,
+        Format::FkMat,
+        Format::ZNlosMat,
+        Format::ZNlos,
+        Format::Tal,
+        Format::NpyJson,
+        Format::Exr,
+    ];
 
     /// Short name, as accepted by [`Format::from_name`] and the CLI.
     pub fn name(self) -> &'static str {
@@ -54,6 +65,7 @@ impl Format {
             Format::TsaiMat => "tsai-mat",
             Format::FkMat => "fk-mat",
             Format::ZNlos => "znlos",
+            Format::ZNlosMat => "znlos-mat",
             Format::Tal => "tal",
             Format::NpyJson => "npy",
             Format::Exr => "exr",
@@ -194,6 +206,15 @@ pub fn read_bytes_as(bytes: &[u8], format: Format, file: &Path) -> Result<Transi
         }
         Format::LctMat | Format::TsaiMat | Format::FkMat => {
             return Err(TransientError::UnknownFormat { file: file.into(), reason: "not a MAT-file".into() });
+        }
+        Format::ZNlosMat if sniff(bytes) == Some(Container::MatV5) => mat::read(bytes, format, file)?,
+        Format::ZNlosMat => {
+            return Err(TransientError::Unsupported {
+                file: file.into(),
+                what: "NeTF's Z-NLOS `.mat` saved as MAT v7.3 (HDF5); save it with `-v7` or read the dataset's \
+                       own HDF5"
+                    .into(),
+            });
         }
         Format::ZNlos | Format::Tal => hdf5::read(bytes, format, file)?,
         Format::NpyJson => {
