@@ -5,29 +5,81 @@
 //! [`nlos_mesh::metrics::evaluate`] (coverage and depth error from a +z ray grid over the wall, Chamfer
 //! and Hausdorff distances, normal angular error) serialised by `serde_json`; with `--map`, also the
 //! coverage picture of `nlos_report::figures::coverage_figure`.
+//!
+//! With `--gt-depth DEPTH [--gt-normal NORMAL]` instead of `--gt`, the reconstruction is scored against
+//! ground-truth maps on a wall grid ([`nlos_mesh::map_metrics`]: the protocol of the methods that compare on
+//! the Z-NLOS scenes). `--volume CAPTURE --method lct|fk` scores a volumetric reconstruction of the capture
+//! (its surface: the arg-max depth of the kept columns) by the same code.
 
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
+use nlos_mesh::map_metrics::{MapGrid, Maps, evaluate_maps, mesh_maps};
 use nlos_mesh::metrics::{EvalParams, MAX_GRID, evaluate, load_for_eval};
 use nlos_mesh::{MeshError, SurfaceMesh};
 
 use crate::CliError;
 
+/// The volumetric method of `--volume`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum VolumeMethod {
+    /// Light-cone transform (the settings of `nlos init`).
+    Lct,
+    /// f-k migration.
+    Fk,
+}
+
 /// Arguments of `nlos eval`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
     /// The reconstructed mesh (OBJ, PLY or GLB, detected from its content).
-    mesh: PathBuf,
+    #[arg(required_unless_present = "volume")]
+    mesh: Option<PathBuf>,
     /// The ground-truth mesh (OBJ, PLY or GLB).
-    #[arg(long, value_name = "GT")]
-    gt: PathBuf,
-    /// Rays per side of the grid over the wall's scan area [−0.25, 0.25]² m (1 to 4096).
+    #[arg(long, value_name = "GT", required_unless_present = "gt_depth", conflicts_with = "gt_depth")]
+    gt: Option<PathBuf>,
+    /// Ground-truth depth map (.npy or .mat, height × width, metres along +z from the wall; 0 or NaN: no
+    /// surface) on the wall grid of --extent, seen from the wall as an image: row 0 at the top (largest y),
+    /// column 0 at the left (smallest x).
+    #[arg(long, value_name = "DEPTH")]
+    gt_depth: Option<PathBuf>,
+    /// Ground-truth normal map (.npy or .mat, height × width × 3, unit x, y, z in the same frame, facing
+    /// the wall) on the depth map's grid.
+    #[arg(long, value_name = "NORMAL", requires = "gt_depth")]
+    gt_normal: Option<PathBuf>,
+    /// The maps' wall rectangle `x0,x1,y0,y1` in metres.
+    #[arg(
+        long,
+        value_name = "X0,X1,Y0,Y1",
+        default_value = "-0.25,0.25,-0.25,0.25",
+        allow_hyphen_values = true,
+        value_parser = parse_extent
+    )]
+    extent: [f32; 4],
+    /// Depth tolerance of "coverage within" (metres).
+    #[arg(long, default_value_t = 0.005, value_name = "METRES")]
+    threshold: f64,
+    /// Score a volumetric reconstruction of this capture instead of a mesh.
+    #[arg(long, value_name = "CAPTURE", conflicts_with = "mesh")]
+    volume: Option<PathBuf>,
+    /// The volumetric method of --volume.
+    #[arg(long, value_enum, default_value = "lct")]
+    method: VolumeMethod,
+    /// Rays per side of the grid over the wall's scan area [−0.25, 0.25]² m (1 to 4096), with --gt.
     #[arg(long, default_value_t = 128, value_name = "N")]
     grid: usize,
-    /// Also draw the coverage picture as this PNG: the ray grid coloured by hit within 5 mm, hit but
-    /// further apart, missed and extra pixels (as the run report's `coverage.png`).
+    /// Also draw the coverage picture as this PNG (with --gt): the ray grid coloured by hit within 5 mm, hit
+    /// but further apart, missed and extra pixels (as the run report's `coverage.png`).
     #[arg(long, value_name = "PNG")]
     map: Option<PathBuf>,
+}
+
+fn parse_extent(s: &str) -> Result<[f32; 4], String> {
+    let v: Vec<f32> = s.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+    match v.as_slice() {
+        &[x0, x1, y0, y1] if v.iter().all(|x| x.is_finite()) && x0 < x1 && y0 < y1 => Ok([x0, x1, y0, y1]),
+        _ => Err(format!("`{s}` is not x0,x1,y0,y1 in metres with x0 < x1 and y0 < y1")),
+    }
 }
 
 /// Reads a mesh; errors name the file.
@@ -39,22 +91,96 @@ fn load(path: &Path) -> Result<SurfaceMesh, CliError> {
     })
 }
 
+/// The reconstruction: the mesh file, or the surface of the volume of `--volume`.
+fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
+    let Some(capture) = &args.volume else {
+        return load(args.mesh.as_deref().unwrap_or(Path::new("")));
+    };
+    let t = nlos_transient::read(capture).map_err(CliError::input)?;
+    let fail = |e: nlos_init::InitError| CliError::Input(format!("{}: {e}", capture.display()));
+    let (volume, surface) = match args.method {
+        VolumeMethod::Lct => (
+            nlos_init::lct(&t, &nlos_init::LctParams::default()).map_err(fail)?,
+            nlos_init::SurfaceParams::object(),
+        ),
+        VolumeMethod::Fk => {
+            (nlos_init::fk(&t, &nlos_init::FkParams::default()).map_err(fail)?, nlos_init::SurfaceParams::default())
+        }
+    };
+    Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(fail)?.mesh)
+}
+
+/// A map file as (values in C order, shape): `.npy` or `.mat` (its only numeric variable).
+fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> {
+    let is_mat = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    let read = if is_mat {
+        nlos_transient::formats::mat::read_array(path, None).map(|(v, dims, _)| (v, dims))
+    } else {
+        nlos_transient::formats::npy::read_npy_map(path)
+    };
+    read.map_err(CliError::input)
+}
+
+/// The ground-truth maps of `--gt-depth` / `--gt-normal`.
+fn truth_maps(args: &Args, depth_file: &Path) -> Result<Maps, CliError> {
+    let bad = |file: &Path, what: String| CliError::Input(format!("{}: {what}", file.display()));
+    let (depth, shape) = read_map(depth_file)?;
+    let &[height, width] = shape.as_slice() else {
+        return Err(bad(depth_file, format!("a depth map is height × width, found shape {shape:?}")));
+    };
+    let [x0, x1, y0, y1] = args.extent;
+    let grid = MapGrid { width, height, x_range: [x0, x1], y_range: [y0, y1] };
+    if let Some(i) = depth.iter().position(|z| z.is_infinite()) {
+        return Err(bad(depth_file, format!("depth {} at pixel {i} is not finite (no surface is 0 or NaN)", depth[i])));
+    }
+    let depth: Vec<f32> = depth.into_iter().map(|z| if z > 0.0 { z } else { f32::NAN }).collect();
+    let normals = match &args.gt_normal {
+        None => None,
+        Some(file) => {
+            let (n, nshape) = read_map(file)?;
+            if nshape != [height, width, 3] {
+                return Err(bad(
+                    file,
+                    format!(
+                        "a normal map is height × width × 3 ({height} × {width} × 3 for this depth map; the last axis                          holds x, y, z), found shape {nshape:?}"
+                    ),
+                ));
+            }
+            Some(n.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+        }
+    };
+    let maps = Maps { grid, depth, normals };
+    let name = args.gt_normal.as_ref().map_or_else(|| depth_file.display().to_string(), |n| n.display().to_string());
+    maps.validate(&name).map_err(|e| CliError::Input(e.to_string()))?;
+    Ok(maps)
+}
+
 /// Runs `nlos eval`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    let reconstruction = reconstruction(args)?;
+    let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
+    if let Some(depth_file) = &args.gt_depth {
+        let truth = truth_maps(args, depth_file)?;
+        let rec = mesh_maps(&reconstruction, &truth.grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
+        let metrics = evaluate_maps(&rec, &truth, args.threshold).map_err(|e| CliError::Input(e.to_string()))?;
+        let line =
+            serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
+        println!("{line}");
+        return Ok(());
+    }
+    let gt = args.gt.as_deref().unwrap_or(Path::new(""));
     if args.grid == 0 || args.grid > MAX_GRID {
         return Err(CliError::Input(format!("--grid {} is out of range; use 1 to {MAX_GRID}", args.grid)));
     }
     // either may be non-manifold (scanned or exported models): see `load_for_eval`
-    let reconstruction = load(&args.mesh)?;
-    let ground_truth = load(&args.gt)?;
-    let params = EvalParams { grid: args.grid, ..EvalParams::default() };
-    let metrics = evaluate(&reconstruction, &ground_truth, &params).map_err(|e| {
-        CliError::Input(format!("evaluating {} against {}: {e}", args.mesh.display(), args.gt.display()))
-    })?;
+    let ground_truth = load(gt)?;
+    let params = EvalParams { grid: args.grid, coverage_threshold: args.threshold, ..EvalParams::default() };
+    let metrics = evaluate(&reconstruction, &ground_truth, &params)
+        .map_err(|e| CliError::Input(format!("evaluating {what} against {}: {e}", gt.display())))?;
     if let Some(png) = &args.map {
         let view =
             nlos_report::figures::DepthView { grid: params.grid, x_range: params.x_range, y_range: params.y_range };
-        let title = args.mesh.file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
+        let title = Path::new(&what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
         let fig = nlos_report::figures::coverage_figure(
             &[(&title, &metrics.depth_reconstruction)],
             &metrics.depth_ground_truth,

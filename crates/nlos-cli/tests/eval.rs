@@ -6,6 +6,9 @@ use std::process::{Command, Output};
 
 use glam::Vec3;
 use nlos_mesh::{SurfaceMesh, shapes};
+
+#[path = "../../nlos-transient/tests/support/mat5_writer.rs"]
+mod mat5_writer;
 use serde_json::Value;
 
 fn nlos(args: &[&str]) -> Output {
@@ -143,4 +146,98 @@ fn bad_input_exits_2_naming_the_file() {
     let o = nlos(&["eval", gt_s, "--gt", gt_s, "--grid", "0"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).starts_with("error: "), "{}", stderr(&o));
+}
+
+/// `--threshold` sets "coverage within": planes 1 cm apart are covered, but not within 5 mm; within 2 cm.
+#[test]
+fn coverage_within_the_threshold() {
+    let dir = scratch("within");
+    let (rec, gt) = (dir.join("rec.obj"), dir.join("gt.obj"));
+    nlos_mesh::io::save(&plane(7, 0.41), &rec).expect("write rec");
+    nlos_mesh::io::save(&plane(5, 0.40), &gt).expect("write gt");
+    let (r, g) = (rec.to_str().expect("utf-8"), gt.to_str().expect("utf-8"));
+    let v = eval_json(&["eval", r, "--gt", g]);
+    assert_eq!((num(&v, "coverage"), num(&v, "coverage_within"), num(&v, "coverage_threshold")), (1.0, 0.0, 0.005));
+    let v = eval_json(&["eval", r, "--gt", g, "--threshold", "0.02"]);
+    assert_eq!(num(&v, "coverage_within"), 1.0);
+}
+
+/// A little-endian f32 `.npy` of `shape`, C order.
+fn npy(path: &Path, data: &[f32], shape: &[usize]) {
+    let bytes = nlos_transient::formats::npy::encode_npy_f32(data, shape).expect("npy");
+    std::fs::write(path, bytes).expect("write npy");
+}
+
+/// `--gt-depth/--gt-normal`: a plane against its own maps scores 0 and 0°; a tilted plane scores its tilt;
+/// maps of the wrong size, with NaN normals or the wrong axis are errors naming the file.
+#[test]
+fn depth_and_normal_maps() {
+    let dir = scratch("maps");
+    let (w, h) = (40usize, 30usize);
+    // The wall rectangle [−0.2, 0.2] × [−0.15, 0.15]: 1 cm pixels.
+    let depth = vec![0.4f32; w * h];
+    let normal: Vec<f32> = (0..w * h).flat_map(|_| [0.0, 0.0, -1.0]).collect();
+    let (d, n) = (dir.join("depth.npy"), dir.join("normal.npy"));
+    npy(&d, &depth, &[h, w]);
+    npy(&n, &normal, &[h, w, 3]);
+    let (ds, ns) = (d.to_str().expect("utf-8"), n.to_str().expect("utf-8"));
+    let flat = dir.join("flat.obj");
+    nlos_mesh::io::save(&plane(6, 0.4), &flat).expect("write");
+    let ext = ["--extent", "-0.2,0.2,-0.15,0.15"];
+    let f = flat.to_str().expect("utf-8");
+    let v = eval_json(&[&["eval", f, "--gt-depth", ds, "--gt-normal", ns][..], &ext].concat());
+    assert_eq!((num(&v, "coverage"), num(&v, "coverage_within")), (1.0, 1.0));
+    assert!(num(&v, "depth_error_mean") < 1e-6 && num(&v, "normal_error_mean_deg") < 0.05, "{v}");
+    // Tilted by 10° about y (through the plate's centre).
+    let mut tilted = plane(6, 0.0);
+    let q = glam::Quat::from_rotation_y(10f32.to_radians());
+    for p in tilted.positions_mut() {
+        *p = q * *p + Vec3::new(0.0, 0.0, 0.4);
+    }
+    let t = dir.join("tilted.obj");
+    nlos_mesh::io::save(&tilted, &t).expect("write");
+    let v = eval_json(&[&["eval", t.to_str().expect("utf-8"), "--gt-depth", ds, "--gt-normal", ns][..], &ext].concat());
+    assert!((num(&v, "normal_error_mean_deg") - 10.0).abs() < 0.05, "{v}");
+    // Bad maps.
+    let bad = dir.join("bad.npy");
+    let b = bad.to_str().expect("utf-8");
+    let fails = |args: &[&str], what: &str| {
+        let o = nlos(&[&["eval", f, "--gt-depth", ds][..], args].concat());
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(what), "{args:?}: {}", stderr(&o));
+    };
+    npy(&bad, &normal[..(h - 1) * w * 3], &[h - 1, w, 3]);
+    fails(&["--gt-normal", b], "bad.npy");
+    let mut nan = normal.clone();
+    nan[5] = f32::NAN;
+    npy(&bad, &nan, &[h, w, 3]);
+    fails(&["--gt-normal", b], "not a finite unit vector");
+    npy(&bad, &normal, &[3, h, w]);
+    fails(&["--gt-normal", b], "last axis");
+    let away: Vec<f32> = normal.iter().map(|x| -x).collect();
+    npy(&bad, &away, &[h, w, 3]);
+    fails(&["--gt-normal", b], "face away");
+}
+
+/// A MATLAB depth map (column-major, NaN outside the object) reads as the same image: a plate covering the
+/// left half of the wall scores coverage 1 on the half the map marks, and the right half is no surface.
+#[test]
+fn a_matlab_depth_map_with_nan_background() {
+    let dir = scratch("mat-map");
+    let (w, h) = (20usize, 10usize);
+    // depth(r, c) = 0.4 on columns c < 10, NaN elsewhere; MATLAB stores (r, c) at r + h·c.
+    let col_major: Vec<f64> = (0..w).flat_map(|c| (0..h).map(move |_| if c < 10 { 0.4 } else { f64::NAN })).collect();
+    let vars = vec![mat5_writer::double("depth", &[h as i32, w as i32], col_major)];
+    let m = dir.join("depth.mat");
+    std::fs::write(&m, mat5_writer::write(&vars, mat5_writer::Options::default())).expect("write");
+    let flat = dir.join("flat.obj");
+    nlos_mesh::io::save(&plane(6, 0.4), &flat).expect("write");
+    let v = eval_json(&[
+        "eval",
+        flat.to_str().expect("utf-8"),
+        "--gt-depth",
+        m.to_str().expect("utf-8"),
+        "--extent=-0.2,0.2,-0.1,0.1",
+    ]);
+    assert_eq!((v["gt_pixels"].as_u64(), num(&v, "coverage_within")), (Some(100), 1.0), "{v}");
 }

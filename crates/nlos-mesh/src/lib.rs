@@ -57,6 +57,7 @@ pub mod evolve;
 mod handles;
 pub mod intersect;
 pub mod io;
+pub mod map_metrics;
 pub mod metrics;
 mod property;
 pub mod quality;

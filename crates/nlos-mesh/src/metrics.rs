@@ -8,7 +8,8 @@
 //! the Möller–Trumbore test [`crate::bvh::ray_triangle`] (both faces count; edge tolerance
 //! [`crate::bvh::RAY_BARYCENTRIC_EPSILON`]); its depth is the hit's z. Geometry at z < 0 is never hit.
 //!
-//! **Coverage** = (pixels hit on both meshes) / (pixels hit on the ground truth). **Depth error** =
+//! **Coverage** = (pixels hit on both meshes) / (pixels hit on the ground truth); **coverage within 5 mm**
+//! counts only the pixels whose depths also agree within [`EvalParams::coverage_threshold`]. **Depth error** =
 //! |z_rec − z_gt| over the pixels hit on both: mean, median, root mean square and maximum, in metres.
 //!
 //! **Interior and silhouette band.** Near the ground truth's silhouette the surface turns edge-on, its depth
@@ -64,11 +65,19 @@ pub struct EvalParams {
     pub y_range: [f32; 2],
     /// Points of each surface measured by the Chamfer/Hausdorff distances (default: the vertices).
     pub sampling: Sampling,
+    /// Depth tolerance of [`Metrics::coverage_within`], metres (default 0.005: "coverage within 5 mm").
+    pub coverage_threshold: f64,
 }
 
 impl Default for EvalParams {
     fn default() -> Self {
-        Self { grid: 128, x_range: [-0.25, 0.25], y_range: [-0.25, 0.25], sampling: Sampling::Vertices }
+        Self {
+            grid: 128,
+            x_range: [-0.25, 0.25],
+            y_range: [-0.25, 0.25],
+            sampling: Sampling::Vertices,
+            coverage_threshold: 0.005,
+        }
     }
 }
 
@@ -97,6 +106,13 @@ impl EvalParams {
                 });
             }
         }
+        if !(self.coverage_threshold.is_finite() && self.coverage_threshold > 0.0) {
+            return Err(MeshError::InvalidParameter {
+                name: "coverage_threshold",
+                value: self.coverage_threshold,
+                reason: "the coverage threshold is a depth in metres, finite and > 0",
+            });
+        }
         Ok(())
     }
 }
@@ -119,8 +135,17 @@ pub struct Metrics {
     pub reconstruction_pixels: usize,
     /// Pixels whose ray hits both.
     pub both_pixels: usize,
-    /// `both_pixels / gt_pixels`, in [0, 1].
+    /// `both_pixels / gt_pixels`, in [0, 1]: plain coverage (any hit), reported, not judged — an
+    /// overhanging surface wins it for free.
     pub coverage: f64,
+    /// Share of the ground-truth pixels hit by the reconstruction within `coverage_threshold` of the ground
+    /// truth's depth: "coverage within 5 mm" at the default threshold. 0 when read from a record written
+    /// before it existed.
+    #[serde(default)]
+    pub coverage_within: f64,
+    /// The depth tolerance of `coverage_within`, metres.
+    #[serde(default)]
+    pub coverage_threshold: f64,
     /// Mean of |z_rec − z_gt| over the pixels hit on both, metres; `None` (JSON `null`) when there are none.
     pub depth_error_mean: Option<f64>,
     /// Median of |z_rec − z_gt| (mean of the two middle values for an even count), metres.
@@ -271,6 +296,7 @@ pub fn evaluate(
         .map(|(&r, &g)| (r as f64 - g as f64).abs())
         .collect();
     let both_pixels = errors.len();
+    let within = errors.iter().filter(|&&e| e <= params.coverage_threshold).count();
     let (mean, median, rms, max) = if errors.is_empty() {
         (None, None, None, None)
     } else {
@@ -305,6 +331,8 @@ pub fn evaluate(
         reconstruction_pixels,
         both_pixels,
         coverage: both_pixels as f64 / gt_pixels as f64,
+        coverage_within: within as f64 / gt_pixels as f64,
+        coverage_threshold: params.coverage_threshold,
         depth_error_mean: mean,
         depth_error_median: median,
         depth_error_rms: rms,

@@ -575,3 +575,23 @@ fn unsupported_version_and_bad_endian() {
     let r = detect_bytes(&bytes, Path::new("v.mat"));
     assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
 }
+
+/// `mat::read_array`: a MATLAB 2×3 matrix (column-major) comes back in C order, NaN kept; the only numeric
+/// variable is found by itself, a name picks among several.
+#[test]
+fn read_array_returns_c_order() {
+    let dir = std::env::temp_dir().join(format!("nlos-read-array-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let f = dir.join("m.mat");
+    // M = [1 2 3; 4 5 NaN] stored column-major: 1 4 2 5 3 NaN.
+    let m = double("depth", &[2, 3], vec![1.0, 4.0, 2.0, 5.0, 3.0, f64::NAN]);
+    std::fs::write(&f, write(&[m.clone()], Options::default())).expect("write");
+    let (v, dims, name) = nlos_transient::formats::mat::read_array(&f, None).expect("read");
+    assert_eq!((dims, name.as_str()), (vec![2, 3], "depth"));
+    assert_eq!(&v[..5], &[1.0, 2.0, 3.0, 4.0, 5.0]);
+    assert!(v[5].is_nan());
+    std::fs::write(&f, write(&[m, scalar("other", 1.0)], Options::default())).expect("write");
+    assert!(matches!(nlos_transient::formats::mat::read_array(&f, None), Err(TransientError::MissingField { .. })));
+    assert_eq!(nlos_transient::formats::mat::read_array(&f, Some("other")).expect("named").0, vec![1.0]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -151,6 +151,55 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
     }
 }
 
+/// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN is
+/// kept as "no value", infinities are an error): the
+/// variable `name`, or the file's only numeric variable when `name` is None. Returns the values in **C
+/// order** (an `H×W` MATLAB matrix comes back as rows of W, element `(r, c)` at `c + W·r`, an `H×W×3` array with element `(r, c, k)` at `k + 3·(c + W·r)`), the
+/// MATLAB dimensions and the variable's name.
+///
+/// # Errors
+/// As [`read`]; [`TransientError::MissingField`] when `name` is absent or the file holds no or several
+/// numeric variables (naming them).
+pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usize>, String)> {
+    let bytes = std::fs::read(path).map_err(|e| TransientError::Io { file: path.into(), source: e })?;
+    let m = MatFile::parse(&bytes, path)?;
+    let chosen = match name {
+        Some(n) => n.to_owned(),
+        None => {
+            let numeric: Vec<&VarHeader> = m.headers().filter(|h| h.class.is_numeric()).collect();
+            match numeric.as_slice() {
+                [one] => one.name.clone(),
+                _ => {
+                    return Err(TransientError::MissingField {
+                        file: path.into(),
+                        field: "array".into(),
+                        hint: format!("expected one numeric variable, found {}; name the one to read", m.names()),
+                    });
+                }
+            }
+        }
+    };
+    let a = m.numeric(&chosen, "the array to read")?;
+    let dims = a.header.dims.clone();
+    let col_major = a.to_f32_nan(path)?;
+    // Column-major (first index fastest) → C order (last index fastest).
+    let n = col_major.len();
+    let mut c_order = vec![0.0f32; n];
+    let mut strides = vec![1usize; dims.len()];
+    for i in 1..dims.len() {
+        strides[i] = strides[i - 1] * dims[i - 1];
+    }
+    for (flat_c, out) in c_order.iter_mut().enumerate() {
+        let (mut rest, mut off) = (flat_c, 0usize);
+        for (d, st) in dims.iter().zip(&strides).rev() {
+            off += (rest % d) * st;
+            rest /= d;
+        }
+        *out = col_major.get(off).copied().unwrap_or(f32::NAN);
+    }
+    Ok((c_order, dims, chosen))
+}
+
 fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> TransientError {
     TransientError::WrongShape {
         file: file.into(),

@@ -512,6 +512,23 @@ impl NumericArray<'_> {
         Ok(out)
     }
 
+    /// All values as `f32`, column-major, NaN kept (a map's "no value"); infinities rejected.
+    ///
+    /// # Errors
+    /// [`TransientError::NonFinite`] naming the variable; as `for_each`.
+    pub(crate) fn to_f32_nan(&self, file: &Path) -> Result<Vec<f32>> {
+        let mut out = Vec::with_capacity(self.len());
+        self.for_each(file, |i, v| {
+            let x = v as f32;
+            if x.is_infinite() {
+                return Err(self.non_finite(file, i));
+            }
+            out.push(x);
+            Ok(())
+        })?;
+        Ok(out)
+    }
+
     /// Calls `f(index, value)` for every element in column-major order with the class value rounded to
     /// `f32`, rejecting NaN/Inf (also after rounding). Lets callers place values without an intermediate copy.
     ///

@@ -164,6 +164,17 @@ pub fn decode_npy_array(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usiz
     Ok((a.values, a.shape))
 }
 
+/// Loads a bare `.npy` array that may hold `NaN` (a map's "no value", as in depth maps), as
+/// [`read_npy_array`] otherwise; infinities are still an error.
+///
+/// # Errors
+/// As [`read_npy_array`].
+pub fn read_npy_map(path: impl AsRef<Path>) -> Result<(Vec<f32>, Vec<usize>)> {
+    let path = path.as_ref();
+    let a = parse_npy_with(&super::read_file(path)?, path, true)?;
+    Ok((a.values, a.shape))
+}
+
 /// Encodes `data` as a NumPy v1.0 `.npy` array of little-endian `float32` in C order with `shape`.
 ///
 /// # Errors
@@ -241,6 +252,11 @@ fn header_err(file: &Path, key: &str, reason: String) -> TransientError {
 }
 
 fn parse_npy(bytes: &[u8], file: &Path) -> Result<Array> {
+    parse_npy_with(bytes, file, false)
+}
+
+/// [`parse_npy`], with NaN accepted when `allow_nan` (infinities never are).
+fn parse_npy_with(bytes: &[u8], file: &Path, allow_nan: bool) -> Result<Array> {
     let truncated = |detail: &str| TransientError::Truncated { file: file.into(), detail: detail.into() };
     if bytes.len() < 8 {
         if MAGIC.starts_with(&bytes[..bytes.len().min(6)]) {
@@ -301,7 +317,7 @@ fn parse_npy(bytes: &[u8], file: &Path) -> Result<Array> {
     }
     let flat: Vec<f32> = data.chunks_exact(dtype.size).map(|c| convert(c, dtype)).collect();
     let values = if fortran && shape.len() > 1 { fortran_to_c(&flat, &shape) } else { flat };
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+    if let Some(i) = values.iter().position(|v| !(v.is_finite() || allow_nan && v.is_nan())) {
         return Err(TransientError::NonFinite { file: file.into(), field: "npy data".into(), index: i });
     }
     Ok(Array { values, shape, descr })
