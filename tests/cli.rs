@@ -81,3 +81,62 @@ fn a_tsai_capture_whose_points_form_a_grid_runs_with_defaults() {
     assert_eq!(nlos(&[&["reconstruct", &f, "--out", &out, "--quiet"][..], &FAST].concat()), ExitCode::SUCCESS);
     assert!(dir.join("run/mesh.obj").is_file());
 }
+
+/// `nlos benchmark` end to end on a folder of Z-NLOS files of our own: the built-in capture written in
+/// NeTF's `.mat` layout (their wall y = 0, scene at y < 0) with ground-truth depth and normal maps beside
+/// it, and a second capture without maps (left out). One table: LCT, f-k and the surface fit, scored.
+#[test]
+fn benchmark_runs_on_znlos_files_with_maps() {
+    let t = nlos_transient::read(common::fixture("capture.hdf5")).expect("fixture");
+    let (nx, ny) = t.scan().lasers().grid_dims().expect("grid");
+    let (m, bins) = (t.measurements(), t.bins());
+    // data(k, a, b) column-major with measurement a + nx·b = our point ix + nx·iy; their (x, 0, y) is our (x, y, 0).
+    let data: Vec<f64> = (0..m).flat_map(|p| t.histogram(p).iter().map(|v| f64::from(*v))).collect();
+    let pos: Vec<f64> = t.scan().lasers().points.iter().flat_map(|p| [f64::from(p.x), 0.0, f64::from(p.y)]).collect();
+    let vars = vec![
+        mat5_writer::double("data", &[bins as i32, nx as i32, ny as i32], data),
+        mat5_writer::double("cameraGridPositions", &[3, m as i32], pos),
+        mat5_writer::double("deltaT", &[1, 1], vec![t.time().bin_width]),
+        mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.4, 0.0]),
+    ];
+    let dir = scratch("benchmark");
+    let data_dir = dir.join("znlos");
+    std::fs::create_dir_all(&data_dir).expect("dir");
+    let bytes = mat5_writer::write(&vars, mat5_writer::Options::default());
+    std::fs::write(data_dir.join("patch.mat"), &bytes).expect("write");
+    std::fs::write(data_dir.join("unscored.mat"), &bytes).expect("write");
+    // Ground-truth maps on the scan grid (one pixel per scan point, row 0 at the largest y).
+    let (lo, hi) = t.scan().lasers().bounds().expect("points");
+    let (hx, hy) = (0.5 * (hi.x - lo.x) / (nx - 1) as f32, 0.5 * (hi.y - lo.y) / (ny - 1) as f32);
+    let grid = nlos_mesh::map_metrics::MapGrid {
+        width: nx,
+        height: ny,
+        x_range: [lo.x - hx, hi.x + hx],
+        y_range: [lo.y - hy, hi.y + hy],
+    };
+    let truth = nlos_mesh::metrics::load_for_eval(common::fixture("truth.obj")).expect("truth");
+    let maps = nlos_mesh::map_metrics::mesh_maps(&truth, &grid).expect("maps");
+    let depth: Vec<f32> = maps.depth.iter().map(|z| if z.is_nan() { 0.0 } else { *z }).collect();
+    let normals: Vec<f32> = maps.normals.expect("normals").iter().flat_map(|n| n.to_array()).collect();
+    let npy = |name: &str, v: &[f32], shape: &[usize]| {
+        let bytes = nlos_transient::formats::npy::encode_npy_f32(v, shape).expect("npy");
+        std::fs::write(data_dir.join(name), bytes).expect("write");
+    };
+    npy("patch_depth.npy", &depth, &[ny, nx]);
+    npy("patch_normal.npy", &normals, &[ny, nx, 3]);
+    let table = dir.join("table.md");
+    let (d, o, tb) = (data_dir.to_string_lossy(), dir.join("runs").to_string_lossy().into_owned(), table.to_string_lossy());
+    let mut args = vec!["benchmark", &d, "--out", &o, "--table", &tb];
+    args.extend(FAST);
+    assert_eq!(nlos(&args), ExitCode::SUCCESS);
+    let text = std::fs::read_to_string(&table).expect("table");
+    let rows: Vec<&str> = text.lines().filter(|l| l.starts_with("| patch |")).collect();
+    assert_eq!(rows.len(), 3, "{text}");
+    assert!(!text.contains("unscored"), "{text}");
+    for (row, method) in rows.iter().zip(["LCT", "f-k", "surface fit"]) {
+        assert!(row.contains(method), "{row}");
+        // Coverage within 5 mm: a number, not a dash.
+        let within: f64 = row.split('|').nth(3).and_then(|c| c.trim().trim_end_matches(" %").parse().ok()).expect(row);
+        assert!(within > 0.0, "{row}");
+    }
+}

@@ -116,7 +116,7 @@ fn children_cpu_s() -> f64 {
     (get(16) + get(17)) / tick
 }
 
-fn utc_now() -> String {
+pub(crate) fn utc_now() -> String {
     Command::new("date")
         .args(["-u", "+%Y-%m-%d"])
         .output()
@@ -680,13 +680,14 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 6] = [
+pub const SCENARIOS: [(&str, &str); 7] = [
     ("bunny", "the shared bunny, rendered at the seed's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
     ("ggx", "a glossy (GGX) bunny at two roughnesses: the fitted roughness, the shape"),
     ("sensor", "SPAD counts (jitter, background): the sensor-aware fit against plain L2"),
     ("real", "the Stanford captures (chart, diffuse S): the chart's plane, the S's shape"),
+    ("znlos", "the Z-NLOS benchmark (`cargo xtask benchmark znlos DIR`): LCT, f-k and the fit against depth/normal maps"),
 ];
 
 const RESULTS: &str = "docs/results.md";
@@ -698,7 +699,7 @@ The README's status table is made from this page.\n";
 
 /// Writes `md` (a section starting `## NAME — PASS|FAIL — DATE`) as the section of scenario `name` of
 /// `docs/results.md`, replacing the previous one, and regenerates the README's status table.
-fn record(root: &Path, name: &str, md: &str) -> Result<(), String> {
+pub(crate) fn record(root: &Path, name: &str, md: &str) -> Result<(), String> {
     let f = root.join(RESULTS);
     let doc = std::fs::read_to_string(&f).unwrap_or_else(|_| RESULTS_HEAD.to_string());
     // No machine paths in a tracked file: the workspace and the shared data are named relative to the root.

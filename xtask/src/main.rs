@@ -8,6 +8,9 @@
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs (see `accept.rs`); each replaces its scenario's section of `docs/results.md`.
+//! - `cargo xtask benchmark znlos DIR [-- ARGS…]`: `nlos benchmark DIR ARGS…` (every Z-NLOS capture of DIR
+//!   with ground-truth maps beside it: LCT, f-k and the surface fit, scored against the maps); its table
+//!   replaces the `znlos` section of `docs/results.md`.
 //! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`.
 //! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
 //! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
@@ -28,6 +31,7 @@ fn main() -> ExitCode {
         Some("fixtures") => fixtures(),
         Some("test") => test(&args[1..]),
         Some("status") => accept::update_readme(&workspace_root()),
+        Some("benchmark") => benchmark(&args[1..]),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
@@ -36,6 +40,9 @@ fn main() -> ExitCode {
             );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, sensor or all; writes docs/results.md");
+            println!("       cargo xtask benchmark znlos DIR [-- ARGS...]");
+            println!("                                           LCT, f-k and the fit on DIR's Z-NLOS captures against");
+            println!("                                           their depth/normal maps; writes docs/results.md");
             println!("       cargo xtask status                  the README's status table from docs/results.md");
             println!(
                 "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"
@@ -52,6 +59,42 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `cargo xtask benchmark znlos DIR [-- ARGS…]`: runs `nlos benchmark` and records its table.
+fn benchmark(args: &[String]) -> Result<(), String> {
+    let usage = "usage: cargo xtask benchmark znlos DIR [-- NLOS_BENCHMARK_ARGS...]";
+    let (Some("znlos"), Some(dir)) = (args.first().map(String::as_str), args.get(1)) else {
+        return Err(usage.into());
+    };
+    let extra: Vec<&str> = match args.get(2).map(String::as_str) {
+        Some("--") => args[3..].iter().map(String::as_str).collect(),
+        Some(other) => return Err(format!("unexpected `{other}`; {usage}")),
+        None => Vec::new(),
+    };
+    let root = workspace_root();
+    let out = root.join("out/benchmark");
+    let table = out.join("znlos.md");
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let (o, t) = (out.to_string_lossy().into_owned(), table.to_string_lossy().into_owned());
+    let mut cmd = vec!["benchmark", dir.as_str(), "--out", &o, "--table", &t];
+    cmd.extend(extra.iter().copied());
+    let started = std::time::Instant::now();
+    nlos(&cmd)?;
+    let rows = std::fs::read_to_string(&table).map_err(|e| format!("{}: {e}", table.display()))?;
+    let name = Path::new(dir).file_name().map_or_else(|| dir.clone(), |n| n.to_string_lossy().into_owned());
+    let md = format!(
+        "## znlos — measured — {}
+
+`nlos benchmark` on the Z-NLOS captures of `{name}` (ground-truth maps beside \
+         each), {:.0} s in all: each capture reconstructed by LCT and f-k (their surfaces: the arg-max depth of the \
+         kept columns) and by `nlos reconstruct` with the default settings{}, scored by `nlos eval --gt-depth \
+         --gt-normal` on the capture's scan grid.\n\n{rows}",
+        accept::utc_now(),
+        started.elapsed().as_secs_f64(),
+        if extra.is_empty() { String::new() } else { format!(" and `{}`", extra.join(" ")) },
+    );
+    accept::record(&root, "znlos", &md)
 }
 
 fn workspace_root() -> PathBuf {

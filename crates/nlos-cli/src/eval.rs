@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use nlos_mesh::map_metrics::{MapGrid, Maps, evaluate_maps, mesh_maps};
+use nlos_mesh::map_metrics::{MapGrid, MapMetrics, Maps, evaluate_maps, mesh_maps};
 use nlos_mesh::metrics::{EvalParams, MAX_GRID, evaluate, load_for_eval};
 use nlos_mesh::{MeshError, SurfaceMesh};
 
@@ -93,12 +93,18 @@ fn load(path: &Path) -> Result<SurfaceMesh, CliError> {
 
 /// The reconstruction: the mesh file, or the surface of the volume of `--volume`.
 fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
-    let Some(capture) = &args.volume else {
-        return load(args.mesh.as_deref().unwrap_or(Path::new("")));
-    };
+    match &args.volume {
+        Some(capture) => volume_surface(capture, args.method),
+        None => load(args.mesh.as_deref().unwrap_or(Path::new(""))),
+    }
+}
+
+/// The surface of a capture's volumetric reconstruction (the settings of `nlos init`: for LCT those of
+/// compact objects): the arg-max depth of the kept columns.
+pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<SurfaceMesh, CliError> {
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: nlos_init::InitError| CliError::Input(format!("{}: {e}", capture.display()));
-    let (volume, surface) = match args.method {
+    let (volume, surface) = match method {
         VolumeMethod::Lct => (
             nlos_init::lct(&t, &nlos_init::LctParams::default()).map_err(fail)?,
             nlos_init::SurfaceParams::object(),
@@ -111,7 +117,7 @@ fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
 }
 
 /// A map file as (values in C order, shape): `.npy` or `.mat` (its only numeric variable).
-fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> {
+pub(crate) fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> {
     let is_mat = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"));
     let read = if is_mat {
         nlos_transient::formats::mat::read_array(path, None).map(|(v, dims, _)| (v, dims))
@@ -121,20 +127,21 @@ fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> {
     read.map_err(CliError::input)
 }
 
-/// The ground-truth maps of `--gt-depth` / `--gt-normal`.
-fn truth_maps(args: &Args, depth_file: &Path) -> Result<Maps, CliError> {
+/// The ground-truth maps of `depth_file` (and `normal_file`) on the wall rectangle `extent`
+/// (`x0, x1, y0, y1`).
+pub(crate) fn truth_maps(depth_file: &Path, normal_file: Option<&Path>, extent: [f32; 4]) -> Result<Maps, CliError> {
     let bad = |file: &Path, what: String| CliError::Input(format!("{}: {what}", file.display()));
     let (depth, shape) = read_map(depth_file)?;
     let &[height, width] = shape.as_slice() else {
         return Err(bad(depth_file, format!("a depth map is height × width, found shape {shape:?}")));
     };
-    let [x0, x1, y0, y1] = args.extent;
+    let [x0, x1, y0, y1] = extent;
     let grid = MapGrid { width, height, x_range: [x0, x1], y_range: [y0, y1] };
     if let Some(i) = depth.iter().position(|z| z.is_infinite()) {
         return Err(bad(depth_file, format!("depth {} at pixel {i} is not finite (no surface is 0 or NaN)", depth[i])));
     }
     let depth: Vec<f32> = depth.into_iter().map(|z| if z > 0.0 { z } else { f32::NAN }).collect();
-    let normals = match &args.gt_normal {
+    let normals = match normal_file {
         None => None,
         Some(file) => {
             let (n, nshape) = read_map(file)?;
@@ -142,7 +149,8 @@ fn truth_maps(args: &Args, depth_file: &Path) -> Result<Maps, CliError> {
                 return Err(bad(
                     file,
                     format!(
-                        "a normal map is height × width × 3 ({height} × {width} × 3 for this depth map; the last axis                          holds x, y, z), found shape {nshape:?}"
+                        "a normal map is height × width × 3 ({height} × {width} × 3 for this depth map; the last axis \
+                         holds x, y, z), found shape {nshape:?}"
                     ),
                 ));
             }
@@ -150,9 +158,20 @@ fn truth_maps(args: &Args, depth_file: &Path) -> Result<Maps, CliError> {
         }
     };
     let maps = Maps { grid, depth, normals };
-    let name = args.gt_normal.as_ref().map_or_else(|| depth_file.display().to_string(), |n| n.display().to_string());
+    let name = normal_file.map_or_else(|| depth_file.display().to_string(), |n| n.display().to_string());
     maps.validate(&name).map_err(|e| CliError::Input(e.to_string()))?;
     Ok(maps)
+}
+
+/// Scores `reconstruction` (named `what` in errors) against the maps `truth`.
+pub(crate) fn score_maps(
+    reconstruction: &SurfaceMesh,
+    what: &str,
+    truth: &Maps,
+    threshold: f64,
+) -> Result<MapMetrics, CliError> {
+    let rec = mesh_maps(reconstruction, &truth.grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
+    evaluate_maps(&rec, truth, threshold).map_err(|e| CliError::Input(e.to_string()))
 }
 
 /// Runs `nlos eval`.
@@ -160,9 +179,8 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let reconstruction = reconstruction(args)?;
     let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
     if let Some(depth_file) = &args.gt_depth {
-        let truth = truth_maps(args, depth_file)?;
-        let rec = mesh_maps(&reconstruction, &truth.grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
-        let metrics = evaluate_maps(&rec, &truth, args.threshold).map_err(|e| CliError::Input(e.to_string()))?;
+        let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.extent)?;
+        let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
         let line =
             serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         println!("{line}");

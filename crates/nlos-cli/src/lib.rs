@@ -9,6 +9,7 @@
 //! of range, a usage error), 1 for other failures (an output that cannot be written, a figure that cannot
 //! be encoded). Errors are printed to stderr as `error: <message>`.
 
+mod benchmark;
 mod choices;
 mod convert;
 mod eval;
@@ -52,8 +53,9 @@ enum Command {
     /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
     /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
     Preview(preview::Args),
-    /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage and depth error
-    /// (mean, median, RMS) from a +z ray grid over the wall, Chamfer distance, normal angular error.
+    /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage (within 5 mm)
+    /// and depth error (mean, median, RMS, inside) from a +z ray grid over the wall, Chamfer distance, normal
+    /// angular error; or against ground-truth depth and normal maps (--gt-depth, --gt-normal).
     Eval(eval::Args),
     /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
     Init(init::Args),
@@ -63,6 +65,9 @@ enum Command {
     Render(render::Args),
     /// (Re)write the report of a reconstruction run: figures and `report.html` in the run directory.
     Report(report::Args),
+    /// The shared benchmark: every Z-NLOS capture of a folder with ground-truth depth (and normal) maps
+    /// beside it, reconstructed by LCT, f-k and the surface fit, scored against the maps as one table.
+    Benchmark(benchmark::Args),
 }
 
 /// A failure, with the exit code it maps to.
@@ -116,6 +121,7 @@ where
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Report(args) => report::run(&args),
+        Command::Benchmark(args) => benchmark::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
