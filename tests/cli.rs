@@ -125,7 +125,8 @@ fn benchmark_runs_on_znlos_files_with_maps() {
     npy("patch_depth.npy", &depth, &[ny, nx]);
     npy("patch_normal.npy", &normals, &[ny, nx, 3]);
     let table = dir.join("table.md");
-    let (d, o, tb) = (data_dir.to_string_lossy(), dir.join("runs").to_string_lossy().into_owned(), table.to_string_lossy());
+    let (d, o, tb) =
+        (data_dir.to_string_lossy(), dir.join("runs").to_string_lossy().into_owned(), table.to_string_lossy());
     let mut args = vec!["benchmark", &d, "--out", &o, "--table", &tb];
     args.extend(FAST);
     assert_eq!(nlos(&args), ExitCode::SUCCESS);

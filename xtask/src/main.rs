@@ -41,7 +41,9 @@ fn main() -> ExitCode {
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, sensor or all; writes docs/results.md");
             println!("       cargo xtask benchmark znlos DIR [-- ARGS...]");
-            println!("                                           LCT, f-k and the fit on DIR's Z-NLOS captures against");
+            println!(
+                "                                           LCT, f-k and the fit on DIR's Z-NLOS captures against"
+            );
             println!("                                           their depth/normal maps; writes docs/results.md");
             println!("       cargo xtask status                  the README's status table from docs/results.md");
             println!(

@@ -36,11 +36,11 @@
 //! `∂f/∂n = 0` (the front-side test is a step), `∂f/∂ρ = f/ρ`. Confocal (`ω_l = ω_s = ω`, `c = 1`): the lobe
 //! terms cancel and the total derivative along ω is `2 ρ/(π d₀²) ω`.
 
+use crate::Lambertian;
 use crate::brdf::{Brdf, BrdfSample, ConfocalGrad, Grad};
 use crate::error::{BrdfError, Result};
 use crate::lambert::check_albedo;
 use crate::real::{Real, V3, Vector3, normalize_with_inv_len};
-use crate::Lambertian;
 
 /// The default lobe width σ of [`Retroreflective`]: 1° in radians.
 pub const RETRO_LOBE_WIDTH: f64 = 0.017_453_292_519_943_295;
@@ -96,7 +96,7 @@ impl<T: Real> Retroreflective<T> {
     pub fn with_lobe_width(albedo: T, lobe_width: T) -> Result<Self> {
         check_albedo("albedo", albedo)?;
         let w = lobe_width.to_f64();
-        if !(w >= 1e-4 && w <= 1.0) {
+        if !(1e-4..=1.0).contains(&w) {
             return Err(BrdfError::InvalidLobeWidth { value: w });
         }
         Ok(Self { albedo, lobe_width, inv_w2: T::ONE / (lobe_width * lobe_width) })

@@ -105,10 +105,9 @@ pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<Sur
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: nlos_init::InitError| CliError::Input(format!("{}: {e}", capture.display()));
     let (volume, surface) = match method {
-        VolumeMethod::Lct => (
-            nlos_init::lct(&t, &nlos_init::LctParams::default()).map_err(fail)?,
-            nlos_init::SurfaceParams::object(),
-        ),
+        VolumeMethod::Lct => {
+            (nlos_init::lct(&t, &nlos_init::LctParams::default()).map_err(fail)?, nlos_init::SurfaceParams::object())
+        }
         VolumeMethod::Fk => {
             (nlos_init::fk(&t, &nlos_init::FkParams::default()).map_err(fail)?, nlos_init::SurfaceParams::default())
         }
@@ -181,8 +180,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if let Some(depth_file) = &args.gt_depth {
         let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.extent)?;
         let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
-        let line =
-            serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
+        let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         println!("{line}");
         return Ok(());
     }
@@ -198,7 +196,8 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if let Some(png) = &args.map {
         let view =
             nlos_report::figures::DepthView { grid: params.grid, x_range: params.x_range, y_range: params.y_range };
-        let title = Path::new(&what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
+        let title =
+            Path::new(&what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
         let fig = nlos_report::figures::coverage_figure(
             &[(&title, &metrics.depth_reconstruction)],
             &metrics.depth_ground_truth,

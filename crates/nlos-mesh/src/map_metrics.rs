@@ -43,7 +43,8 @@ pub struct MapGrid {
 impl MapGrid {
     /// The wall position `(x, y)` of the centre of pixel `(row, col)` (module docs).
     pub fn pixel_center(&self, row: usize, col: usize) -> (f32, f32) {
-        let at = |r: [f32; 2], i: usize, n: usize| f64::from(r[0]) + (i as f64 + 0.5) * f64::from(r[1] - r[0]) / n as f64;
+        let at =
+            |r: [f32; 2], i: usize, n: usize| f64::from(r[0]) + (i as f64 + 0.5) * f64::from(r[1] - r[0]) / n as f64;
         let x = at(self.x_range, col, self.width);
         let y = f64::from(self.y_range[1]) - (at(self.y_range, row, self.height) - f64::from(self.y_range[0]));
         (x as f32, y as f32)
@@ -123,7 +124,9 @@ impl Maps {
         if let Some((i, n)) = inside().enumerate().find(|(_, n)| !(n.is_finite() && (n.length() - 1.0).abs() < 1e-2)) {
             return Err(bad(
                 "normal",
-                format!("the {i}-th normal inside the mask is {n}, not a finite unit vector (is the last axis x, y, z?)"),
+                format!(
+                    "the {i}-th normal inside the mask is {n}, not a finite unit vector (is the last axis x, y, z?)"
+                ),
             ));
         }
         let facing = inside().filter(|n| n.z < 0.0).count();
@@ -230,9 +233,11 @@ pub fn evaluate_maps(reconstruction: &Maps, truth: &Maps, threshold: f64) -> Res
         if sorted.len() % 2 == 1 { sorted[m] } else { 0.5 * (sorted[m - 1] + sorted[m]) }
     });
     let normal_error_mean_deg = match (&reconstruction.normals, &truth.normals) {
-        (Some(a), Some(b)) => mean(&mut pairs.iter().map(|&(i, _)| {
-            f64::from(a[i].normalize().dot(b[i].normalize()).clamp(-1.0, 1.0)).acos().to_degrees()
-        })),
+        (Some(a), Some(b)) => mean(
+            &mut pairs
+                .iter()
+                .map(|&(i, _)| f64::from(a[i].normalize().dot(b[i].normalize()).clamp(-1.0, 1.0)).acos().to_degrees()),
+        ),
         _ => None,
     };
     Ok(MapMetrics {
@@ -305,7 +310,8 @@ pub fn normals_from_depth(depth: &[f32], grid: &MapGrid) -> Vec<Vec3> {
             let Some(z) = at(r, c) else { return Vec3::new(0.0, 0.0, -1.0) };
             let zx = slope(c.checked_sub(1).and_then(|c| at(r, c)), z, (c + 1 < w).then(|| at(r, c + 1)).flatten(), dx);
             // Rows run toward −y.
-            let zy = -slope(r.checked_sub(1).and_then(|r| at(r, c)), z, (r + 1 < h).then(|| at(r + 1, c)).flatten(), dy);
+            let zy =
+                -slope(r.checked_sub(1).and_then(|r| at(r, c)), z, (r + 1 < h).then(|| at(r + 1, c)).flatten(), dy);
             Vec3::new(zx as f32, zy as f32, -1.0).normalize()
         })
         .collect()

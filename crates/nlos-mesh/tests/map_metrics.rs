@@ -77,11 +77,15 @@ fn bad_maps_are_typed_errors() {
     let truth = plate_maps(0.4, 0.0);
     let mut short = truth.clone();
     short.depth.pop();
-    assert!(matches!(evaluate_maps(&truth, &short, 0.005), Err(MeshError::Format { ref field, .. }) if field == "depth"));
+    assert!(
+        matches!(evaluate_maps(&truth, &short, 0.005), Err(MeshError::Format { ref field, .. }) if field == "depth")
+    );
     let mut nan = truth.clone();
     let inside = nan.depth.iter().position(|z| !z.is_nan()).expect("mask");
     nan.normals.as_mut().expect("normals")[inside] = Vec3::NAN;
-    assert!(matches!(evaluate_maps(&truth, &nan, 0.005), Err(MeshError::Format { ref field, .. }) if field == "normal"));
+    assert!(
+        matches!(evaluate_maps(&truth, &nan, 0.005), Err(MeshError::Format { ref field, .. }) if field == "normal")
+    );
     let mut away = truth.clone();
     away.normals.as_mut().expect("normals").iter_mut().for_each(|n| *n = -*n);
     let e = evaluate_maps(&truth, &away, 0.005).expect_err("facing away");

@@ -466,7 +466,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
     ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),
     ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
-    ("reflectance.model", "\"lambert\", \"ggx\" or \"retroreflective\" (1/r² confocal return; LCT start weighted for it)"),
+    (
+        "reflectance.model",
+        "\"lambert\", \"ggx\" or \"retroreflective\" (1/r² confocal return; LCT start weighted for it)",
+    ),
     ("reflectance.alpha", "initial GGX roughness, in [0.001, 1]"),
     ("sensor.response", "\"auto\", \"off\" (L2), \"ideal\", \"direct\" (the capture's own) or a jitter file"),
     ("sensor.background", "background counts per bin of the sensor fit, or \"auto\""),

@@ -74,11 +74,11 @@ impl PointSet {
             let fast = |v: Vec3| if x_fastest { v.x } else { v.y };
             let slow = |v: Vec3| if x_fastest { v.y } else { v.x };
             let step = fast(p[1]) - fast(p[0]);
-            if !(step.abs() > 0.0) || (slow(p[1]) - slow(p[0])).abs() > 0.01 * step.abs() {
+            if step == 0.0 || !step.is_finite() || (slow(p[1]) - slow(p[0])).abs() > 0.01 * step.abs() {
                 continue;
             }
             let run = p.iter().position(|q| (slow(*q) - slow(p[0])).abs() > 0.01 * step.abs()).unwrap_or(n);
-            if run < 2 || n % run != 0 || n / run < 2 {
+            if run < 2 || !n.is_multiple_of(run) || n / run < 2 {
                 continue;
             }
             let rows = n / run;

@@ -585,7 +585,7 @@ fn read_array_returns_c_order() {
     let f = dir.join("m.mat");
     // M = [1 2 3; 4 5 NaN] stored column-major: 1 4 2 5 3 NaN.
     let m = double("depth", &[2, 3], vec![1.0, 4.0, 2.0, 5.0, 3.0, f64::NAN]);
-    std::fs::write(&f, write(&[m.clone()], Options::default())).expect("write");
+    std::fs::write(&f, write(std::slice::from_ref(&m), Options::default())).expect("write");
     let (v, dims, name) = nlos_transient::formats::mat::read_array(&f, None).expect("read");
     assert_eq!((dims, name.as_str()), (vec![2, 3], "depth"));
     assert_eq!(&v[..5], &[1.0, 2.0, 3.0, 4.0, 5.0]);

@@ -1007,14 +1007,8 @@ impl Renderer {
             let fs = if self.wall.confocal { brdf.eval_confocal(a, n) } else { brdf.eval(a, b, n) };
             let g = sub.w * vis_c * fs * (cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2));
             let c = sub.corners.map(|(cu, cv)| node(self.point(t, cu, cv)));
-            let (c0, c1, c2) = splat::centred(
-                c[0],
-                c[1],
-                c[2],
-                node(x),
-                (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt,
-                B::DISTANCE_POWER,
-            );
+            let (c0, c1, c2) =
+                splat::centred(c[0], c[1], c[2], node(x), (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt, B::DISTANCE_POWER);
             if let Some(kn) = Knots::new([c0, c1, c2]) {
                 kn.weights(0, last, |k, w| hist[k as usize] += g * w);
             }

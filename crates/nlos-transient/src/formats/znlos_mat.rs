@@ -73,7 +73,8 @@ fn vec3(m: &MatFile<'_>, file: &Path, name: &str) -> Result<Option<Vec3>> {
 /// The map from the file's frame to ours: the wall's constant coordinate removed, the scene's side to +z.
 fn frame(file: &Path, points: &[Vec3], scene: Option<Vec3>) -> Result<impl Fn(Vec3) -> Vec3 + use<>> {
     let spread = |f: fn(Vec3) -> f32| {
-        let (lo, hi) = points.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(f(*p)), hi.max(f(*p))));
+        let (lo, hi) =
+            points.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(f(*p)), hi.max(f(*p))));
         (hi - lo, 0.5 * (hi + lo))
     };
     let ((sx, _), (sy, wy), (sz, wz)) = (spread(|p| p.x), spread(|p| p.y), spread(|p| p.z));
@@ -111,8 +112,8 @@ fn frame(file: &Path, points: &[Vec3], scene: Option<Vec3>) -> Result<impl Fn(Ve
 pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     let d = m.numeric("data", "NeTF's Z-NLOS files hold the T×A×B histograms in `data`")?;
     let (bins, n) = match d.header.dims.as_slice() {
-        &[t, a, b] => (t, a * b),
-        &[t, n] => (t, n),
+        [t, a, b] => (*t, a * b),
+        [t, n] => (*t, *n),
         _ => return Err(wrong_shape(file, &d, "T×A×B (time bins × wall grid) or T×N")),
     };
     if bins == 0 || n == 0 {
@@ -121,14 +122,14 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     let pos = m.numeric("cameraGridPositions", "the wall points, 3×N metres")?;
     let p = pos.to_f64(file)?;
     let dims = pos.header.dims.clone();
-    let at: Box<dyn Fn(usize, usize) -> f64> = if dims.first() == Some(&3) && dims.iter().skip(1).product::<usize>() == n
-    {
-        Box::new(move |i: usize, c: usize| p[c + 3 * i])
-    } else if dims.len() == 2 && dims[0] == n && dims[1] == 3 {
-        Box::new(move |i: usize, c: usize| p[i + n * c])
-    } else {
-        return Err(wrong_shape(file, &pos, format!("3×{n} (one column per wall point of `data`)")));
-    };
+    let at: Box<dyn Fn(usize, usize) -> f64> =
+        if dims.first() == Some(&3) && dims.iter().skip(1).product::<usize>() == n {
+            Box::new(move |i: usize, c: usize| p[c + 3 * i])
+        } else if dims.len() == 2 && dims[0] == n && dims[1] == 3 {
+            Box::new(move |i: usize, c: usize| p[i + n * c])
+        } else {
+            return Err(wrong_shape(file, &pos, format!("3×{n} (one column per wall point of `data`)")));
+        };
     let points: Vec<Vec3> = (0..n).map(|i| Vec3::new(at(i, 0) as f32, at(i, 1) as f32, at(i, 2) as f32)).collect();
     if let Some(i) = points.iter().position(|q| !q.is_finite()) {
         return Err(TransientError::NonFinite { file: file.into(), field: "cameraGridPositions".into(), index: i });
