@@ -38,12 +38,12 @@ pub(crate) struct Args {
     /// The ground-truth mesh (OBJ, PLY or GLB).
     #[arg(long, value_name = "GT", required_unless_present = "gt_depth", conflicts_with = "gt_depth")]
     gt: Option<PathBuf>,
-    /// Ground-truth depth map (.npy or .mat, height × width, metres along +z from the wall; 0 or NaN: no
+    /// Ground-truth depth map (.npy, .mat or one-channel .exr, height × width, metres along +z from the wall; 0 or NaN: no
     /// surface) on the wall grid of --extent, seen from the wall as an image: row 0 at the top (largest y),
     /// column 0 at the left (smallest x).
     #[arg(long, value_name = "DEPTH")]
     gt_depth: Option<PathBuf>,
-    /// Ground-truth normal map (.npy or .mat, height × width × 3, unit x, y, z in the same frame, facing
+    /// Ground-truth normal map (.npy, .mat or R, G, B .exr, height × width × 3, unit x, y, z in the same frame, facing
     /// the wall) on the depth map's grid.
     #[arg(long, value_name = "NORMAL", requires = "gt_depth")]
     gt_normal: Option<PathBuf>,
@@ -115,13 +115,14 @@ pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<Sur
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(fail)?.mesh)
 }
 
-/// A map file as (values in C order, shape): `.npy` or `.mat` (its only numeric variable).
+/// A map file as (values in C order, shape): `.npy`, `.mat` (its only numeric variable) or `.exr` (one
+/// channel, or R, G, B).
 pub(crate) fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> {
-    let is_mat = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"));
-    let read = if is_mat {
-        nlos_transient::formats::mat::read_array(path, None).map(|(v, dims, _)| (v, dims))
-    } else {
-        nlos_transient::formats::npy::read_npy_map(path)
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let read = match ext.as_str() {
+        "mat" => nlos_transient::formats::mat::read_array(path, None).map(|(v, dims, _)| (v, dims)),
+        "exr" => nlos_transient::formats::exr::read_image(path),
+        _ => nlos_transient::formats::npy::read_npy_map(path),
     };
     read.map_err(CliError::input)
 }

@@ -4,6 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+#[path = "support/mat5_writer.rs"]
+mod mat5_writer;
+
 use glam::Vec3;
 use hdf5_pure::{AttrValue, FileBuilder};
 use nlos_transient::formats::{self, Format, hdf5};
@@ -534,4 +537,54 @@ fn regression_hdf5_pure_chunk_offset_overflow_is_malformed() {
         assert!(formats::read_bytes_as(bytes, format, f).is_err());
     }
     let _ = formats::detect_bytes(bytes, f);
+}
+
+/// The same Z-NLOS scene — a 5 × 4 wall grid on y = 0 facing −y, histograms naming their point and bin —
+/// written as the dataset's HDF5 and as NeTF's `.mat` lands at the same points, with the same normals,
+/// histograms and time axis in our frame (the HDF5 alone says that its times hold the device legs).
+#[test]
+fn znlos_hdf5_and_netf_mat_agree() {
+    let (a, b, t) = (4usize, 5usize, 6usize);
+    let n = a * b;
+    // HDF5 C order: positions (3, A, B), point p = ia·B + ib at (0.1·ib − 0.2, 0, 0.05·ia − 0.1).
+    let at = |p: usize| [0.1 * (p % b) as f32 - 0.2, 0.0, 0.05 * (p / b) as f32 - 0.1];
+    let value = |p: usize, k: usize| (100 * p + k) as f32;
+    let xyz: Vec<f32> = (0..3).flat_map(|c| (0..n).map(move |p| at(p)[c])).collect();
+    let normals: Vec<f32> = (0..3).flat_map(|c| (0..n).map(move |_| if c == 1 { -1.0 } else { 0.0 })).collect();
+    let data: Vec<f32> = (0..t).flat_map(|k| (0..n).map(move |p| value(p, k))).collect();
+    let mut h = FileBuilder::new();
+    h.create_dataset("data").with_f32_data(&data).with_shape(&[t as u64, a as u64, b as u64]);
+    for (name, v) in [("cameraGridPositions", &xyz), ("laserGridPositions", &xyz)] {
+        h.create_dataset(name).with_f32_data(v).with_shape(&[3, a as u64, b as u64]);
+    }
+    for name in ["cameraGridNormals", "laserGridNormals"] {
+        h.create_dataset(name).with_f32_data(&normals).with_shape(&[3, a as u64, b as u64]);
+    }
+    h.create_dataset("cameraPosition").with_f32_data(&[0.0, 1.0, 0.0]).with_shape(&[3, 1]);
+    h.create_dataset("laserPosition").with_f32_data(&[0.0, 1.0, 0.0]).with_shape(&[3, 1]);
+    h.create_dataset("deltaT").with_f64_data(&[0.004]).with_shape(&[]);
+    h.create_dataset("t0").with_f64_data(&[0.0]).with_shape(&[]);
+    h.create_dataset("isConfocal").with_i32_data(&[1]).with_shape(&[]);
+    let hdf5 = formats::read_bytes_as(&h.finish().unwrap(), Format::ZNlos, Path::new("scene.hdf5")).unwrap();
+    // NeTF: data T×B×A column-major (data(k, ib, ia) pairs with column ib + B·ia = p), positions 3×N.
+    let mat_data: Vec<f64> = (0..n).flat_map(|p| (0..t).map(move |k| f64::from(value(p, k)))).collect();
+    let pos: Vec<f64> = (0..n).flat_map(|p| at(p).map(f64::from)).collect();
+    let vars = vec![
+        mat5_writer::double("data", &[t as i32, b as i32, a as i32], mat_data),
+        mat5_writer::double("cameraGridPositions", &[3, n as i32], pos),
+        mat5_writer::double("deltaT", &[1, 1], vec![0.004]),
+        mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.5, 0.0]),
+    ];
+    let bytes = mat5_writer::write(&vars, mat5_writer::Options::default());
+    let netf = formats::read_bytes_as(&bytes, Format::ZNlosMat, Path::new("scene.mat")).unwrap();
+    let (ph, pn) = (hdf5.scan().lasers(), netf.scan().lasers());
+    assert_eq!(ph.layout, pn.layout);
+    assert_eq!(ph.layout, Layout::Grid { nx: b, ny: a });
+    for p in 0..n {
+        assert!((ph.points[p] - pn.points[p]).length() < 1e-6, "point {p}: {} vs {}", ph.points[p], pn.points[p]);
+        assert!((ph.normals[p] - pn.normals[p]).length() < 1e-6 && pn.normals[p] == Vec3::Z);
+        assert_eq!(hdf5.histogram(p), netf.histogram(p), "histogram {p}");
+    }
+    assert_eq!((hdf5.time().t0, hdf5.time().bin_width), (netf.time().t0, netf.time().bin_width));
+    assert!(hdf5.time().includes_device_legs && !netf.time().includes_device_legs);
 }

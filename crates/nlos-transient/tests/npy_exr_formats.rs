@@ -537,3 +537,24 @@ fn large_point_lists_round_trip() -> R {
     std::fs::remove_dir_all(&dir).ok();
     Ok(())
 }
+
+/// `exr::read_image` (depth and normal maps): one channel is height × width, R, G, B is height × width × 3
+/// with x, y, z interleaved per pixel; other channel sets are typed errors.
+#[test]
+fn exr_maps() {
+    let dir = std::env::temp_dir().join(format!("nlos-exr-map-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let f = dir.join("m.exr");
+    // Channel i holds (pixel + i)/2 (see `foreign_exr`).
+    std::fs::write(&f, foreign_exr(&[("Z", false)], 4, 3, vec![])).expect("write");
+    let (v, shape) = nlos_transient::formats::exr::read_image(&f).expect("depth");
+    assert_eq!((shape, v[5]), (vec![3, 4], 2.5));
+    std::fs::write(&f, foreign_exr(&[("R", false), ("G", false), ("B", true)], 4, 3, vec![])).expect("write");
+    let (v, shape) = nlos_transient::formats::exr::read_image(&f).expect("normals");
+    assert_eq!(shape, vec![3, 4, 3]);
+    // Pixel 5: R = 2.5, G = 3.0, B = 3.5 (channels sorted B, G, R in the file: read by name).
+    assert_eq!(&v[15..18], &[2.5, 3.0, 3.5]);
+    std::fs::write(&f, foreign_exr(&[("A", false), ("Q", false)], 4, 3, vec![])).expect("write");
+    assert!(matches!(nlos_transient::formats::exr::read_image(&f), Err(TransientError::Unsupported { .. })));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -164,6 +164,93 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Transient> {
     Transient::new(scan, time, data).map_err(|e| super::with_file(e, file))
 }
 
+/// Reads an EXR image that is not a capture — a depth or normal map — as `(values, shape)` in C order: one
+/// channel (the only one, `Y` or `Z`… as [`pick_channel`]) gives shape `(height, width)`, three channels
+/// named `R, G, B` or `X, Y, Z` give `(height, width, 3)` with x, y, z from R, G, B (or X, Y, Z). Row 0 is the
+/// image's top. NaN is kept (a map's "no value"); infinities are an error.
+///
+/// # Errors
+/// [`TransientError::Io`], [`TransientError::Malformed`] (including a decoder panic),
+/// [`TransientError::Unsupported`] for several layers, deep data or a channel set that is neither one
+/// channel nor R, G, B / X, Y, Z; [`TransientError::NonFinite`] for an infinity.
+pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
+    let file = path;
+    let bytes = super::read_file(path)?;
+    let malformed = |e: exr::error::Error| TransientError::Malformed { file: file.into(), detail: format!("EXR: {e}") };
+    let meta = guard(file, || MetaData::read_from_buffered(Cursor::new(&bytes), false))?.map_err(malformed)?;
+    let [header] = meta.headers.as_slice() else {
+        return Err(TransientError::Unsupported {
+            file: file.into(),
+            what: "EXR with several layers (a map is one)".into(),
+        });
+    };
+    if header.deep {
+        return Err(TransientError::Unsupported { file: file.into(), what: "deep EXR data".into() });
+    }
+    let (width, height) = (header.layer_size.0, header.layer_size.1);
+    if width.saturating_mul(height).saturating_mul(12) > bytes.len().saturating_mul(MAX_EXPANSION).max(1 << 20) {
+        return Err(TransientError::Malformed {
+            file: file.into(),
+            detail: format!("EXR declares a {width} × {height} image, far more than its {} bytes hold", bytes.len()),
+        });
+    }
+    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let wanted: Vec<usize> = if names.len() == 1 {
+        vec![0]
+    } else if let Some(rgb) = [["R", "G", "B"], ["X", "Y", "Z"]]
+        .iter()
+        .find_map(|set| set.iter().map(|n| names.iter().position(|m| m == n)).collect::<Option<Vec<_>>>())
+    {
+        rgb
+    } else {
+        return Err(TransientError::Unsupported {
+            file: file.into(),
+            what: format!("EXR map with channels {names:?}: a depth map has one channel, a normal map R, G, B"),
+        });
+    };
+    let image = guard(file, || {
+        exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(Cursor::new(&bytes))
+    })?
+    .map_err(malformed)?;
+    let layer = image
+        .layer_data
+        .first()
+        .ok_or_else(|| TransientError::Malformed { file: file.into(), detail: "EXR: no layer decoded".into() })?;
+    let channel = |name: &str| -> Result<Vec<f32>> {
+        let samples =
+            layer.channel_data.list.iter().find(|c| c.name.to_string() == name).map(|c| &c.sample_data).ok_or_else(
+                || TransientError::Malformed { file: file.into(), detail: "EXR: channel not decoded".into() },
+            )?;
+        let v: Vec<f32> = match samples {
+            FlatSamples::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
+            FlatSamples::F32(v) => v.clone(),
+            FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
+        };
+        if v.len() != width * height {
+            return Err(TransientError::Malformed {
+                file: file.into(),
+                detail: format!("EXR: decoded {} samples for a {width} × {height} image", v.len()),
+            });
+        }
+        Ok(v)
+    };
+    let planes: Vec<Vec<f32>> = wanted.iter().map(|&i| channel(&names[i])).collect::<Result<_>>()?;
+    let k = planes.len();
+    let values: Vec<f32> = (0..width * height).flat_map(|i| planes.iter().map(move |p| p[i])).collect();
+    if let Some(i) = values.iter().position(|v| v.is_infinite()) {
+        return Err(TransientError::NonFinite { file: file.into(), field: "exr map".into(), index: i });
+    }
+    let shape = if k == 1 { vec![height, width] } else { vec![height, width, k] };
+    Ok((values, shape))
+}
+
 /// The channel to read: the only one, else `Y`, else `R`.
 fn pick_channel(names: &[String]) -> Option<usize> {
     if names.len() == 1 {
