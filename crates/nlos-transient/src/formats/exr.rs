@@ -120,39 +120,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Transient> {
             found: format!("{bins} × {measurements}"),
         });
     }
-    let image = guard(file, || {
-        exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .all_layers()
-            .all_attributes()
-            .non_parallel()
-            .from_buffered(Cursor::new(bytes))
-    })?
-    .map_err(malformed)?;
-    let layer = image
-        .layer_data
-        .first()
-        .ok_or_else(|| TransientError::Malformed { file: file.into(), detail: "EXR: no layer decoded".into() })?;
-    let samples = layer
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name.to_string() == names[channel])
-        .map(|c| &c.sample_data)
-        .ok_or_else(|| TransientError::Malformed { file: file.into(), detail: "EXR: channel not decoded".into() })?;
-    let data: Vec<f32> = match samples {
-        FlatSamples::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
-        FlatSamples::F32(v) => v.clone(),
-        FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
-    };
-    if data.len() != measurements * bins {
-        return Err(TransientError::Malformed {
-            file: file.into(),
-            detail: format!("EXR: decoded {} samples for a {bins} × {measurements} image", data.len()),
-        });
-    }
+    let data = decode_channels(bytes, file, &[names[channel].as_str()], measurements * bins)?.remove(0);
     if let Some(i) = data.iter().position(|v| !v.is_finite()) {
         return Err(TransientError::NonFinite {
             file: file.into(),
@@ -208,6 +176,21 @@ pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
             what: format!("EXR map with channels {names:?}: a depth map has one channel, a normal map R, G, B"),
         });
     };
+    let wanted: Vec<&str> = wanted.iter().map(|&i| names[i].as_str()).collect();
+    let planes = decode_channels(&bytes, file, &wanted, width * height)?;
+    let k = planes.len();
+    let values: Vec<f32> = (0..width * height).flat_map(|i| planes.iter().map(move |p| p[i])).collect();
+    if let Some(i) = values.iter().position(|v| v.is_infinite()) {
+        return Err(TransientError::NonFinite { file: file.into(), field: "exr map".into(), index: i });
+    }
+    let shape = if k == 1 { vec![height, width] } else { vec![height, width, k] };
+    Ok((values, shape))
+}
+
+/// Decodes the named channels of the first layer of an EXR image as `f32` planes of `pixels` samples each,
+/// turning a decoder panic into [`TransientError::Malformed`].
+fn decode_channels(bytes: &[u8], file: &Path, names: &[&str], pixels: usize) -> Result<Vec<Vec<f32>>> {
+    let malformed = |e: exr::error::Error| TransientError::Malformed { file: file.into(), detail: format!("EXR: {e}") };
     let image = guard(file, || {
         exr::prelude::read()
             .no_deep_data()
@@ -216,39 +199,40 @@ pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
             .all_layers()
             .all_attributes()
             .non_parallel()
-            .from_buffered(Cursor::new(&bytes))
+            .from_buffered(Cursor::new(bytes))
     })?
     .map_err(malformed)?;
     let layer = image
         .layer_data
         .first()
         .ok_or_else(|| TransientError::Malformed { file: file.into(), detail: "EXR: no layer decoded".into() })?;
-    let channel = |name: &str| -> Result<Vec<f32>> {
-        let samples =
-            layer.channel_data.list.iter().find(|c| c.name.to_string() == name).map(|c| &c.sample_data).ok_or_else(
-                || TransientError::Malformed { file: file.into(), detail: "EXR: channel not decoded".into() },
-            )?;
-        let v: Vec<f32> = match samples {
-            FlatSamples::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
-            FlatSamples::F32(v) => v.clone(),
-            FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
-        };
-        if v.len() != width * height {
-            return Err(TransientError::Malformed {
-                file: file.into(),
-                detail: format!("EXR: decoded {} samples for a {width} × {height} image", v.len()),
-            });
-        }
-        Ok(v)
-    };
-    let planes: Vec<Vec<f32>> = wanted.iter().map(|&i| channel(&names[i])).collect::<Result<_>>()?;
-    let k = planes.len();
-    let values: Vec<f32> = (0..width * height).flat_map(|i| planes.iter().map(move |p| p[i])).collect();
-    if let Some(i) = values.iter().position(|v| v.is_infinite()) {
-        return Err(TransientError::NonFinite { file: file.into(), field: "exr map".into(), index: i });
-    }
-    let shape = if k == 1 { vec![height, width] } else { vec![height, width, k] };
-    Ok((values, shape))
+    names
+        .iter()
+        .map(|name| {
+            let samples = layer
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name.to_string() == *name)
+                .map(|c| &c.sample_data)
+                .ok_or_else(|| TransientError::Malformed {
+                    file: file.into(),
+                    detail: "EXR: channel not decoded".into(),
+                })?;
+            let v: Vec<f32> = match samples {
+                FlatSamples::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
+                FlatSamples::F32(v) => v.clone(),
+                FlatSamples::U32(v) => v.iter().map(|&u| u as f32).collect(),
+            };
+            if v.len() != pixels {
+                return Err(TransientError::Malformed {
+                    file: file.into(),
+                    detail: format!("EXR: decoded {} samples for an image of {pixels}", v.len()),
+                });
+            }
+            Ok(v)
+        })
+        .collect()
 }
 
 /// The channel to read: the only one, else `Y`, else `R`.
