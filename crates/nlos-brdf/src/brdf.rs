@@ -11,7 +11,9 @@ use crate::real::{Real, V3, Vector3};
 /// # Conventions
 /// * `omega_l` points from the surface point toward the laser spot, `omega_s` toward the sensor spot, `n` is
 ///   the surface normal. None needs to be unit length: every method normalises its inputs, and the gradients
-///   are those of the composed function `f(ω_l/|ω_l|, ω_s/|ω_s|, n/|n|)` with respect to the raw vectors.
+///   are those of the composed function `f(ω_l/|ω_l|, ω_s/|ω_s|, n/|n|)` with respect to the raw vectors —
+///   except [`crate::Retroreflective`], whose value also reads `|ω_l||ω_s|` (pass the vectors in metres; its
+///   gradients include that length term).
 /// * Back-facing configurations (`n·ω_l ≤ 0` or `n·ω_s ≤ 0`) and degenerate (zero or non-finite) vectors
 ///   give value 0 and all gradients 0.
 pub trait Brdf: Copy + std::fmt::Debug + Send + Sync {

@@ -47,7 +47,9 @@
 //!   chain directly: the normalisation Jacobians are already applied;
 //! * at unit inputs the gradients are tangent (`∂F/∂ω·ω = 0`), so chaining again through one's own
 //!   normalisation is harmless (the projection is idempotent);
-//! * the value never depends on input lengths.
+//! * the value never depends on input lengths — for [`Lambertian`] and [`Ggx`]; [`Retroreflective`] reads
+//!   `|ω_l||ω_s|` (its `1/r²` return, see [`retro`]), and its gradients carry that term, so the same chain
+//!   rule holds.
 //!
 //! Derivation (unit `l, s, n`; `μ_l = n·l`, `μ_s = n·s`, `c = n·h`, `u = l·h = |l+s|/2`):
 //! `∇_l = f_μl n + f_c (n − c h)/|l+s| + f_u h/2`, likewise for `s`, `∇_n = f_μl l + f_μs s + f_c h`, then each

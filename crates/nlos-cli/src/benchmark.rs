@@ -35,9 +35,14 @@ pub(crate) struct Args {
     threshold: f64,
 }
 
-/// The table's header.
-pub(crate) const HEADER: &str = "| scene | method | coverage within 5 mm | depth error in the mask (mm) | inside (mm) | \
-normal error (°) | time (s) |\n|---|---|---|---|---|---|---|";
+/// The table's header, for a coverage threshold of `threshold` metres.
+fn header(threshold: f64) -> String {
+    format!(
+        "| scene | method | coverage within {} mm | depth error in the mask (mm) | inside (mm) | normal error (°) | \
+         time (s) |\n|---|---|---|---|---|---|---|",
+        1e3 * threshold
+    )
+}
 
 /// A capture of the benchmark and its ground-truth maps.
 struct Scene {
@@ -108,8 +113,9 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             args.dir.display()
         )));
     }
-    let mut table = vec![HEADER.to_string()];
-    println!("{HEADER}");
+    let head = header(args.threshold);
+    println!("{head}");
+    let mut table = vec![head];
     for s in &scenes {
         let truth = truth_maps(&s.depth, s.normal.as_deref(), extent(&s.capture)?)?;
         let mut score = |method: &str, mesh: &nlos_mesh::SurfaceMesh, t: f64| -> Result<(), CliError> {

@@ -105,16 +105,17 @@ fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
 /// the seed-setup bunny's pixels, the compact-object settings 25 %.)
 pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<SurfaceMesh, CliError> {
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
-    let fail = |e: nlos_init::InitError| CliError::Input(format!("{}: {e}", capture.display()));
-    let (volume, surface) = match method {
+    let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
+    match method {
         VolumeMethod::Lct => {
-            (nlos_init::lct(&t, &nlos_init::LctParams::default()).map_err(fail)?, nlos_init::SurfaceParams::object())
+            nlos_optim::radiometry::lct_start(&t, nlos_init::Material::Diffuse, None).map_err(|e| fail(e.to_string()))
         }
         VolumeMethod::Fk => {
-            (nlos_init::fk(&t, &nlos_init::FkParams::default()).map_err(fail)?, nlos_init::SurfaceParams::object())
+            let volume = nlos_init::fk(&t, &nlos_init::FkParams::default()).map_err(|e| fail(e.to_string()))?;
+            let surface = nlos_init::volume_to_surface(&volume, &nlos_init::SurfaceParams::object());
+            Ok(surface.map_err(|e| fail(e.to_string()))?.mesh)
         }
-    };
-    Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(fail)?.mesh)
+    }
 }
 
 /// A map file as (values in C order, shape): `.npy`, `.mat` (its only numeric variable) or `.exr` (one

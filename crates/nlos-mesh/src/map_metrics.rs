@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::bvh::TriangleBvh;
 use crate::error::MeshError;
-use crate::metrics::{SILHOUETTE_BAND, interior_mask};
+use crate::metrics::{SILHOUETTE_BAND, interior_mask, median_of_sorted};
 use crate::surface_mesh::SurfaceMesh;
 
 /// The wall grid of a map (module docs).
@@ -228,10 +228,7 @@ pub fn evaluate_maps(reconstruction: &Maps, truth: &Maps, threshold: f64) -> Res
     };
     let mut sorted: Vec<f64> = pairs.iter().map(|p| p.1).collect();
     sorted.sort_by(f64::total_cmp);
-    let median = (!sorted.is_empty()).then(|| {
-        let m = sorted.len() / 2;
-        if sorted.len() % 2 == 1 { sorted[m] } else { 0.5 * (sorted[m - 1] + sorted[m]) }
-    });
+    let median = median_of_sorted(&sorted);
     let normal_error_mean_deg = match (&reconstruction.normals, &truth.normals) {
         (Some(a), Some(b)) => mean(
             &mut pairs

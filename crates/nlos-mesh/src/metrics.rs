@@ -304,9 +304,7 @@ pub fn evaluate(
         let mean = errors.iter().sum::<f64>() / k;
         let rms = (errors.iter().map(|e| e * e).sum::<f64>() / k).sqrt();
         errors.sort_by(f64::total_cmp);
-        let mid = errors.len() / 2;
-        let median = if errors.len() % 2 == 1 { errors[mid] } else { 0.5 * (errors[mid - 1] + errors[mid]) };
-        (Some(mean), Some(median), Some(rms), errors.last().copied())
+        (Some(mean), median_of_sorted(&errors), Some(rms), errors.last().copied())
     };
 
     let interior = interior_mask(&depth_ground_truth, params.grid, SILHOUETTE_BAND);
@@ -349,6 +347,17 @@ pub fn evaluate(
         depth_reconstruction,
         depth_ground_truth,
     })
+}
+
+/// The median of ascending `sorted` values (the mean of the two middle ones for an even count); None when
+/// empty.
+pub(crate) fn median_of_sorted(sorted: &[f64]) -> Option<f64> {
+    let m = sorted.len() / 2;
+    match sorted.len() {
+        0 => None,
+        n if n % 2 == 1 => Some(sorted[m]),
+        _ => Some(0.5 * (sorted[m - 1] + sorted[m])),
+    }
 }
 
 /// Per pixel of an `n × n` depth map (`NaN`: no hit): whether every pixel within `band` rows and columns of

@@ -197,6 +197,13 @@ pub enum BrdfModel {
     Retroreflective,
 }
 
+impl BrdfModel {
+    /// The LCT weighting of the model's start: retroreflective for `retroreflective`, else diffuse.
+    pub fn material(self) -> Material {
+        if self == BrdfModel::Retroreflective { Material::Retroreflective } else { Material::Diffuse }
+    }
+}
+
 /// The noise model of the smoothing weight ([`crate::DataTerm::counts`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -598,15 +605,6 @@ impl Prepared {
         Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes })
     }
 
-    /// The LCT weighting of the run's model (retroreflective for `retroreflective`, else diffuse).
-    pub fn material(config: &Config) -> Material {
-        if config.reflectance.model == BrdfModel::Retroreflective {
-            Material::Retroreflective
-        } else {
-            Material::Diffuse
-        }
-    }
-
     /// The optimiser's parameters: `config` resolved against this capture (noise model, sensor fit,
     /// background), writing into `out_dir`.
     ///
@@ -768,7 +766,11 @@ impl Prepared {
             // compact objects, as `nlos init --method lct` without a threshold: Otsu's threshold alone keeps
             // only the brightest columns (about half the bunny's silhouette).
             InitMethod::Lct => {
-                return crate::radiometry::lct_start(&self.full, Self::material(config), self.surface_depth);
+                return crate::radiometry::lct_start(
+                    &self.full,
+                    config.reflectance.model.material(),
+                    self.surface_depth,
+                );
             }
             InitMethod::Fk => fk(&self.full, &FkParams::default())?,
             InitMethod::Carve => carve(&self.full, &CarveParams::default())?,

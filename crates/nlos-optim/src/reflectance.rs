@@ -73,15 +73,6 @@ impl Reflectance {
         matches!(self, Reflectance::Lambertian { .. } | Reflectance::Retroreflective { .. })
     }
 
-    /// The model's name as the settings write it: `lambert`, `ggx` or `retroreflective`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Reflectance::Lambertian { .. } => "lambert",
-            Reflectance::Ggx { .. } => "ggx",
-            Reflectance::Retroreflective { .. } => "retroreflective",
-        }
-    }
-
     /// From a GGX BRDF.
     pub fn from_ggx(b: &Ggx<f32>) -> Self {
         let t = GgxTheta::from_ggx(b);

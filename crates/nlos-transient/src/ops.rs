@@ -126,12 +126,10 @@ impl Transient {
     /// [`PointSet::regular_grid`]: crate::PointSet::regular_grid
     /// [`Layout::Grid`]: crate::Layout::Grid
     pub fn with_grid_layout(self) -> Self {
-        let as_grid = |set: &mut crate::PointSet| match set.regular_grid() {
-            Some((nx, ny, true)) => {
+        let as_grid = |set: &mut crate::PointSet| {
+            if let Some((nx, ny, true)) = set.regular_grid() {
                 set.layout = crate::Layout::Grid { nx, ny };
-                true
             }
-            _ => false,
         };
         let (mut scan, time, data) = self.into_parts();
         match &mut scan.pattern {

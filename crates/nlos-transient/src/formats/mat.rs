@@ -152,16 +152,16 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
 }
 
 /// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN is
-/// kept as "no value", infinities are an error): the
-/// variable `name`, or the file's only numeric variable when `name` is None. Returns the values in **C
-/// order** (an `H×W` MATLAB matrix comes back as rows of W, element `(r, c)` at `c + W·r`, an `H×W×3` array with element `(r, c, k)` at `k + 3·(c + W·r)`), the
-/// MATLAB dimensions and the variable's name.
+/// kept as "no value", infinities are an error): the variable `name`, or the file's only numeric variable
+/// when `name` is None. Returns the values in **C order** (an `H×W` MATLAB matrix comes back as rows of W,
+/// element `(r, c)` at `c + W·r`; an `H×W×3` array's element `(r, c, k)` at `k + 3·(c + W·r)`), the MATLAB
+/// dimensions and the variable's name.
 ///
 /// # Errors
 /// As [`read`]; [`TransientError::MissingField`] when `name` is absent or the file holds no or several
 /// numeric variables (naming them).
 pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usize>, String)> {
-    let bytes = std::fs::read(path).map_err(|e| TransientError::Io { file: path.into(), source: e })?;
+    let bytes = super::read_file(path)?;
     let m = MatFile::parse(&bytes, path)?;
     let chosen = match name {
         Some(n) => n.to_owned(),
@@ -181,26 +181,12 @@ pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usiz
     };
     let a = m.numeric(&chosen, "the array to read")?;
     let dims = a.header.dims.clone();
-    let col_major = a.to_f32_nan(path)?;
-    // Column-major (first index fastest) → C order (last index fastest).
-    let n = col_major.len();
-    let mut c_order = vec![0.0f32; n];
-    let mut strides = vec![1usize; dims.len()];
-    for i in 1..dims.len() {
-        strides[i] = strides[i - 1] * dims[i - 1];
-    }
-    for (flat_c, out) in c_order.iter_mut().enumerate() {
-        let (mut rest, mut off) = (flat_c, 0usize);
-        for (d, st) in dims.iter().zip(&strides).rev() {
-            off += (rest % d) * st;
-            rest /= d;
-        }
-        *out = col_major.get(off).copied().unwrap_or(f32::NAN);
-    }
+    // MATLAB stores column-major: the first index fastest.
+    let c_order = super::npy::fortran_to_c(&a.to_f32_nan(path)?, &dims);
     Ok((c_order, dims, chosen))
 }
 
-fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> TransientError {
+pub(super) fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> TransientError {
     TransientError::WrongShape {
         file: file.into(),
         field: h.name.clone(),
@@ -209,7 +195,7 @@ fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> Trans
     }
 }
 
-fn invalid(file: &Path, field: &str, reason: String) -> TransientError {
+pub(super) fn invalid(file: &Path, field: &str, reason: String) -> TransientError {
     TransientError::InvalidValue { file: file.into(), field: field.into(), reason }
 }
 
@@ -230,7 +216,7 @@ fn dims3(a: &NumericArray<'_>, file: &Path, expected: &str) -> Result<[usize; 3]
 }
 
 /// A finite positive scalar variable.
-fn positive_scalar(m: &MatFile<'_>, file: &Path, name: &str, hint: &str) -> Result<f64> {
+pub(super) fn positive_scalar(m: &MatFile<'_>, file: &Path, name: &str, hint: &str) -> Result<f64> {
     let v = m.numeric(name, hint)?.scalar(file)?;
     if !(v.is_finite() && v > 0.0) {
         return Err(invalid(file, name, format!("{v} must be a finite positive number ({hint})")));

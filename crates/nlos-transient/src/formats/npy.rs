@@ -365,7 +365,7 @@ fn f16_to_f32(h: u16) -> f32 {
 }
 
 /// Reorders a Fortran-order (first index fastest) array into C order (last index fastest).
-fn fortran_to_c(src: &[f32], shape: &[usize]) -> Vec<f32> {
+pub(super) fn fortran_to_c(src: &[f32], shape: &[usize]) -> Vec<f32> {
     let n = shape.len();
     let mut c_stride = vec![1usize; n];
     for j in (0..n.saturating_sub(1)).rev() {

@@ -35,24 +35,12 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::mat5::{MatFile, NumericArray};
+use super::mat::{invalid, positive_scalar, wrong_shape};
+use super::mat5::MatFile;
 use crate::error::{Result, TransientError};
 use crate::scan::{PointSet, Scan};
 use crate::time_axis::TimeAxis;
 use crate::transient::Transient;
-
-fn wrong_shape(file: &Path, a: &NumericArray<'_>, expected: impl Into<String>) -> TransientError {
-    TransientError::WrongShape {
-        file: file.into(),
-        field: a.header.name.clone(),
-        expected: expected.into(),
-        found: a.header.describe(),
-    }
-}
-
-fn invalid(file: &Path, field: &str, reason: String) -> TransientError {
-    TransientError::InvalidValue { file: file.into(), field: field.into(), reason }
-}
 
 /// A 3-vector variable (3, 1×3 or 3×1), or None when absent.
 fn vec3(m: &MatFile<'_>, file: &Path, name: &str) -> Result<Option<Vec3>> {
@@ -60,14 +48,16 @@ fn vec3(m: &MatFile<'_>, file: &Path, name: &str) -> Result<Option<Vec3>> {
         return Ok(None);
     }
     let a = m.numeric(name, "a 3-vector in metres")?;
+    // `to_f64` rejects NaN and infinities; a value beyond f32's range would still overflow.
     let v = a.to_f64(file)?;
-    if v.len() != 3 {
-        return Err(wrong_shape(file, &a, "3 values (x, y, z)"));
+    let &[x, y, z] = v.as_slice() else {
+        return Err(wrong_shape(file, &a.header, "3 values (x, y, z)"));
+    };
+    let p = Vec3::new(x as f32, y as f32, z as f32);
+    if !p.is_finite() {
+        return Err(invalid(file, name, format!("({x}, {y}, {z}) m does not fit in f32")));
     }
-    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-        return Err(TransientError::NonFinite { file: file.into(), field: name.into(), index: i });
-    }
-    Ok(Some(Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32)))
+    Ok(Some(p))
 }
 
 /// The map from the file's frame to ours: the wall's constant coordinate removed, the scene's side to +z.
@@ -114,7 +104,7 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     let (bins, n) = match d.header.dims.as_slice() {
         [t, a, b] => (*t, a * b),
         [t, n] => (*t, *n),
-        _ => return Err(wrong_shape(file, &d, "T×A×B (time bins × wall grid) or T×N")),
+        _ => return Err(wrong_shape(file, &d.header, "T×A×B (time bins × wall grid) or T×N")),
     };
     if bins == 0 || n == 0 {
         return Err(invalid(file, "data", format!("{} has no data (zero bins or wall points)", d.header.describe())));
@@ -128,16 +118,13 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
         } else if dims.len() == 2 && dims[0] == n && dims[1] == 3 {
             Box::new(move |i: usize, c: usize| p[i + n * c])
         } else {
-            return Err(wrong_shape(file, &pos, format!("3×{n} (one column per wall point of `data`)")));
+            return Err(wrong_shape(file, &pos.header, format!("3×{n} (one column per wall point of `data`)")));
         };
     let points: Vec<Vec3> = (0..n).map(|i| Vec3::new(at(i, 0) as f32, at(i, 1) as f32, at(i, 2) as f32)).collect();
     if let Some(i) = points.iter().position(|q| !q.is_finite()) {
         return Err(TransientError::NonFinite { file: file.into(), field: "cameraGridPositions".into(), index: i });
     }
-    let delta = m.numeric("deltaT", "bin width in metres of path")?.scalar(file)?;
-    if !(delta.is_finite() && delta > 0.0) {
-        return Err(invalid(file, "deltaT", format!("{delta} must be a finite positive bin width (metres of path)")));
-    }
+    let delta = positive_scalar(m, file, "deltaT", "bin width in metres of path")?;
     let t0 = if m.header("t0").is_some() { m.numeric("t0", "path length of bin 0")?.scalar(file)? } else { 0.0 };
     if !t0.is_finite() {
         return Err(invalid(file, "t0", format!("{t0} must be finite (metres of path)")));
@@ -152,21 +139,18 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
             *x = v;
         }
     })?;
-    let mut time = TimeAxis::new(t0, delta, bins).map_err(|e| super::with_file(e, file))?;
-    let mut scan = Scan::confocal(PointSet::list(points.iter().map(|q| to_ours(*q)).collect()));
-    if let (Some(cam), Some(c)) = (camera, centre) {
-        let half = box_half(m, file)?;
-        if let Some(half) = half {
-            let far = points.iter().map(|w| farthest_corner(*w, c, half)).fold(0.0f64, f64::max);
-            let first = first_return_path(&data, bins, &time);
-            if first.is_some_and(|f| f > 2.0 * far + 4.0 * delta) {
-                time.includes_device_legs = true;
-                scan.laser_device = Some(to_ours(cam));
-                scan.sensor_device = Some(to_ours(cam));
-            }
+    let time = TimeAxis::new(t0, delta, bins).map_err(|e| super::with_file(e, file))?;
+    let scan = Scan::confocal(PointSet::list(points.iter().map(|q| to_ours(*q)).collect()));
+    let mut t = Transient::new(scan, time, data).map_err(|e| super::with_file(e, file))?;
+    if let (Some(cam), Some(c), Some(half)) = (camera, centre, box_half(m, file)?) {
+        let far = points.iter().map(|w| farthest_corner(*w, c, half)).fold(0.0f64, f64::max);
+        if first_return_path(&t).is_some_and(|f| f > 2.0 * far + 4.0 * delta) {
+            t.time_mut().includes_device_legs = true;
+            t.scan_mut().laser_device = Some(to_ours(cam));
+            t.scan_mut().sensor_device = Some(to_ours(cam));
         }
     }
-    Transient::new(scan, time, data).map_err(|e| super::with_file(e, file))
+    Ok(t)
 }
 
 /// Half the side(s) of the hidden volume (`hiddenVolumeSize`: one side or three), None when absent.
@@ -179,7 +163,7 @@ fn box_half(m: &MatFile<'_>, file: &Path) -> Result<Option<Vec3>> {
     let half = match v.as_slice() {
         [s] => Vec3::splat(*s as f32 * 0.5),
         [x, y, z] => Vec3::new(*x as f32, *y as f32, *z as f32) * 0.5,
-        _ => return Err(wrong_shape(file, &a, "1 or 3 values")),
+        _ => return Err(wrong_shape(file, &a.header, "1 or 3 values")),
     };
     if !(half.is_finite() && half.min_element() >= 0.0) {
         return Err(invalid(file, "hiddenVolumeSize", format!("{} must be finite and ≥ 0", half * 2.0)));
@@ -194,13 +178,8 @@ fn farthest_corner(w: Vec3, c: Vec3, half: Vec3) -> f64 {
 }
 
 /// Path length at which the summed histogram first reaches a tenth of its maximum.
-fn first_return_path(data: &[f32], bins: usize, time: &TimeAxis) -> Option<f64> {
-    let mut sum = vec![0.0f64; bins];
-    for h in data.chunks_exact(bins) {
-        for (s, v) in sum.iter_mut().zip(h) {
-            *s += f64::from(*v);
-        }
-    }
+fn first_return_path(t: &Transient) -> Option<f64> {
+    let sum = t.summed_histogram();
     let peak = sum.iter().copied().fold(0.0f64, f64::max);
-    (peak > 0.0).then(|| time.bin_start(sum.iter().position(|&s| s >= 0.1 * peak).unwrap_or(0)))
+    (peak > 0.0).then(|| t.time().bin_start(sum.iter().position(|&s| s >= 0.1 * peak).unwrap_or(0)))
 }
