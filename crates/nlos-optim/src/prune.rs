@@ -13,7 +13,8 @@
 //! already exceeds the measurement by more than half the face's own contribution. A face of the true
 //! surface has `E[ΔE_f] = +½ s²‖I_f‖² > 0` under zero-mean noise, a face where nothing is has
 //! `E[ΔE_f] = −½ s²‖I_f‖²`, so the sign test is unbiased and needs no threshold; faces that receive no light
-//! have `ΔE_f = 0` and are left to the unlit-face rule.
+//! have `ΔE_f = 0`: nothing supports them, and they go too (unobservable faces, usually a rim folded behind
+//! the object or turned away from the wall, would otherwise stay wherever the start put them).
 //!
 //! **Margin.** Deletions interact (faces overlap in time), and with noise the sign is uncertain for faces
 //! whose share is small, so a face goes only when `ΔE_f < −κ · ½ c_f`, with `c_f = ΔE_f(+) + ΔE_f(−)` the
@@ -176,6 +177,13 @@ pub fn prune_boundary(
                 Ok((d, f, spans))
             })
             .collect::<Result<_>>()?;
+        // A face no measurement sees (empty share: facing away, occluded, out of the time window) is
+        // unsupported whatever the data say: it goes first (it changes no rendering, so no order among them).
+        for s in &mut scored {
+            if s.2.is_empty() {
+                s.0 = f64::NEG_INFINITY;
+            }
+        }
         scored.retain(|(d, _, _)| *d < 0.0);
         scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let before = removed;
@@ -185,7 +193,7 @@ pub fn prune_boundary(
             }
             // Re-test against the rendering the deletions so far have left.
             let (test, d) = delta(&spans, rendered, bins, row_loss, params.margin, false)?;
-            if !(test < 0.0) || pinches(f, triangles, &keep, &vertex_faces) {
+            if !(test < 0.0 || spans.is_empty()) || pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
             apply_spans(&spans, rendered, bins, false);

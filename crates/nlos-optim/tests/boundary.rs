@@ -175,3 +175,59 @@ fn row_values_sum_to_the_data_terms() {
     let weighted = DataTerm { weights: Some(vec![1.0; 10]), ..DataTerm::default() };
     assert!(weighted.row_value(&rendered[..5], &measured[..5], 8, 1.0).is_err());
 }
+
+#[test]
+fn a_flap_folded_behind_the_object_is_pruned_and_the_object_kept() {
+    // The true 8 × 8-cell patch, continued past its x = +4 cells edge by a flap folded back behind it: one
+    // strip turned away from the wall (back to x = 2 cells, 3 cm deeper), then one turned to the wall again
+    // (out to x = 3.5 cells, 6 cm deeper). No measurement sees either (the first faces away, the second is
+    // behind the patch), so neither data term nor gradient speaks for them: they go, the patch stays.
+    let (scan, time, render) = setup();
+    let (tp, tt) = patch(4);
+    let lambert = Lambertian::new(1.0f32).unwrap();
+    let measured = Renderer::new(&tp, &tt, &scan, &time, render).unwrap().forward(&lambert);
+    let n = 8;
+    let columns: Vec<(f32, f32)> =
+        (0..=n).map(|i| ((i - n / 2) as f32 * CELL, 0.0)).chain([(2.0 * CELL, 0.03), (3.5 * CELL, 0.06)]).collect();
+    let nc = columns.len() as u32;
+    let mut positions = Vec::new();
+    for j in 0..=n {
+        let y = (j - n / 2) as f32 * CELL;
+        for &(x, dz) in &columns {
+            // The flap's columns hang off the patch's edge height, deeper by dz.
+            let xz = if dz == 0.0 { x } else { 4.0 * CELL };
+            positions.push(Vec3::new(x, y, z(xz, y) + dz));
+        }
+    }
+    let id = |i: u32, j: u32| j * nc + i;
+    let mut triangles = Vec::new();
+    // The patch's cells first, then the flap's (so that `keep` splits at the patch's face count).
+    for cells in [0..n as u32, n as u32..nc - 1] {
+        for j in 0..n as u32 {
+            for i in cells.clone() {
+                triangles.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
+                triangles.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
+            }
+        }
+    }
+    let flap_faces = 2 * 2 * n as usize;
+    assert_eq!(triangles.len(), tt.len() + flap_faces);
+    let r = Renderer::new(&positions, &triangles, &scan, &time, render).unwrap();
+    let mut rendered = r.forward(&lambert);
+    let term = DataTerm::default();
+    let bins = time.bins;
+    let row_loss = |m: usize, row: &[f32], _: std::ops::Range<usize>| {
+        term.row_value(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0)
+    };
+    let params = PruneParams { rounds: 4, max_fraction: 1.0, ..PruneParams::default() };
+    let pruned = prune_boundary(&triangles, &r, &brdf(), &mut rendered, bins, &row_loss, &params).unwrap();
+    let kept_patch = pruned.keep[..tt.len()].iter().filter(|k| **k).count();
+    let kept_flap = pruned.keep[tt.len()..].iter().filter(|k| **k).count();
+    assert_eq!(kept_flap, 0, "{kept_flap} of {flap_faces} flap faces kept");
+    assert_eq!(kept_patch, tt.len(), "{} faces of the object were deleted", tt.len() - kept_patch);
+    // The strip turned away is seen by no measurement (the old sign test kept it: ΔE = 0); whatever light
+    // reached the flap was not in the measurement, so the deletions only lowered the data term.
+    assert!(pruned.data_change <= 0.0, "data change {}", pruned.data_change);
+    let kept: Vec<[u32; 3]> = triangles.iter().zip(&pruned.keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
+    assert!(SurfaceMesh::from_triangles(&positions, &kept).is_ok());
+}
