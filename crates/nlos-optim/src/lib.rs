@@ -59,7 +59,7 @@ pub use error::{OptimError, Result};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, SamplingSchedule, Schedule};
-pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, prune_boundary};
+pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, RowTerm, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
     Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct,
@@ -68,4 +68,4 @@ pub use reconstruct::{
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{Patches, ResidualParams, ResidualRecord, residual_patches};
-pub use sensor::{SensorBackground, SensorFit, expected_half_deviance};
+pub use sensor::{SensorBackground, SensorFit, SensorRows, expected_half_deviance};

@@ -214,14 +214,57 @@ pub fn prune_boundary(
     Ok(Pruned { keep, tested, removed, data_change: change })
 }
 
-/// The data term of one histogram as boundary pruning and growth see it: `row_loss(m, row, window)` is
+/// The data term of one histogram as boundary pruning and growth see it: `value(m, row, window)` is
 /// histogram m's data term for the rendered histogram `row` (all of it, at the block's scale), summed over
 /// the bins whose terms a change of the bins `window` can reach — the window itself for a term that is a
 /// sum over bins (`DataTerm`), widened by the timing response's support for the sensor fit — so that for
 /// two renderings that differ only inside `window`, the difference of the two values is the change of the
 /// whole data term. `0..bins` gives the whole term. A face's share spans a few dozen of the bins: the tests
 /// of [`prune_boundary`] cost that, not the histograms' length.
-pub type RowLoss<'a> = dyn Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync + 'a;
+///
+/// Any `Fn(m, row, window) -> Result<f64>` is one ([`RowLoss`] is the trait object).
+pub trait RowTerm: Sync {
+    /// Histogram `m`'s data term for `row`, over the bins a change of `window` reaches (trait docs).
+    ///
+    /// # Errors
+    /// Those of the data term (a row of the wrong length).
+    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64>;
+
+    /// `E_m(row + k·share) − E_m(row)` for each `k` of `ks`, the share's values starting at its
+    /// `first_bin` (its `measurement` is not read: `m` is). The default evaluates [`RowTerm::value`] on
+    /// shifted copies, clamped at 0 (f32 cancellation can leave −ε where a deleted face was the only
+    /// light); a term that is linear in the rendering before its non-linearity (the sensor fit's
+    /// convolution) does better by transforming the share once.
+    ///
+    /// # Errors
+    /// As [`RowTerm::value`].
+    fn changes(&self, m: usize, row: &[f32], share: &RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
+        let window = share.first_bin..(share.first_bin + share.values.len()).min(row.len());
+        let now = self.value(m, row, window.clone())?;
+        let mut shifted = row.to_vec();
+        ks.iter()
+            .map(|&k| {
+                shifted.copy_from_slice(row);
+                for (x, v) in shifted[window.clone()].iter_mut().zip(&share.values) {
+                    *x = (*x + k * v).max(0.0);
+                }
+                Ok(self.value(m, &shifted, window.clone())? - now)
+            })
+            .collect()
+    }
+}
+
+impl<F> RowTerm for F
+where
+    F: Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync,
+{
+    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64> {
+        self(m, row, window)
+    }
+}
+
+/// The data term as [`prune_boundary`] and [`crate::residual`] take it ([`RowTerm`]).
+pub type RowLoss<'a> = dyn RowTerm + 'a;
 
 /// Subtracts (`add` false) or adds a face's share `spans` to `rendered`.
 pub(crate) fn apply_spans(spans: &[RowSpan], rendered: &mut [f32], bins: usize, add: bool) {
@@ -251,27 +294,20 @@ pub(crate) fn delta(
     margin: f64,
     add: bool,
 ) -> Result<(f64, f64)> {
-    let mut row = vec![0.0f32; bins];
     // `once`: ΔE of the move; `other`: the second point of the second difference (E(I + I_f) − E(I) for a
     // deletion, E(I + 2I_f) − E(I) for an addition).
+    let ks: &[f32] = match (add, margin > 0.0) {
+        (false, false) => &[-1.0],
+        (false, true) => &[-1.0, 1.0],
+        (true, false) => &[1.0],
+        (true, true) => &[1.0, 2.0],
+    };
     let (mut once, mut other) = (0.0, 0.0);
     for s in spans {
         let m = s.measurement;
-        let src = &rendered[m * bins..(m + 1) * bins];
-        let window = s.first_bin..(s.first_bin + s.values.len()).min(bins);
-        let now = row_loss(m, src, window.clone())?;
-        let mut shifted = |k: f32| -> Result<f64> {
-            row.copy_from_slice(src);
-            for (x, v) in row[window.clone()].iter_mut().zip(&s.values) {
-                // Guard: f32 cancellation can leave −ε where a deleted face was the only light.
-                *x = (*x + k * v).max(0.0);
-            }
-            Ok(row_loss(m, &row, window.clone())? - now)
-        };
-        once += shifted(if add { 1.0 } else { -1.0 })?;
-        if margin > 0.0 {
-            other += shifted(if add { 2.0 } else { 1.0 })?;
-        }
+        let changes = row_loss.changes(m, &rendered[m * bins..(m + 1) * bins], s, ks)?;
+        once += changes[0];
+        other += changes.get(1).copied().unwrap_or(0.0);
     }
     // c_f from the three points (0, once, other) of the data term along the share.
     let c = if add { other - 2.0 * once } else { once + other };

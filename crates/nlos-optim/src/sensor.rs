@@ -353,6 +353,86 @@ impl SensorFit {
     }
 }
 
+/// A sensor fit's data term over a capture, histogram by histogram, as boundary pruning and growth take it
+/// ([`crate::prune::RowTerm`]).
+///
+/// The term is `Σ_k d(s·(J I)_k + b; n_k)` with `J` the timing response's convolution: linear in `I` up to
+/// the deviance, so a face's share `I_f` changes `J I` by `k·J I_f` on the bins `J` carries the share to,
+/// and `E(I + k I_f) − E(I)` needs `J I` on those bins once and `J I_f` once, whatever the number of `k`.
+/// (Convolving each shifted row, the generic path, cost three convolutions over the share widened by the
+/// response on both sides: 92 % of a real capture's fit went there.)
+#[derive(Debug, Clone, Copy)]
+pub struct SensorRows<'a> {
+    /// The fit (timing response, background model).
+    pub fit: &'a SensorFit,
+    /// The capture's counts, measurement-major, `bins` per histogram.
+    pub counts: &'a [f32],
+    /// Bins per histogram.
+    pub bins: usize,
+    /// Background counts per bin, resolved ([`SensorFit::resolve_background`]).
+    pub background: f64,
+    /// The block's scale `s`.
+    pub scale: f64,
+}
+
+impl SensorRows<'_> {
+    fn counts_row(&self, m: usize, len: usize) -> Result<&[f32]> {
+        let row = self.counts.get(m * self.bins..(m + 1) * self.bins).ok_or(OptimError::LengthMismatch {
+            what: "measured counts",
+            expected: (m + 1) * self.bins,
+            got: self.counts.len(),
+        })?;
+        if len != self.bins {
+            return Err(OptimError::LengthMismatch { what: "rendered row", expected: self.bins, got: len });
+        }
+        Ok(row)
+    }
+}
+
+impl crate::prune::RowTerm for SensorRows<'_> {
+    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64> {
+        self.fit.row_value_in(row, self.counts_row(m, row.len())?, self.background, self.scale, window)
+    }
+
+    fn changes(&self, m: usize, row: &[f32], share: &nlos_render::RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
+        let counts = self.counts_row(m, row.len())?;
+        let (first, w) = (self.fit.kernel.first(), self.fit.kernel.weights());
+        let n = row.len() as i64;
+        let (ws, we) = (share.first_bin as i64, (share.first_bin + share.values.len()).min(row.len()) as i64);
+        // (J x)[k] = Σ_i w[i]·x[k − first − i]: input bins ws..we reach the outputs ws + first ..
+        // we + first + len(w) − 1, and no others.
+        let lo = (ws + first).clamp(0, n);
+        let hi = (we + first + w.len() as i64 - 1).clamp(lo, n);
+        let (lo, hi) = (lo as usize, hi as usize);
+        let base = self.fit.kernel.apply_window(row, lo..hi);
+        let moved: Vec<f64> = (lo..hi)
+            .map(|k| {
+                // Weight i reads input k − first − i, inside the share for i ∈ [top − we + 1, top − ws].
+                let top = k as i64 - first;
+                let i0 = (top - we + 1).max(0);
+                let i1 = (top - ws + 1).min(w.len() as i64);
+                (i0..i1.max(i0)).map(|i| w[i as usize] * f64::from(share.values[(top - i - ws) as usize])).sum()
+            })
+            .collect();
+        let (s, b) = (self.scale, self.background);
+        Ok(ks
+            .iter()
+            .map(|&k| {
+                let k = f64::from(k);
+                base.iter()
+                    .zip(&moved)
+                    .zip(&counts[lo..hi])
+                    .map(|((&a, &j), &c)| {
+                        let c = f64::from(c);
+                        half_deviance((s * (a + k * j) + b).max(MU_FLOOR), c)
+                            - half_deviance((s * a + b).max(MU_FLOOR), c)
+                    })
+                    .sum()
+            })
+            .collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -369,6 +449,39 @@ mod tests {
         let counts: Vec<f32> =
             (0..2 * BINS).map(|i| ((i * 7 + 3) % 11) as f32 + if i % BINS > 8 { 4.0 } else { 0.0 }).collect();
         (fit, rendered, counts)
+    }
+
+    /// The share path of [`SensorRows`] (one convolution of the share) gives the changes that convolving
+    /// each shifted row gives ([`crate::prune::RowTerm`]'s default), for responses that reach before and
+    /// after a bin and shares at either end of the row.
+    #[test]
+    fn sensor_rows_changes_match_the_shifted_rows() {
+        use crate::prune::RowTerm;
+        let (_, rendered, counts) = setup();
+        for (first, weights) in [(-1, vec![0.2, 0.5, 0.2, 0.1]), (2, vec![0.6, 0.3, 0.1]), (-6, vec![0.1; 10])] {
+            let fit = SensorFit {
+                kernel: BinKernel::new(first, weights).expect("kernel"),
+                background: SensorBackground::Fixed(0.7),
+            };
+            let rows = SensorRows { fit: &fit, counts: &counts, bins: BINS, background: 0.7, scale: 3.0 };
+            let generic = |m: usize, row: &[f32], w: std::ops::Range<usize>| rows.value(m, row, w);
+            for (first_bin, len) in [(0, 4), (10, 6), (26, 4), (27, 9)] {
+                let values: Vec<f32> = (0..len).map(|i| 0.05 + 0.03 * i as f32).collect();
+                let share = nlos_render::RowSpan { measurement: 1, first_bin, values };
+                // A row that holds the share (a deletion leaves it ≥ 0, as the generic path's clamp assumes).
+                let mut row = rendered[BINS..2 * BINS].to_vec();
+                for (x, v) in row[first_bin..].iter_mut().zip(&share.values) {
+                    *x += v;
+                }
+                let ks = [-1.0, 1.0, 2.0];
+                let fast = rows.changes(1, &row, &share, &ks).expect("fast");
+                let slow = generic.changes(1, &row, &share, &ks).expect("slow");
+                // The generic path rounds the shifted row to f32 (relative 6e-8 per bin); the share path does not.
+                for (a, b) in fast.iter().zip(&slow) {
+                    assert!(a != &0.0 && (a - b).abs() <= 1e-6 * b.abs(), "{first} {first_bin}: {a} vs {b}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -52,10 +52,11 @@ use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
 use crate::params::{ReconstructParams, SamplingSchedule};
-use crate::prune::{PruneRecord, prune_boundary};
+use crate::prune::{PruneRecord, RowLoss, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{ResidualRecord, residual_patches};
+use crate::sensor::SensorRows;
 
 mod checkpoint;
 mod log;
@@ -613,15 +614,17 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             let brdf = st.reflectance.brdf()?;
             let mut rendered = brdf.forward(&renderer);
             let (bins, scale) = (measured.bins(), st.scale);
-            let row_loss = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
-                let measured_row = &data[m * bins..(m + 1) * bins];
-                match &params.sensor {
-                    Some(sensor) => sensor.row_value_in(row, measured_row, background, scale, window),
-                    None => params.data.row_value_in(row, measured_row, m * bins, scale, window),
-                }
+            let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
+                params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
+            };
+            let sensor_rows =
+                params.sensor.as_ref().map(|fit| SensorRows { fit, counts: data, bins, background, scale });
+            let row_loss: &RowLoss<'_> = match &sensor_rows {
+                Some(rows) => rows,
+                None => &data_rows,
             };
             if let Some(pp) = &params.prune {
-                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, &row_loss, pp)?;
+                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
                 if p.removed > 0 {
                     drop_faces(&mut st, &p.keep);
                 }
@@ -647,7 +650,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                     *renderer.params(),
                     &brdf,
                     &mut rendered,
-                    &row_loss,
+                    row_loss,
                     rp,
                 )?;
                 if !p.triangles.is_empty() {
