@@ -27,7 +27,9 @@
 //! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted
 //! greedily from the most negative, each re-tested against the rendering left by the deletions before it
 //! (their shares overlap in time and measurement). A deletion that would pinch a vertex into two fans (a
-//! non-manifold "bow tie") is skipped. Later rounds test the faces the deletions exposed. At most
+//! non-manifold "bow tie") is skipped. Later rounds test the faces the deletions exposed (and those a pinch
+//! held back): deletions only lower the rendering, and for a convex data term that only raises a face's
+//! test value, so a face that failed would fail again. At most
 //! [`PruneParams::max_fraction`] of the faces go per call.
 
 use std::collections::HashMap;
@@ -156,12 +158,17 @@ pub fn prune_boundary(
         }
     }
     let (mut tested, mut removed, mut change) = (0usize, 0usize, 0.0f64);
+    // Faces whose test failed. Deletions only lower the rendering, and for a data term convex in it (L2,
+    // the Poisson deviance, with or without the sensor's convolution) a lower rendering raises both ΔE_f
+    // and the curvature c_f: a face that failed fails again, and later rounds test only the faces the
+    // deletions exposed (or that a pinch held back).
+    let mut settled = vec![false; nt];
 
     for _ in 0..params.rounds {
         let candidates: Vec<usize> = (0..nt)
             .filter(|&f| {
                 let t = triangles[f];
-                keep[f] && (0..3).any(|k| edges.get(&key(t[k], t[(k + 1) % 3])) == Some(&1))
+                keep[f] && !settled[f] && (0..3).any(|k| edges.get(&key(t[k], t[(k + 1) % 3])) == Some(&1))
             })
             .collect();
         if candidates.is_empty() || removed >= budget {
@@ -184,6 +191,9 @@ pub fn prune_boundary(
                 s.0 = f64::NEG_INFINITY;
             }
         }
+        for (d, f, _) in &scored {
+            settled[*f] = !(*d < 0.0);
+        }
         scored.retain(|(d, _, _)| *d < 0.0);
         scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let before = removed;
@@ -193,7 +203,11 @@ pub fn prune_boundary(
             }
             // Re-test against the rendering the deletions so far have left.
             let (test, d) = delta(&spans, rendered, bins, row_loss, params.margin, false)?;
-            if !(test < 0.0 || spans.is_empty()) || pinches(f, triangles, &keep, &vertex_faces) {
+            if !(test < 0.0 || spans.is_empty()) {
+                settled[f] = true;
+                continue;
+            }
+            if pinches(f, triangles, &keep, &vertex_faces) {
                 continue;
             }
             apply_spans(&spans, rendered, bins, false);
