@@ -320,6 +320,12 @@ struct Targets {
     beat_baselines: bool,
 }
 
+/// A target for the page: at most two decimals, no trailing zeros (0.4·1.5 is 0.6000000000000001 in f64).
+fn short(x: f64) -> String {
+    let t = format!("{x:.2}");
+    t.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 fn shape_section(
     title: &str,
     o: &Outcome,
@@ -338,14 +344,18 @@ fn shape_section(
         check(
             &mut t,
             &mut pass,
-            &format!("coverage within 5 mm {:.1} % ≥ {:.0} %", r.coverage_within * 100.0, within * 100.0),
+            &format!("coverage within 5 mm {:.1} % ≥ {} %", r.coverage_within * 100.0, short(within * 100.0)),
             r.coverage_within >= within,
         );
     }
     check(
         &mut t,
         &mut pass,
-        &format!("depth error inside the silhouette {:.2} mm ≤ {} mm", r.depth_interior * 1e3, targets.interior_mm),
+        &format!(
+            "depth error inside the silhouette {:.2} mm ≤ {} mm",
+            r.depth_interior * 1e3,
+            short(targets.interior_mm)
+        ),
         r.depth_interior * 1e3 <= targets.interior_mm,
     );
     if let Some(deg) = targets.normal_deg {
