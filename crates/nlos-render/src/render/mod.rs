@@ -473,16 +473,24 @@ impl Renderer {
             if vis == 0.0 {
                 continue;
             }
-            hist.fill(0.0);
-            match self.splat_axis(&self.kernel) {
+            // The bins written: all of them for a general kernel, those the splat rule reports for the tent.
+            // Scanning and clearing only those keeps a face's share proportional to its own extent in time
+            // rather than to the histogram's length (boundary pruning renders thousands of shares per block).
+            let written = match self.splat_axis(&self.kernel) {
                 Some(axis) => self.forward_tm_splat(brdf, &axis, triangle, &fr, sign, vis, &mut hist),
-                None => self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist),
-            }
+                None => {
+                    self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist);
+                    bins.checked_sub(1).map(|last| (0, last))
+                }
+            };
+            let Some((lo, hi)) = written else { continue };
+            let part = &mut hist[lo..=hi];
             if let (Some(first), Some(last)) =
-                (hist.iter().position(|x| *x != 0.0), hist.iter().rposition(|x| *x != 0.0))
+                (part.iter().position(|x| *x != 0.0), part.iter().rposition(|x| *x != 0.0))
             {
-                rows.push(RowSpan { measurement: m, first_bin: first, values: hist[first..=last].to_vec() });
+                rows.push(RowSpan { measurement: m, first_bin: lo + first, values: part[first..=last].to_vec() });
             }
+            part.fill(0.0);
         }
         Ok(rows)
     }
@@ -974,7 +982,8 @@ impl Renderer {
     }
 
     /// The splat rule for one pair (t, m) into an unpadded histogram (the per-triangle forward pass): the same
-    /// sub-triangles, values and weights as [`Renderer::forward_splat`].
+    /// sub-triangles, values and weights as [`Renderer::forward_splat`]. Returns the range of bins written
+    /// (`None`: none).
     #[allow(clippy::too_many_arguments)]
     fn forward_tm_splat<B: RenderBrdf>(
         &self,
@@ -985,10 +994,11 @@ impl Renderer {
         sign: f32,
         vis_c: f32,
         hist: &mut [f32],
-    ) {
+    ) -> Option<(usize, usize)> {
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let inv_2n = 0.5 / n.length();
+        let (mut k_min, mut k_max) = (i64::MAX, i64::MIN);
         let node = |x: Vec3| ((fr.l - x).length() + (fr.s - x).length() - axis.t0) * axis.inv_dt - 0.5;
         let last = hist.len() as i64 - 1;
         subtriangles(self.tri_levels.get(t).copied().unwrap_or(1), |sub| {
@@ -1010,9 +1020,13 @@ impl Renderer {
             let (c0, c1, c2) =
                 splat::centred(c[0], c[1], c[2], node(x), (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt, B::DISTANCE_POWER);
             if let Some(kn) = Knots::new([c0, c1, c2]) {
-                kn.weights(0, last, |k, w| hist[k as usize] += g * w);
+                kn.weights(0, last, |k, w| {
+                    hist[k as usize] += g * w;
+                    (k_min, k_max) = (k_min.min(k), k_max.max(k));
+                });
             }
         });
+        (k_min <= k_max).then(|| (k_min as usize, k_max as usize))
     }
 
     /// Adjoint pass of measurement m (padded adjoint row `adj`) for sub-triangle `sub` of the splat rule over
