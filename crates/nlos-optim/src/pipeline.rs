@@ -490,6 +490,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("schedule.shape_iterations", "Adam steps on the vertices per block"),
     ("schedule.reflectance_iterations", "Adam steps on the reflectance per block (0: none)"),
     ("schedule.rel_tol", "a stage ends when a block lowers the loss by less than this fraction"),
+    (
+        "schedule.rebin_fraction",
+        "a stage sums bins up to this fraction of its edge length (0: all at the capture's bins)",
+    ),
     ("optimiser.lr_interior", "step of interior vertices, as a fraction of the stage's edge length"),
     ("optimiser.lr_boundary", "step of boundary vertices, same unit"),
     ("optimiser.lr_reflectance", "step of the reflectance parameters"),

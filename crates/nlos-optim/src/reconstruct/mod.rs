@@ -1,5 +1,10 @@
 //! The analysis-by-synthesis loop (Tsai et al. 2019, Sec. 4.2 and 5), its checkpoints and its run log.
 //!
+//! Each stage fits the capture with [`crate::Schedule::rebin`] bins summed (coarse to fine in time as in
+//! space: 4, 2, 1 for the seed's 1.2 mm bins; the capture's own bins with a sensor fit or per-bin weights),
+//! made once at its first block; the data term's normaliser is that capture's, so the data terms of
+//! different stages are not comparable.
+//!
 //! Per block (see [`crate::Schedule`]):
 //! 1. **Topology.** Boundary faces no measurement can see are deleted (optional), the mesh is remeshed
 //!    isotropically at the stage's target length (`nlos_mesh::remeshing::uniform_remeshing`), the Adam
@@ -387,6 +392,30 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
 /// normal-smoothing part alone (what λ is set against), the regulariser's gradient.
 type Attempt = (Eval, f64, f64, Vec<Vec3>);
 
+/// Normaliser of the data term on `data` (the measurement a stage fits).
+fn data_normaliser(params: &ReconstructParams, data: &[f32]) -> Result<f64> {
+    let norm = match &params.sensor {
+        Some(_) => crate::sensor::SensorFit::normaliser(data),
+        None => params.data.normaliser(data),
+    };
+    norm.ok_or(OptimError::InvalidParameter {
+        name: "measured",
+        value: 0.0,
+        reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
+    })
+}
+
+/// The capture stage `stage` fits: `measured` with [`crate::Schedule::rebin`] bins summed, or `None` for
+/// `measured` itself (a factor of 1, or a sensor fit or per-bin weights, which are defined on its own bins).
+fn stage_capture(measured: &Transient, params: &ReconstructParams, stage: u32) -> Result<Option<Transient>> {
+    let k = params.schedule.rebin(stage, measured.time().bin_width).min(measured.bins());
+    if k <= 1 || params.sensor.is_some() || params.data.weights.is_some() {
+        return Ok(None);
+    }
+    let coarse = measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?;
+    Ok(Some(coarse))
+}
+
 #[allow(clippy::too_many_lines)]
 fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
     let data = measured.data();
@@ -398,15 +427,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         Some(sensor) => sensor.resolve_background(measured)?,
         None => 0.0,
     };
-    let norm = match &params.sensor {
-        Some(_) => crate::sensor::SensorFit::normaliser(data),
-        None => params.data.normaliser(data),
-    };
-    let norm = norm.ok_or(OptimError::InvalidParameter {
-        name: "measured",
-        value: 0.0,
-        reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
-    })?;
+    data_normaliser(params, data)?;
     // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
     let counts = params.sensor.is_some() || params.data.counts;
     let sch = params.schedule;
@@ -430,7 +451,15 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         u64::from(sch.max_stages) * u64::from(sch.max_blocks_per_stage) * u64::from(sch.shape_iterations + refl_iters);
     let out_dir: Option<PathBuf> = params.out_dir.clone();
 
+    // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
+    let mut coarse: Option<(u32, Option<Transient>)> = None;
     while st.finished.is_none() {
+        if coarse.as_ref().is_none_or(|(s, _)| *s != st.stage) {
+            coarse = Some((st.stage, stage_capture(measured, params, st.stage)?));
+        }
+        let measured: &Transient = coarse.as_ref().and_then(|(_, c)| c.as_ref()).unwrap_or(measured);
+        let data = measured.data();
+        let norm = data_normaliser(params, data)?;
         let target = sch.target_edge_length(st.stage);
         let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
         let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
