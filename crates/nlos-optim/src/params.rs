@@ -82,7 +82,13 @@ impl Schedule {
     /// Bins of `bin_width` metres (of path length) summed in stage `stage`: the largest `k` with
     /// `k · bin_width ≤ rebin_fraction · L_stage`, at least 1.
     pub fn rebin(&self, stage: u32, bin_width: f64) -> usize {
-        let k = (self.rebin_fraction * self.target_edge_length(stage) / bin_width).floor();
+        self.rebin_at(self.target_edge_length(stage), bin_width)
+    }
+
+    /// Bins of `bin_width` metres summed by a stage of target edge length `edge` metres (see
+    /// [`Schedule::rebin`]).
+    pub fn rebin_at(&self, edge: f64, bin_width: f64) -> usize {
+        let k = (self.rebin_fraction * edge / bin_width).floor();
         // NaN or below 1 (a zero fraction, bins wider than the limit) sum nothing; `as` saturates huge values.
         if k >= 1.0 { k as usize } else { 1 }
     }
