@@ -1026,7 +1026,7 @@ impl Renderer {
                 });
             }
         });
-        (k_min <= k_max).then(|| (k_min as usize, k_max as usize))
+        (k_min <= k_max).then_some((k_min as usize, k_max as usize))
     }
 
     /// Adjoint pass of measurement m (padded adjoint row `adj`) for sub-triangle `sub` of the splat rule over
