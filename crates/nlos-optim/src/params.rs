@@ -24,8 +24,8 @@ use crate::sensor::SensorFit;
 ///
 /// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
 /// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
-/// first stage (10.4 mm edges by default) spans some twenty 1.2 mm bins of the seed's setup, so its shape is
-/// fitted as well from 4.8 mm bins, and one forward + adjoint then costs a quarter (the splat rule's
+/// first stage (10.4 mm edges by default) spans about fifteen 1.2 mm bins of the seed's setup, so its shape is
+/// fitted as well from 4.8 mm bins, and one forward + adjoint then costs about a fifth (the splat rule's
 /// sub-triangle level follows the bin width); at the default fraction 0.5 the seed's stages sum 4, 2 and 1
 /// bins. The sensor fit ([`crate::SensorFit`]) and per-bin weights are defined on the capture's own bins:
 /// with either, every stage runs at the capture's resolution.
