@@ -254,7 +254,9 @@ pub trait RowTerm: Sync {
     /// # Errors
     /// As [`RowTerm::value`].
     fn changes(&self, m: usize, row: &[f32], share: &RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
-        let window = share.first_bin..(share.first_bin + share.values.len()).min(row.len());
+        // Clamped to the row: a share starting past its end changes nothing (an empty window).
+        let end = (share.first_bin + share.values.len()).min(row.len());
+        let window = share.first_bin.min(end)..end;
         let now = self.value(m, row, window.clone())?;
         let mut shifted = row.to_vec();
         ks.iter()
@@ -321,6 +323,14 @@ pub(crate) fn delta(
     for s in spans {
         let m = s.measurement;
         let changes = row_loss.changes(m, &rendered[m * bins..(m + 1) * bins], s, ks)?;
+        // A `RowTerm` written outside this crate may answer with another length: an error, not a panic.
+        if changes.len() != ks.len() {
+            return Err(OptimError::LengthMismatch {
+                what: "RowTerm::changes",
+                expected: ks.len(),
+                got: changes.len(),
+            });
+        }
         once += changes[0];
         other += changes.get(1).copied().unwrap_or(0.0);
     }
@@ -382,6 +392,27 @@ mod tests {
                 .map(|(&r, &m)| 0.5 * (s * f64::from(r) - f64::from(m)).powi(2))
                 .sum())
         }
+    }
+
+    /// The default `RowTerm::changes` on a share past the row's end changes nothing, and a term answering
+    /// with the wrong number of changes is a typed error in `delta`.
+    #[test]
+    fn out_of_range_shares_and_short_answers_are_not_panics() {
+        let row_loss = l2(vec![0.0; 4], 1.0);
+        let late = RowSpan { measurement: 0, first_bin: 9, values: vec![0.5, 0.5] };
+        assert_eq!(row_loss.changes(0, &[0.1; 4], &late, &[-1.0, 1.0]).unwrap(), [0.0, 0.0]);
+        struct Short;
+        impl RowTerm for Short {
+            fn value(&self, _: usize, _: &[f32], _: std::ops::Range<usize>) -> Result<f64> {
+                Ok(0.0)
+            }
+            fn changes(&self, _: usize, _: &[f32], _: &RowSpan, _: &[f32]) -> Result<Vec<f64>> {
+                Ok(Vec::new())
+            }
+        }
+        let spans = [RowSpan { measurement: 0, first_bin: 0, values: vec![0.5] }];
+        let err = delta(&spans, &[0.5; 4], 4, &Short, 0.5, false).unwrap_err();
+        assert!(matches!(err, OptimError::LengthMismatch { what: "RowTerm::changes", expected: 2, got: 0 }), "{err}");
     }
 
     #[test]

@@ -427,6 +427,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         Some(sensor) => sensor.resolve_background(measured)?,
         None => 0.0,
     };
+    // An all-zero capture is refused before any work (each stage's own normaliser is taken in the loop).
     data_normaliser(params, data)?;
     // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
     let counts = params.sensor.is_some() || params.data.counts;
