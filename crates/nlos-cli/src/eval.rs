@@ -11,6 +11,8 @@
 //! the Z-NLOS scenes). `--volume CAPTURE --method lct|fk` scores a volumetric reconstruction of the capture
 //! (its surface: the arg-max depth of the kept columns) by the same code.
 
+use nlos_init::SurfaceParams;
+use nlos_optim::pipeline::{Config, Prepared, Volumetric};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -106,16 +108,15 @@ fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
 pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<SurfaceMesh, CliError> {
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
-    match method {
-        VolumeMethod::Lct => {
-            nlos_optim::radiometry::lct_start(&t, nlos_init::Material::Diffuse, None).map_err(|e| fail(e.to_string()))
-        }
-        VolumeMethod::Fk => {
-            let volume = nlos_init::fk(&t, &nlos_init::FkParams::default()).map_err(|e| fail(e.to_string()))?;
-            let surface = nlos_init::volume_to_surface(&volume, &nlos_init::SurfaceParams::object());
-            Ok(surface.map_err(|e| fail(e.to_string()))?.mesh)
-        }
-    }
+    // Prepared as `nlos reconstruct` prepares a capture (gate, last return, the depth the start may reach).
+    let prepared = Prepared::new(t, &Config::default()).map_err(|e| fail(e.to_string()))?;
+    let method = match method {
+        VolumeMethod::Lct => Volumetric::Lct,
+        VolumeMethod::Fk => Volumetric::Fk,
+    };
+    let volume = prepared.volume(method, nlos_init::Material::Diffuse, None).map_err(|e| fail(e.to_string()))?;
+    let surface = SurfaceParams { max_depth: prepared.surface_depth, ..SurfaceParams::object() };
+    Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 
 /// A map file as (values in C order, shape): `.npy`, `.mat` (its only numeric variable) or `.exr` (one

@@ -3,10 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_init::{
-    CarveParams, FbpParams, FkParams, Gate, InitError, LctParams, Material, SurfaceParams, Threshold, Volume, carve,
-    fbp, fk, lct, volume_to_surface,
-};
+use nlos_init::{Gate, InitError, Material, SurfaceParams, Threshold, Volume, volume_to_surface};
+use nlos_optim::pipeline::{Config, Prepared, Setting, Volumetric};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
 use crate::CliError;
@@ -111,6 +109,13 @@ fn parse_threshold(s: &str) -> Result<Threshold, String> {
     s.parse::<f32>().ok().filter(|v| (0.0..=1.0).contains(v)).map(Threshold::Relative).ok_or_else(bad)
 }
 
+fn optim_error(e: nlos_optim::OptimError) -> CliError {
+    match e {
+        nlos_optim::OptimError::Init(e) => init_error(e),
+        other => CliError::Input(other.to_string()),
+    }
+}
+
 fn init_error(e: InitError) -> CliError {
     match e {
         InitError::Transient(e) => CliError::input(e),
@@ -122,33 +127,37 @@ fn init_error(e: InitError) -> CliError {
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let t = nlos_transient::read(&args.file).map_err(CliError::input)?;
     let material = if args.retroreflective { Material::Retroreflective } else { Material::Diffuse };
-    let vol = match args.method {
-        Method::Lct => lct(
-            &t,
-            &LctParams {
-                snr: args.snr.unwrap_or(nlos_optim::radiometry::lct_params(material).snr),
-                material,
-                bin_merge: args.merge,
-                gate: args.gate,
-                max_depth: args.max_depth,
-                backprojection: false,
-            },
-        ),
-        Method::Fk => fk(&t, &FkParams { bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth }),
-        Method::Carve => carve(&t, &CarveParams { gate: args.gate, bin_merge: args.merge, ..CarveParams::default() }),
-        Method::Fbp => {
-            fbp(&t, &FbpParams { material, bin_merge: args.merge, gate: args.gate, max_depth: args.max_depth })
-        }
+    // The capture is prepared as `nlos reconstruct` prepares it (one library path: rebin, gate, the bins after
+    // the last return, the depth the start may reach), with the same defaults.
+    let mut config = Config::default();
+    config.capture.rebin = args.merge;
+    config.capture.gate = match args.gate {
+        Gate::Auto => Setting::AUTO,
+        Gate::None => Setting::OFF,
+        Gate::Path(g) => Setting::Value(g),
+    };
+    config.capture.max_depth = args.max_depth.map_or(Setting::AUTO, Setting::Value);
+    let prepared = Prepared::new(t, &config).map_err(optim_error)?;
+    for note in &prepared.notes {
+        eprintln!("{note}");
     }
-    .map_err(init_error)?;
-    let base = match (args.method, args.threshold) {
-        (Method::Lct, None) => SurfaceParams::object(),
-        _ => SurfaceParams::default(),
+    let method = match args.method {
+        Method::Lct => Volumetric::Lct,
+        Method::Fk => Volumetric::Fk,
+        Method::Fbp => Volumetric::Fbp,
+        Method::Carve => Volumetric::Carve,
+    };
+    let vol = prepared.volume(method, material, args.snr).map_err(optim_error)?;
+    // Given a threshold, the plain extraction (this threshold, largest region, arg-max depth); else the
+    // start's own settings (the settings for compact objects for LCT).
+    let base = match args.threshold {
+        None => prepared.surface_params(method),
+        Some(_) => SurfaceParams { max_depth: prepared.surface_depth, ..SurfaceParams::default() },
     };
     let params = SurfaceParams {
         threshold: args.threshold.unwrap_or(base.threshold),
         min_depth: args.min_depth,
-        max_depth: args.max_depth,
+        max_depth: args.max_depth.or(base.max_depth),
         largest_component: !args.all_regions,
         smoothing_iterations: args.smooth,
         target_edge_length: args.edge,

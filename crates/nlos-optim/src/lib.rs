@@ -50,6 +50,7 @@ pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;
 pub mod residual;
+pub mod response;
 pub mod sensor;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
@@ -68,4 +69,4 @@ pub use reconstruct::{
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{Patches, ResidualParams, ResidualRecord, residual_patches};
-pub use sensor::{SensorBackground, SensorFit, SensorRows, expected_half_deviance};
+pub use sensor::{SensorBackground, SensorFit, SensorModel, SensorRows, expected_half_deviance};

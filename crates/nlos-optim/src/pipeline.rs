@@ -25,7 +25,9 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use nlos_brdf::{Fresnel, Ggx};
-use nlos_init::{CarveParams, FkParams, Gate, Material, SurfaceParams, carve, fk, volume_to_surface};
+use nlos_init::{
+    CarveParams, FbpParams, FkParams, Gate, Material, SurfaceParams, Volume, carve, fbp, fk, lct, volume_to_surface,
+};
 use nlos_mesh::SurfaceMesh;
 use nlos_render::{SplatRule, Visibility};
 use nlos_transient::Transient;
@@ -759,30 +761,63 @@ impl Prepared {
         }
     }
 
-    /// The initial surface: a volumetric reconstruction of [`Prepared::full`] turned into a mesh, or the mesh
-    /// file of [`InitMethod::Mesh`].
+    /// The volume of `method` on [`Prepared::full`] (gated, rebinned, cut at an explicit max depth: the
+    /// preparation every start shares), LCT and filtered backprojection weighted for `material`
+    /// ([`crate::radiometry::lct_params`]; `snr` replaces LCT's Wiener SNR). `nlos reconstruct`, `nlos init`,
+    /// `nlos eval --volume` and the Python package take their volumes here.
+    ///
+    /// # Errors
+    /// [`OptimError::Init`] when the method fails (not a confocal grid, an empty volume).
+    pub fn volume(&self, method: Volumetric, material: Material, snr: Option<f64>) -> Result<Volume> {
+        // `full` is gated already; the methods' own automatic gate finds no direct light left in it.
+        Ok(match method {
+            Volumetric::Lct => {
+                let mut p = crate::radiometry::lct_params(material);
+                p.snr = snr.unwrap_or(p.snr);
+                lct(&self.full, &p)?
+            }
+            Volumetric::Fk => fk(&self.full, &FkParams::default())?,
+            Volumetric::Fbp => fbp(&self.full, &FbpParams { material, ..FbpParams::default() })?,
+            Volumetric::Carve => carve(&self.full, &CarveParams::default())?,
+        })
+    }
+
+    /// The surface extraction of `method`'s start: the settings for compact objects for LCT
+    /// ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns, about half the
+    /// bunny's silhouette), the plain extraction otherwise; no voxel beyond [`Prepared::surface_depth`].
+    pub fn surface_params(&self, method: Volumetric) -> SurfaceParams {
+        let base = if method == Volumetric::Lct { SurfaceParams::object() } else { SurfaceParams::default() };
+        SurfaceParams { max_depth: base.max_depth.or(self.surface_depth), ..base }
+    }
+
+    /// The initial surface: a volumetric reconstruction of [`Prepared::full`] turned into a mesh
+    /// ([`Prepared::volume`], [`Prepared::surface_params`]), or the mesh file of [`InitMethod::Mesh`].
     ///
     /// # Errors
     /// [`OptimError::Init`] when the volume or its surface fails, [`OptimError::Mesh`] for an unreadable mesh.
     pub fn initial_surface(&self, config: &Config) -> Result<SurfaceMesh> {
-        let volume = match &config.init {
-            // LCT's volume, weighted for the reflectance model (`crate::radiometry`), gets the settings for
-            // compact objects, as `nlos init --method lct` without a threshold: Otsu's threshold alone keeps
-            // only the brightest columns (about half the bunny's silhouette).
-            InitMethod::Lct => {
-                return crate::radiometry::lct_start(
-                    &self.full,
-                    config.reflectance.model.material(),
-                    self.surface_depth,
-                );
-            }
-            InitMethod::Fk => fk(&self.full, &FkParams::default())?,
-            InitMethod::Carve => carve(&self.full, &CarveParams::default())?,
+        let method = match &config.init {
+            InitMethod::Lct => Volumetric::Lct,
+            InitMethod::Fk => Volumetric::Fk,
+            InitMethod::Carve => Volumetric::Carve,
             InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(file)?),
         };
-        let surface_params = SurfaceParams { max_depth: self.surface_depth, ..SurfaceParams::default() };
-        Ok(volume_to_surface(&volume, &surface_params)?.mesh)
+        let volume = self.volume(method, config.reflectance.model.material(), None)?;
+        Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
     }
+}
+
+/// A volumetric method of the start ([`Prepared::volume`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Volumetric {
+    /// The light-cone transform with Wiener deconvolution (O'Toole et al. 2018).
+    Lct,
+    /// f-k migration (Lindell et al. 2019).
+    Fk,
+    /// Laplacian-filtered backprojection.
+    Fbp,
+    /// Space carving from first returns (Tsai et al. 2017).
+    Carve,
 }
 
 #[cfg(test)]

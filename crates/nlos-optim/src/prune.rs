@@ -212,6 +212,7 @@ pub fn prune_boundary(
                 continue;
             }
             apply_spans(&spans, rendered, bins, false);
+            row_loss.applied(&spans, false)?;
             keep[f] = false;
             let t = triangles[f];
             for k in 0..3 {
@@ -268,6 +269,18 @@ pub trait RowTerm: Sync {
                 Ok(self.value(m, &shifted, window.clone())? - now)
             })
             .collect()
+    }
+    /// Told that `spans` (a face's share) were added to (`add`) or taken from the rendering that later calls
+    /// pass as `row`, for a term that keeps something of the rendering between calls ([`SensorRows`]'s
+    /// `J I`). The default keeps nothing.
+    ///
+    /// [`SensorRows`]: crate::SensorRows
+    ///
+    /// # Errors
+    /// Those of the term (a share outside its histograms).
+    fn applied(&self, spans: &[RowSpan], add: bool) -> Result<()> {
+        let _ = (spans, add);
+        Ok(())
     }
 }
 

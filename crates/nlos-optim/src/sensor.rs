@@ -47,8 +47,13 @@
 use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse, SpadModel, estimate_background};
 
+use std::sync::RwLock;
+
+use rayon::prelude::*;
+
 use crate::error::{OptimError, Result};
 use crate::loss::DataEval;
+use crate::response::ResponseOp;
 
 /// Floor on expected counts (value and gradient), as in `nlos_transient::sensor::likelihood`.
 const MU_FLOOR: f64 = 1e-12;
@@ -67,6 +72,18 @@ const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
 /// sensor fit per bin (module docs), zero exactly at `μ = n`.
 fn half_deviance(mu: f64, n: f64) -> f64 {
     mu - n + if n > 0.0 { n * (n / mu).ln() } else { 0.0 }
+}
+
+/// `d(μ + δ; n) − d(μ; n) = δ − n ln(1 + δ/μ)` for the half-deviance `d` of one bin ([`half_deviance`]):
+/// one logarithm, none where no photon was counted, and none where `|δ/μ| < 10⁻³` (the tail of a long
+/// timing response), where the series `x − x²/2 + x³/3 − x⁴/4` of `ln(1 + x)` is exact to `x⁵/5 < 2·10⁻¹⁶`.
+fn deviance_change(mu: f64, delta: f64, n: f64) -> f64 {
+    if n == 0.0 {
+        return delta;
+    }
+    let x = delta / mu;
+    let ln_1p = if x.abs() < 1e-3 { x * (1.0 - x * (0.5 - x * (1.0 / 3.0 - 0.25 * x))) } else { x.ln_1p() };
+    delta - n * ln_1p
 }
 
 /// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
@@ -266,24 +283,8 @@ impl SensorFit {
                 reason: "the background must be finite and >= 0 (expected counts per bin)",
             });
         }
-        let a = self.jitter(rendered, bins)?;
-        let scale = if solve_scale {
-            Self::optimal_scale_jittered(&a, counts, background).unwrap_or(fallback_scale)
-        } else {
-            1.0
-        };
-        let mut value = 0.0;
-        let mut r = vec![0.0; a.len()];
-        for ((rk, &ak), &nk) in r.iter_mut().zip(&a).zip(counts) {
-            let n = f64::from(nk);
-            let mu = (scale * ak + background).max(MU_FLOOR);
-            value += half_deviance(mu, n);
-            *rk = 1.0 - n / mu;
-        }
-        let mut g = vec![0.0; r.len()];
-        self.kernel.adjoint_f64(&r, bins, &mut g).map_err(OptimError::Sensor)?;
-        let d_rendered = g.iter().map(|&v| (scale * v) as f32).collect();
-        Ok(DataEval { value, scale, d_rendered })
+        let model = SensorModel::new(self.clone(), bins, background, counts)?;
+        Ok(model.evaluate(rendered, counts, solve_scale, fallback_scale)?.0)
     }
 
     /// The data term of one histogram at a fixed scale: `Σ_k μ_k − n_k + n_k ln(n_k/μ_k)` with
@@ -353,6 +354,139 @@ impl SensorFit {
     }
 }
 
+/// The sensor fit on one stage's capture: its response as an operator on that capture's histograms
+/// ([`ResponseOp`]: FFT for long responses), the resolved background, and the part of the data term that
+/// depends on the counts alone, `Σ_k n_k ln n_k − n_k`, taken once rather than at every step.
+///
+/// The data term is then `Σ_k μ_k − Σ_{n_k > 0} n_k ln μ_k + Σ_k (n_k ln n_k − n_k)`: one logarithm per bin
+/// that counted a photon.
+#[derive(Debug, Clone)]
+pub struct SensorModel {
+    /// The fit on this stage's bins (its kernel is the response of the summed bins, its background fixed).
+    pub fit: SensorFit,
+    /// The response operator on histograms of `bins`.
+    pub op: ResponseOp,
+    /// Bins per histogram.
+    pub bins: usize,
+    /// Background counts per bin.
+    pub background: f64,
+    /// `Σ_k n_k ln n_k − n_k` of the counts.
+    counts_term: f64,
+}
+
+impl SensorModel {
+    /// The model of `fit` on histograms of `bins` bins for `counts`, with `background` counts per bin.
+    ///
+    /// # Errors
+    /// [`OptimError::Sensor`] when `counts` does not split into histograms of `bins`.
+    pub fn new(fit: SensorFit, bins: usize, background: f64, counts: &[f32]) -> Result<Self> {
+        if bins == 0 || !counts.len().is_multiple_of(bins) {
+            return Err(OptimError::Sensor(nlos_transient::TransientError::InvalidArgument {
+                name: "bins",
+                reason: format!("{} values do not split into histograms of {bins} bins", counts.len()),
+            }));
+        }
+        let op = ResponseOp::new(&fit.kernel, bins)?;
+        let counts_term = counts
+            .chunks(bins)
+            .map(|row| {
+                row.iter()
+                    .map(|&c| {
+                        let n = f64::from(c);
+                        if n > 0.0 { n * n.ln() - n } else { 0.0 }
+                    })
+                    .sum::<f64>()
+            })
+            .sum();
+        Ok(Self { fit: SensorFit { background: SensorBackground::Fixed(background), ..fit }, op, bins, background, counts_term })
+    }
+
+    /// The model of stage capture with `k` bins summed: the response of the summed bins
+    /// ([`crate::response::summed_response`]) and `k` times the fine background (module docs of
+    /// [`crate::response`]).
+    ///
+    /// # Errors
+    /// As [`SensorModel::new`].
+    pub fn summed(fit: &SensorFit, k: usize, fine_background: f64, bins: usize, counts: &[f32]) -> Result<Self> {
+        let kernel = crate::response::summed_response(&fit.kernel, k)?;
+        Self::new(SensorFit { kernel, background: fit.background }, bins, k as f64 * fine_background, counts)
+    }
+
+    /// `J I` of `rendered`, in f64.
+    ///
+    /// # Errors
+    /// [`OptimError::LengthMismatch`] when `rendered` does not split into histograms.
+    pub fn response(&self, rendered: &[f32]) -> Result<Vec<f64>> {
+        let x: Vec<f64> = rendered.iter().map(|&v| f64::from(v)).collect();
+        let mut a = vec![0.0; x.len()];
+        self.op.apply(&x, &mut a)?;
+        Ok(a)
+    }
+
+    /// Value, scale and `dE*/dI` of the data term ([`SensorFit::evaluate`]), and `J I` (for
+    /// [`SensorModel::noise_floor`]).
+    ///
+    /// # Errors
+    /// [`OptimError::LengthMismatch`] for buffers of different lengths.
+    pub fn evaluate(
+        &self,
+        rendered: &[f32],
+        counts: &[f32],
+        solve_scale: bool,
+        fallback_scale: f64,
+    ) -> Result<(DataEval, Vec<f64>)> {
+        if counts.len() != rendered.len() {
+            return Err(OptimError::LengthMismatch { what: "measured", expected: rendered.len(), got: counts.len() });
+        }
+        let a = self.response(rendered)?;
+        let b = self.background;
+        let scale = if solve_scale {
+            SensorFit::optimal_scale_jittered(&a, counts, b).unwrap_or(fallback_scale)
+        } else {
+            1.0
+        };
+        let mut r = vec![0.0; a.len()];
+        // Per-row sums, then summed in row order: the value does not depend on the number of threads.
+        let rows: Vec<f64> = r
+            .par_chunks_mut(self.bins)
+            .zip(a.par_chunks(self.bins))
+            .zip(counts.par_chunks(self.bins))
+            .map(|((rr, ar), nr)| {
+                let mut v = 0.0;
+                for ((rk, &ak), &nk) in rr.iter_mut().zip(ar).zip(nr) {
+                    let n = f64::from(nk);
+                    let mu = (scale * ak + b).max(MU_FLOOR);
+                    v += if n > 0.0 { mu - n * mu.ln() } else { mu };
+                    *rk = 1.0 - n / mu;
+                }
+                v
+            })
+            .collect();
+        let value = rows.iter().sum::<f64>() + self.counts_term;
+        let mut g = vec![0.0; r.len()];
+        self.op.adjoint(&r, &mut g)?;
+        let d_rendered = g.iter().map(|&v| (scale * v) as f32).collect();
+        Ok((DataEval { value, scale, d_rendered }, a))
+    }
+
+    /// [`SensorFit::noise_floor`] from `a = J I` ([`SensorModel::evaluate`]'s second value).
+    pub fn noise_floor(&self, a: &[f64], scale: f64) -> f64 {
+        let rows: Vec<f64> = a
+            .par_chunks(self.bins)
+            .map(|ar| ar.iter().map(|&ak| expected_half_deviance((scale * ak + self.background).max(0.0))).sum())
+            .collect();
+        rows.iter().sum()
+    }
+
+    /// The expected counts `scale · J I + b` of `rendered`.
+    ///
+    /// # Errors
+    /// As [`SensorModel::response`].
+    pub fn expected(&self, rendered: &[f32], scale: f64) -> Result<Vec<f64>> {
+        Ok(self.response(rendered)?.into_iter().map(|a| scale * a + self.background).collect())
+    }
+}
+
 /// A sensor fit's data term over a capture, histogram by histogram, as boundary pruning and growth take it
 /// ([`crate::prune::RowTerm`]).
 ///
@@ -373,9 +507,35 @@ pub struct SensorRows<'a> {
     pub background: f64,
     /// The block's scale `s`.
     pub scale: f64,
+    /// `J I` of the current rendering, measurement-major (None: convolved per test over the bins a share
+    /// reaches). With a long response (a real capture's: hundreds of bins) that convolution is most of a
+    /// test; [`crate::prune::RowTerm::applied`] keeps this current as faces go.
+    pub response: Option<&'a RwLock<Vec<f64>>>,
 }
 
 impl SensorRows<'_> {
+    /// `J I_f` of a share on the output bins `lo..hi` (those its input bins reach through the response).
+    fn moved(&self, share: &nlos_render::RowSpan, len: usize) -> (usize, usize, Vec<f64>) {
+        let (first, w) = (self.fit.kernel.first(), self.fit.kernel.weights());
+        let n = len as i64;
+        let (ws, we) = (share.first_bin as i64, (share.first_bin + share.values.len()).min(len) as i64);
+        // (J x)[k] = Σ_i w[i]·x[k − first − i]: input bins ws..we reach the outputs ws + first ..
+        // we + first + len(w) − 1, and no others.
+        let lo = (ws + first).clamp(0, n);
+        let hi = (we + first + w.len() as i64 - 1).clamp(lo, n);
+        let (lo, hi) = (lo as usize, hi as usize);
+        let moved = (lo..hi)
+            .map(|k| {
+                // Weight i reads input k − first − i, inside the share for i ∈ [top − we + 1, top − ws].
+                let top = k as i64 - first;
+                let i0 = (top - we + 1).max(0);
+                let i1 = (top - ws + 1).min(w.len() as i64);
+                (i0..i1.max(i0)).map(|i| w[i as usize] * f64::from(share.values[(top - i - ws) as usize])).sum()
+            })
+            .collect();
+        (lo, hi, moved)
+    }
+
     fn counts_row(&self, m: usize, len: usize) -> Result<&[f32]> {
         let row = self.counts.get(m * self.bins..(m + 1) * self.bins).ok_or(OptimError::LengthMismatch {
             what: "measured counts",
@@ -396,24 +556,22 @@ impl crate::prune::RowTerm for SensorRows<'_> {
 
     fn changes(&self, m: usize, row: &[f32], share: &nlos_render::RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
         let counts = self.counts_row(m, row.len())?;
-        let (first, w) = (self.fit.kernel.first(), self.fit.kernel.weights());
-        let n = row.len() as i64;
-        let (ws, we) = (share.first_bin as i64, (share.first_bin + share.values.len()).min(row.len()) as i64);
-        // (J x)[k] = Σ_i w[i]·x[k − first − i]: input bins ws..we reach the outputs ws + first ..
-        // we + first + len(w) − 1, and no others.
-        let lo = (ws + first).clamp(0, n);
-        let hi = (we + first + w.len() as i64 - 1).clamp(lo, n);
-        let (lo, hi) = (lo as usize, hi as usize);
-        let base = self.fit.kernel.apply_window(row, lo..hi);
-        let moved: Vec<f64> = (lo..hi)
-            .map(|k| {
-                // Weight i reads input k − first − i, inside the share for i ∈ [top − we + 1, top − ws].
-                let top = k as i64 - first;
-                let i0 = (top - we + 1).max(0);
-                let i1 = (top - ws + 1).min(w.len() as i64);
-                (i0..i1.max(i0)).map(|i| w[i as usize] * f64::from(share.values[(top - i - ws) as usize])).sum()
-            })
-            .collect();
+        let (lo, hi, moved) = self.moved(share, row.len());
+        let (cached, cached_window);
+        let base: &[f64] = match self.response {
+            Some(lock) => {
+                cached = lock.read().map_err(|_| poisoned())?;
+                cached.get(m * self.bins + lo..m * self.bins + hi).ok_or(OptimError::LengthMismatch {
+                    what: "cached response",
+                    expected: (m + 1) * self.bins,
+                    got: cached.len(),
+                })?
+            }
+            None => {
+                cached_window = self.fit.kernel.apply_window(row, lo..hi);
+                &cached_window
+            }
+        };
         let (s, b) = (self.scale, self.background);
         Ok(ks
             .iter()
@@ -423,14 +581,42 @@ impl crate::prune::RowTerm for SensorRows<'_> {
                     .zip(&moved)
                     .zip(&counts[lo..hi])
                     .map(|((&a, &j), &c)| {
-                        let c = f64::from(c);
-                        half_deviance((s * (a + k * j) + b).max(MU_FLOOR), c)
-                            - half_deviance((s * a + b).max(MU_FLOOR), c)
+                        let mu = (s * a + b).max(MU_FLOOR);
+                        deviance_change(mu, (s * (a + k * j) + b).max(MU_FLOOR) - mu, f64::from(c))
                     })
                     .sum()
             })
             .collect())
     }
+
+    fn applied(&self, spans: &[nlos_render::RowSpan], add: bool) -> Result<()> {
+        let Some(lock) = self.response else { return Ok(()) };
+        let mut response = lock.write().map_err(|_| poisoned())?;
+        let sign = if add { 1.0 } else { -1.0 };
+        for share in spans {
+            let (lo, hi, moved) = self.moved(share, self.bins);
+            let row = m_row(&mut response, share.measurement, self.bins)?;
+            for (x, d) in row[lo..hi].iter_mut().zip(&moved) {
+                *x += sign * d;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A lock whose holder panicked (a test of another thread): the cache cannot be trusted.
+fn poisoned() -> OptimError {
+    OptimError::InvalidParameter { name: "response cache", value: 0.0, reason: "a thread panicked while holding it" }
+}
+
+/// Histogram `m` of a measurement-major buffer.
+fn m_row(buf: &mut [f64], m: usize, bins: usize) -> Result<&mut [f64]> {
+    let len = buf.len();
+    buf.get_mut(m * bins..(m + 1) * bins).ok_or(OptimError::LengthMismatch {
+        what: "cached response",
+        expected: (m + 1) * bins,
+        got: len,
+    })
 }
 
 #[cfg(test)]
@@ -463,7 +649,7 @@ mod tests {
                 kernel: BinKernel::new(first, weights).expect("kernel"),
                 background: SensorBackground::Fixed(0.7),
             };
-            let rows = SensorRows { fit: &fit, counts: &counts, bins: BINS, background: 0.7, scale: 3.0 };
+            let rows = SensorRows { fit: &fit, counts: &counts, bins: BINS, background: 0.7, scale: 3.0, response: None };
             let generic = |m: usize, row: &[f32], w: std::ops::Range<usize>| rows.value(m, row, w);
             for (first_bin, len) in [(0, 4), (10, 6), (26, 4), (27, 9)] {
                 let values: Vec<f32> = (0..len).map(|i| 0.05 + 0.03 * i as f32).collect();
@@ -481,6 +667,17 @@ mod tests {
                     assert!(a != &0.0 && (a - b).abs() <= 1e-6 * b.abs(), "{first} {first_bin}: {a} vs {b}");
                 }
             }
+        }
+    }
+
+    /// The change of one bin's deviance equals the difference of the deviances, on both sides of the series'
+    /// switch and without counts (where the difference would cancel in f64, the series is the more exact).
+    #[test]
+    fn deviance_change_is_the_difference_of_deviances() {
+        for (mu, delta, n) in [(0.4, 0.3, 2.0), (0.4, 3e-4, 1.0), (5.0, 4.9e-3, 7.0), (5.0, -2.0, 3.0), (1.0, 0.5, 0.0)] {
+            let want = half_deviance(mu + delta, n) - half_deviance(mu, n);
+            let got = deviance_change(mu, delta, n);
+            assert!((got - want).abs() <= 1e-12 * (1.0 + want.abs()), "{mu} {delta} {n}: {got} vs {want}");
         }
     }
 

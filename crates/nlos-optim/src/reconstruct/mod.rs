@@ -42,6 +42,7 @@
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::sync::RwLock;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -61,7 +62,7 @@ use crate::prune::{PruneRecord, RowLoss, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{ResidualRecord, residual_patches};
-use crate::sensor::SensorRows;
+use crate::sensor::{SensorModel, SensorRows};
 
 mod checkpoint;
 mod log;
@@ -340,13 +341,12 @@ struct Eval {
     grad_faces: Vec<f32>,
 }
 
-/// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit with its resolved background.
+/// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit on the stage's bins.
 struct Fit<'a> {
     params: &'a ReconstructParams,
     measured: &'a [f32],
-    bins: usize,
-    /// Background per bin of the sensor fit (unused without one).
-    background: f64,
+    /// The sensor fit on this stage's capture (None: the plain data term).
+    sensor: Option<&'a SensorModel>,
     /// Normaliser of the data term.
     norm: f64,
 }
@@ -358,12 +358,11 @@ fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result
     let brdf = st.reflectance.brdf()?;
     let rendered = brdf.forward(r);
     let mut floor = 0.0;
-    let ev = match &params.sensor {
+    let ev = match fit.sensor {
         Some(sensor) => {
-            let ev =
-                sensor.evaluate(&rendered, measured, fit.bins, fit.background, params.data.solve_scale, st.scale)?;
+            let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
             if want_floor {
-                floor = sensor.noise_floor(&rendered, fit.bins, fit.background, ev.scale)? / norm;
+                floor = sensor.noise_floor(&a, ev.scale) / norm;
             }
             ev
         }
@@ -405,15 +404,32 @@ fn data_normaliser(params: &ReconstructParams, data: &[f32]) -> Result<f64> {
     })
 }
 
-/// The capture stage `stage` fits: `measured` with [`crate::Schedule::rebin`] bins summed, or `None` for
-/// `measured` itself (a factor of 1, or a sensor fit or per-bin weights, which are defined on its own bins).
-fn stage_capture(measured: &Transient, params: &ReconstructParams, stage: u32) -> Result<Option<Transient>> {
-    let k = params.schedule.rebin(stage, measured.time().bin_width).min(measured.bins());
-    if k <= 1 || params.sensor.is_some() || params.data.weights.is_some() {
-        return Ok(None);
+/// What one stage fits: the capture with [`crate::Schedule::rebin`] bins summed (`None`: `measured` itself,
+/// for a factor of 1 or per-bin weights, which are defined on its own bins) and the sensor fit on those bins
+/// (the response of the summed bins and their background, [`SensorModel::summed`]).
+struct StageData {
+    stage: u32,
+    capture: Option<Transient>,
+    sensor: Option<SensorModel>,
+}
+
+impl StageData {
+    /// The data of stage `stage`; `background` is the sensor fit's background on the capture's own bins.
+    fn new(measured: &Transient, params: &ReconstructParams, stage: u32, background: f64) -> Result<Self> {
+        let k = params.schedule.rebin(stage, measured.time().bin_width).min(measured.bins());
+        let k = if params.data.weights.is_some() { 1 } else { k };
+        let capture = if k > 1 {
+            Some(measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?)
+        } else {
+            None
+        };
+        let fitted = capture.as_ref().unwrap_or(measured);
+        let sensor = match &params.sensor {
+            Some(fit) => Some(SensorModel::summed(fit, k, background, fitted.bins(), fitted.data())?),
+            None => None,
+        };
+        Ok(Self { stage, capture, sensor })
     }
-    let coarse = measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?;
-    Ok(Some(coarse))
 }
 
 #[allow(clippy::too_many_lines)]
@@ -453,17 +469,19 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     let out_dir: Option<PathBuf> = params.out_dir.clone();
 
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
-    let mut coarse: Option<(u32, Option<Transient>)> = None;
+    let mut stage_data: Option<StageData> = None;
     while st.finished.is_none() {
-        if coarse.as_ref().is_none_or(|(s, _)| *s != st.stage) {
-            coarse = Some((st.stage, stage_capture(measured, params, st.stage)?));
-        }
-        let measured: &Transient = coarse.as_ref().and_then(|(_, c)| c.as_ref()).unwrap_or(measured);
+        let sd: &StageData = match stage_data.take() {
+            Some(d) if d.stage == st.stage => stage_data.insert(d),
+            _ => stage_data.insert(StageData::new(measured, params, st.stage, background)?),
+        };
+        let measured: &Transient = sd.capture.as_ref().unwrap_or(measured);
+        let sensor = sd.sensor.as_ref();
         let data = measured.data();
         let norm = data_normaliser(params, data)?;
         let target = sch.target_edge_length(st.stage);
         let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
-        let fit = Fit { params, measured: data, bins: measured.bins(), background, norm };
+        let fit = Fit { params, measured: data, sensor, norm };
         let mut renderer = Renderer::new(
             &st.positions,
             &st.triangles,
@@ -647,14 +665,26 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
                 params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
             };
-            let sensor_rows =
-                params.sensor.as_ref().map(|fit| SensorRows { fit, counts: data, bins, background, scale });
-            let row_loss: &RowLoss<'_> = match &sensor_rows {
+            // The sensor fit's `J I`, kept current through the deletions (SensorRows::response).
+            let response = match sensor {
+                Some(m) => Some(RwLock::new(m.response(&rendered)?)),
+                None => None,
+            };
+            let cached_rows = sensor.map(|m| SensorRows {
+                fit: &m.fit,
+                counts: data,
+                bins,
+                background: m.background,
+                scale,
+                response: response.as_ref(),
+            });
+            let row_loss: &RowLoss<'_> = match &cached_rows {
                 Some(rows) => rows,
                 None => &data_rows,
             };
             if let Some(pp) = &params.prune {
-                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
+                let p =
+                    prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
                 if p.removed > 0 {
                     drop_faces(&mut st, &p.keep);
                 }
@@ -667,9 +697,17 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 });
             }
             if let Some(rp) = residual {
-                let model: Vec<f64> = match &params.sensor {
-                    Some(sensor) => sensor.expected(&rendered, bins, background, scale)?,
-                    None => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
+                let model: Vec<f64> = match (sensor, &response) {
+                    (Some(m), Some(lock)) => {
+                        let a = lock.read().map_err(|_| OptimError::InvalidParameter {
+                            name: "response cache",
+                            value: 0.0,
+                            reason: "a thread panicked while holding it",
+                        })?;
+                        a.iter().map(|a| scale * a + m.background).collect()
+                    }
+                    (Some(m), None) => m.expected(&rendered, scale)?,
+                    (None, _) => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
                 };
                 let res: Vec<f32> = data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect();
                 let p = residual_patches(
