@@ -1,6 +1,6 @@
 //! Coarse to fine in time (`Schedule::rebin_fraction`): a stage fits the capture with bins summed up to a
-//! fraction of its edge length — exactly the run on the rebinned capture — except with a sensor fit, whose
-//! response is defined on the capture's own bins; a bad fraction is a typed error naming the setting.
+//! fraction of its edge length — exactly the run on the rebinned capture, with a sensor fit through the
+//! response of the summed bins; a bad fraction is a typed error naming the setting.
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -74,14 +74,23 @@ fn a_coarse_stage_fits_the_rebinned_capture() {
     assert!(coarse.mesh.n_faces() > 0);
 }
 
+/// A sensor fit's coarse stage is the fit of the summed counts through the response of summed bins
+/// (`nlos_optim::response::summed_response`) with the background of a summed bin, and not the fit at the
+/// capture's bins.
 #[test]
-fn a_sensor_fit_runs_every_stage_at_the_capture_bins() {
+fn a_sensor_fit_sums_bins_through_the_summed_response() {
     let (measured, start) = capture_and_start();
-    let sensor = SensorFit { kernel: BinKernel::identity(), background: SensorBackground::Fixed(0.0) };
-    let with = |k| ReconstructParams { sensor: Some(sensor.clone()), ..one_stage(k) };
-    let a = reconstruct(&measured, &start, &with(4)).unwrap();
-    let b = reconstruct(&measured, &start, &with(1)).unwrap();
-    assert_eq!(positions(&a.mesh), positions(&b.mesh));
+    let kernel = BinKernel::new(-1, vec![0.2, 0.5, 0.2, 0.1]).unwrap();
+    let mean = measured.data().iter().map(|&c| f64::from(c)).sum::<f64>() / measured.data().len() as f64;
+    let b = 0.01 * mean;
+    let fit = |kernel: BinKernel, b: f64| SensorFit { kernel, background: SensorBackground::Fixed(b) };
+    let with = |k, f: SensorFit| ReconstructParams { sensor: Some(f), ..one_stage(k) };
+    let coarse = reconstruct(&measured, &start, &with(2, fit(kernel.clone(), b))).unwrap();
+    let summed = nlos_optim::response::summed_response(&kernel, 2).unwrap();
+    let by_hand = reconstruct(&measured.rebin(2).unwrap(), &start, &with(1, fit(summed, 2.0 * b))).unwrap();
+    let full = reconstruct(&measured, &start, &with(1, fit(kernel, b))).unwrap();
+    assert_eq!(positions(&coarse.mesh), positions(&by_hand.mesh), "stage 0 fits the counts summed over 2 bins");
+    assert_ne!(positions(&coarse.mesh), positions(&full.mesh), "and not the capture itself");
 }
 
 #[test]

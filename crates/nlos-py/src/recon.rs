@@ -11,8 +11,7 @@ use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nlos_init::{FbpParams, FkParams, LctParams};
-use nlos_optim::pipeline::{Config, Prepared};
+use nlos_optim::pipeline::{Config, Prepared, Volumetric};
 use nlos_optim::{Hooks, Progress};
 
 use crate::capture::Capture;
@@ -35,9 +34,10 @@ pub(crate) fn default_settings() -> PyResult<String> {
     serde_json::to_string(&Config::default()).map_err(|e| ConfigError::new_err(e.to_string()))
 }
 
-/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"` or `"fbp"`, the
-/// library's default settings (direct light gated automatically). Returns `(volume, axes)`: the volume
-/// (nx, ny, nz) float32 and `{"x"|"y"|"z": (first voxel centre, spacing)}` in metres.
+/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"` or `"fbp"`, on the capture
+/// prepared as `nlos reconstruct` and `nlos init` prepare it with the default settings (`Prepared::volume`:
+/// direct light gated automatically). Returns `(volume, axes)`: the volume (nx, ny, nz) float32 and
+/// `{"x"|"y"|"z": (first voxel centre, spacing)}` in metres.
 #[pyfunction]
 #[pyo3(signature = (capture, method = "lct", snr = None))]
 pub(crate) fn volume<'py>(
@@ -47,23 +47,20 @@ pub(crate) fn volume<'py>(
     snr: Option<f64>,
 ) -> PyResult<(Py<PyArray3<f32>>, Bound<'py, PyDict>)> {
     let t = capture.transient(py)?;
-    let vol = match method {
-        "lct" => {
-            let mut p = LctParams::default();
-            if let Some(s) = snr {
-                p.snr = s;
-            }
-            py.detach(|| nlos_init::lct(&t, &p))
-        }
-        "fk" => py.detach(|| nlos_init::fk(&t, &FkParams::default())),
-        "fbp" => py.detach(|| nlos_init::fbp(&t, &FbpParams::default())),
+    let method = match method {
+        "lct" => Volumetric::Lct,
+        "fk" => Volumetric::Fk,
+        "fbp" => Volumetric::Fbp,
         other => {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "method: {other:?} is not \"lct\", \"fk\" or \"fbp\""
             )));
         }
-    }
-    .map_err(errors::init)?;
+    };
+    let config = Config::default();
+    let vol = py
+        .detach(|| Prepared::new(t, &config).and_then(|p| p.volume(method, nlos_init::Material::Diffuse, snr)))
+        .map_err(errors::optim)?;
     let axes = PyDict::new(py);
     for (name, axis) in [("x", vol.x), ("y", vol.y), ("z", vol.z)] {
         axes.set_item(name, (axis.start, axis.step))?;

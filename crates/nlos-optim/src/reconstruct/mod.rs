@@ -1,8 +1,8 @@
 //! The analysis-by-synthesis loop (Tsai et al. 2019, Sec. 4.2 and 5), its checkpoints and its run log.
 //!
 //! Each stage fits the capture with [`crate::Schedule::rebin`] bins summed (coarse to fine in time as in
-//! space: 4, 2, 1 for the seed's 1.2 mm bins; the capture's own bins with a sensor fit or per-bin weights),
-//! made once at its first block; the data term's normaliser is that capture's, so the data terms of
+//! space: 4, 2, 1 for the seed's 1.2 mm bins; a sensor fit through the response of the summed bins,
+//! [`crate::response`]; the capture's own bins with per-bin weights), made once at its first block; the data term's normaliser is that capture's, so the data terms of
 //! different stages are not comparable.
 //!
 //! Per block (see [`crate::Schedule`]):
@@ -699,11 +699,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             if let Some(rp) = residual {
                 let model: Vec<f64> = match (sensor, &response) {
                     (Some(m), Some(lock)) => {
-                        let a = lock.read().map_err(|_| OptimError::InvalidParameter {
-                            name: "response cache",
-                            value: 0.0,
-                            reason: "a thread panicked while holding it",
-                        })?;
+                        let a = lock.read().map_err(|_| crate::sensor::poisoned())?;
                         a.iter().map(|a| scale * a + m.background).collect()
                     }
                     (Some(m), None) => m.expected(&rendered, scale)?,
