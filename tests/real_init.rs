@@ -1,6 +1,7 @@
 //! `nlos init` with its defaults on each shared real capture puts the start where the light says: the median
 //! depth of the start's vertices within 1 cm of the depth at which the summed histogram's first return
-//! rises (computed here from the histogram alone, independently of the library's preparation).
+//! rises (computed here from the histogram alone, independently of the library's preparation); for the two
+//! letters of `data_s_u`, a third of the start at that first return.
 //!
 //! What it catches: `nlos init` preparing a capture differently from `nlos reconstruct` — before they shared
 //! `Prepared`, the 40 cm chart's start from `nlos init` lay at a median depth of 1.165 m (the bins after the
@@ -60,6 +61,18 @@ fn nlos_init_defaults_put_each_real_capture_where_its_light_rises() {
         z.sort_by(f32::total_cmp);
         let median = f64::from(z[z.len() / 2]);
         eprintln!("{name}: onset {onset:.4} m, start median {median:.4} m");
-        assert!((median - onset).abs() <= 0.01, "{name}: the start's median depth {median:.4} m, onset {onset:.4} m");
+        if name == "data_s_u" {
+            // Two letters: the S at the first return (0.57–0.72 m, tilted) and the U behind it (0.95–1.1 m), in
+            // about equal parts of the start, so its median falls on either. What the light says is that the
+            // start holds the first return: at least a third of its vertices from 5 cm before the onset to 15
+            // cm after it.
+            let near = z.iter().filter(|&&d| (onset - 0.05..=onset + 0.15).contains(&f64::from(d))).count();
+            assert!(3 * near >= z.len(), "{name}: {near} of {} start vertices at the first return {onset:.4} m", z.len());
+        } else {
+            assert!(
+                (median - onset).abs() <= 0.01,
+                "{name}: the start's median depth {median:.4} m, onset {onset:.4} m"
+            );
+        }
     }
 }
