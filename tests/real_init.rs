@@ -26,7 +26,7 @@ fn onset_depth(t: &nlos_transient::Transient) -> f64 {
     let smooth: Vec<f64> = (0..h.len())
         .map(|k| {
             let (lo, hi) = (k.saturating_sub(w / 2), (k + w / 2 + 1).min(h.len()));
-            h[lo..hi].iter().map(|&v| f64::from(v)).sum::<f64>() / (hi - lo) as f64
+            h[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
         })
         .collect();
     // The direct light: from the largest bin of the first tenth down to the first local minimum.
@@ -67,7 +67,11 @@ fn nlos_init_defaults_put_each_real_capture_where_its_light_rises() {
             // start holds the first return: at least a third of its vertices from 5 cm before the onset to 15
             // cm after it.
             let near = z.iter().filter(|&&d| (onset - 0.05..=onset + 0.15).contains(&f64::from(d))).count();
-            assert!(3 * near >= z.len(), "{name}: {near} of {} start vertices at the first return {onset:.4} m", z.len());
+            assert!(
+                3 * near >= z.len(),
+                "{name}: {near} of {} start vertices at the first return {onset:.4} m",
+                z.len()
+            );
         } else {
             assert!(
                 (median - onset).abs() <= 0.01,

@@ -244,7 +244,8 @@ mod tests {
 
     fn kernel(first: i64, taps: usize) -> BinKernel {
         // A sharp rise and a long, slowly falling tail, as a real capture's own response.
-        let w: Vec<f64> = (0..taps).map(|i| if i < 3 { 0.2 * (i + 1) as f64 } else { (-(i as f64) / 40.0).exp() }).collect();
+        let w: Vec<f64> =
+            (0..taps).map(|i| if i < 3 { 0.2 * (i + 1) as f64 } else { (-(i as f64) / 40.0).exp() }).collect();
         let s: f64 = w.iter().sum();
         BinKernel::new(first, w.iter().map(|v| v / s).collect()).expect("kernel")
     }

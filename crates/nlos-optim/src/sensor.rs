@@ -431,7 +431,13 @@ impl SensorModel {
                     .sum::<f64>()
             })
             .sum();
-        Ok(Self { fit: SensorFit { background: SensorBackground::Fixed(background), ..fit }, op, bins, background, counts_term })
+        Ok(Self {
+            fit: SensorFit { background: SensorBackground::Fixed(background), ..fit },
+            op,
+            bins,
+            background,
+            counts_term,
+        })
     }
 
     /// The model of stage capture with `k` bins summed: the response of the summed bins
@@ -473,11 +479,8 @@ impl SensorModel {
         }
         let a = self.response(rendered)?;
         let b = self.background;
-        let scale = if solve_scale {
-            SensorFit::optimal_scale_jittered(&a, counts, b).unwrap_or(fallback_scale)
-        } else {
-            1.0
-        };
+        let scale =
+            if solve_scale { SensorFit::optimal_scale_jittered(&a, counts, b).unwrap_or(fallback_scale) } else { 1.0 };
         let mut r = vec![0.0; a.len()];
         // Per-row sums, then summed in row order: the value does not depend on the number of threads.
         let rows: Vec<f64> = r
@@ -677,7 +680,8 @@ mod tests {
                 kernel: BinKernel::new(first, weights).expect("kernel"),
                 background: SensorBackground::Fixed(0.7),
             };
-            let rows = SensorRows { fit: &fit, counts: &counts, bins: BINS, background: 0.7, scale: 3.0, response: None };
+            let rows =
+                SensorRows { fit: &fit, counts: &counts, bins: BINS, background: 0.7, scale: 3.0, response: None };
             let generic = |m: usize, row: &[f32], w: std::ops::Range<usize>| rows.value(m, row, w);
             for (first_bin, len) in [(0, 4), (10, 6), (26, 4), (27, 9)] {
                 let values: Vec<f32> = (0..len).map(|i| 0.05 + 0.03 * i as f32).collect();
@@ -703,8 +707,14 @@ mod tests {
     /// and a row's change is the sum of its bins'.
     #[test]
     fn deviance_change_is_the_difference_of_deviances() {
-        let cases =
-            [(0.4, 0.3, 2.0), (0.4, 3e-4, 1.0), (5.0, 4.9e-3, 7.0), (5.0, -2.0, 3.0), (1.0, 0.5, 0.0), (0.3, 40.0, 9.0)];
+        let cases = [
+            (0.4, 0.3, 2.0),
+            (0.4, 3e-4, 1.0),
+            (5.0, 4.9e-3, 7.0),
+            (5.0, -2.0, 3.0),
+            (1.0, 0.5, 0.0),
+            (0.3, 40.0, 9.0),
+        ];
         let mut sum = 0.0;
         for (mu, delta, n) in cases {
             let want = half_deviance(mu + delta, n) - half_deviance(mu, n);

@@ -683,8 +683,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 None => &data_rows,
             };
             if let Some(pp) = &params.prune {
-                let p =
-                    prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
+                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
                 if p.removed > 0 {
                     drop_faces(&mut st, &p.keep);
                 }
