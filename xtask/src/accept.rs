@@ -762,7 +762,10 @@ pub const SCENARIOS: [(&str, &str); 7] = [
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
     ("ggx", "a glossy (GGX) bunny at two roughnesses: the fitted roughness, the shape"),
     ("sensor", "SPAD counts (jitter, background): the sensor-aware fit against plain L2"),
-    ("real", "the Stanford captures (chart, diffuse S, S and U), default command: time, the chart's plane, the letters"),
+    (
+        "real",
+        "the Stanford captures (chart, diffuse S, S and U), default command: time, the chart's plane, the letters",
+    ),
     (
         "znlos",
         "the Z-NLOS benchmark (`cargo xtask benchmark znlos DIR`): LCT, f-k and the fit against depth/normal maps",
