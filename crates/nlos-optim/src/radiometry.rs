@@ -2,11 +2,7 @@
 //! scan) gets the light-cone transform's retroreflective weighting, a diffuse one (`1/r⁴`) the diffuse
 //! weighting (O'Toole, Lindell & Wetzstein 2018: data weighted by `t²` or `t⁴`).
 
-use nlos_init::{LctParams, Material, SurfaceParams, lct, volume_to_surface};
-use nlos_mesh::SurfaceMesh;
-use nlos_transient::Transient;
-
-use crate::error::Result;
+use nlos_init::{LctParams, Material};
 
 /// The LCT settings of a radiometric model: its weighting and Wiener SNR — 0.1 for diffuse (tuned on the
 /// simulated bunny; the captures' reference code uses 0.08 on 16 ps bins for its diffuse S), 0.8 for
@@ -17,16 +13,4 @@ pub fn lct_params(material: Material) -> LctParams {
         Material::Retroreflective => 0.8,
     };
     LctParams { material, snr, ..LctParams::default() }
-}
-
-/// The LCT start with a model's weighting: `full`'s volume ([`lct_params`]), its surface by
-/// [`SurfaceParams::object`] with no voxel beyond `max_depth`.
-///
-/// # Errors
-/// Those of [`lct`] and [`volume_to_surface`] (not a confocal grid, an empty volume).
-pub fn lct_start(full: &Transient, material: Material, max_depth: Option<f64>) -> Result<SurfaceMesh> {
-    let volume = lct(full, &lct_params(material))?;
-    let mut surface = SurfaceParams::object();
-    surface.max_depth = surface.max_depth.or(max_depth);
-    Ok(volume_to_surface(&volume, &surface)?.mesh)
 }

@@ -668,8 +668,8 @@ mod tests {
         (fit, rendered, counts)
     }
 
-    /// The share path of [`SensorRows`] (one convolution of the share) gives the changes that convolving
-    /// each shifted row gives ([`crate::prune::RowTerm`]'s default), for responses that reach before and
+    /// The share path of [`SensorRows`] (one convolution of the share, `J I` cached or not) gives the changes
+    /// that convolving each shifted row gives ([`crate::prune::RowTerm`]'s default), for responses that reach before and
     /// after a bin and shares at either end of the row.
     #[test]
     fn sensor_rows_changes_match_the_shifted_rows() {
@@ -697,6 +697,32 @@ mod tests {
                 // The generic path rounds the shifted row to f32 (relative 6e-8 per bin); the share path does not.
                 for (a, b) in fast.iter().zip(&slow) {
                     assert!(a != &0.0 && (a - b).abs() <= 1e-6 * b.abs(), "{first} {first_bin}: {a} vs {b}");
+                }
+                // With `J I` cached (as pruning runs it): the same changes; after `applied` takes the share away,
+                // the cache is `J` of the row without it, and the changes are those of that row.
+                let mut both = rendered.clone();
+                both[BINS..].copy_from_slice(&row);
+                let lock = RwLock::new(fit.jitter(&both, BINS).expect("J I"));
+                let cached = SensorRows { response: Some(&lock), ..rows };
+                let with_cache = cached.changes(1, &row, &share, &ks).expect("cached");
+                for (a, b) in with_cache.iter().zip(&fast) {
+                    assert!((a - b).abs() <= 1e-9 * b.abs(), "cached {first} {first_bin}: {a} vs {b}");
+                }
+                cached.applied(std::slice::from_ref(&share), false).expect("applied");
+                let mut without = both.clone();
+                for (x, v) in without[BINS + first_bin..].iter_mut().zip(&share.values) {
+                    *x -= v;
+                }
+                let want = fit.jitter(&without, BINS).expect("J I");
+                let got = lock.read().expect("lock");
+                for (a, b) in got.iter().zip(&want) {
+                    assert!((a - b).abs() <= 1e-6 * (1.0 + b.abs()), "applied {first} {first_bin}: {a} vs {b}");
+                }
+                drop(got);
+                let after = cached.changes(1, &without[BINS..], &share, &ks).expect("after");
+                let plain = rows.changes(1, &without[BINS..], &share, &ks).expect("plain");
+                for (a, b) in after.iter().zip(&plain) {
+                    assert!((a - b).abs() <= 1e-6 * (1.0 + b.abs()), "after {first} {first_bin}: {a} vs {b}");
                 }
             }
         }
