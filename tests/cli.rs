@@ -90,13 +90,19 @@ fn benchmark_runs_on_znlos_files_with_maps() {
     let t = nlos_transient::read(common::fixture("capture.hdf5")).expect("fixture");
     let (nx, ny) = t.scan().lasers().grid_dims().expect("grid");
     let (m, bins) = (t.measurements(), t.bins());
-    // data(k, a, b) column-major with measurement a + nx·b = our point ix + nx·iy; their (x, 0, y) is our (x, y, 0).
-    let data: Vec<f64> = (0..m).flat_map(|p| t.histogram(p).iter().map(|v| f64::from(*v))).collect();
+    // NeTF's layout: data T × ny × nx, data(:, iy, ix) (stored column-major at iy + ny·ix) with position
+    // column iy·nx + ix = our point ix + nx·iy; their (x, 0, y) is our (x, y, 0); deltaT half a path bin.
+    let mut data = vec![0.0f64; m * bins];
+    for p in 0..m {
+        let (ix, iy) = (p % nx, p / nx);
+        let at = bins * (iy + ny * ix);
+        data[at..at + bins].iter_mut().zip(t.histogram(p)).for_each(|(d, v)| *d = f64::from(*v));
+    }
     let pos: Vec<f64> = t.scan().lasers().points.iter().flat_map(|p| [f64::from(p.x), 0.0, f64::from(p.y)]).collect();
     let vars = vec![
-        mat5_writer::double("data", &[bins as i32, nx as i32, ny as i32], data),
+        mat5_writer::double("data", &[bins as i32, ny as i32, nx as i32], data),
         mat5_writer::double("cameraGridPositions", &[3, m as i32], pos),
-        mat5_writer::double("deltaT", &[1, 1], vec![t.time().bin_width]),
+        mat5_writer::double("deltaT", &[1, 1], vec![0.5 * t.time().bin_width]),
         mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.4, 0.0]),
     ];
     let dir = scratch("benchmark");
@@ -127,7 +133,7 @@ fn benchmark_runs_on_znlos_files_with_maps() {
     let table = dir.join("table.md");
     let (d, o, tb) =
         (data_dir.to_string_lossy(), dir.join("runs").to_string_lossy().into_owned(), table.to_string_lossy());
-    let mut args = vec!["benchmark", &d, "--out", &o, "--table", &tb];
+    let mut args = vec!["benchmark", &d, "--out", &o, "--table", &tb, "--gt-layout", "image"];
     args.extend(FAST);
     assert_eq!(nlos(&args), ExitCode::SUCCESS);
     let text = std::fs::read_to_string(&table).expect("table");

@@ -4,8 +4,10 @@
 //! [`crate::eval`]'s code, as one Markdown table.
 //!
 //! Ground truth beside `SCENE.mat` (or `SCENE.hdf5`): `SCENE_depth.npy` or `SCENE_depth.mat` (required),
-//! `SCENE_normal.npy` or `.mat` (optional), on the capture's scan grid: one pixel per scan point, row 0 at the
-//! largest y, the convention of `nlos eval --gt-depth`.
+//! `SCENE_normal.npy` or `.mat` (optional), laid out as published (`--gt-layout dlct`, the default) or as
+//! ours, on the capture's full wall grid (as `nlos eval --wall`): the maps' first and last pixel centres on
+//! the outermost points of the full scan grid, so a capture subsampled from 256 × 256 (the published 8 × 8
+//! bunny) is scored on the 256 × 256 maps.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,7 +16,7 @@ use nlos_mesh::map_metrics::MapMetrics;
 use nlos_transient::Format;
 
 use crate::CliError;
-use crate::eval::{VolumeMethod, score_maps, truth_maps, volume_surface};
+use crate::eval::{GtLayout, MapPlace, VolumeMethod, score_maps, truth_maps, volume_surface};
 
 /// Arguments of `nlos benchmark`.
 #[derive(Debug, clap::Args)]
@@ -33,6 +35,10 @@ pub(crate) struct Args {
     /// Depth tolerance of "coverage within" (metres).
     #[arg(long, default_value_t = 0.005, value_name = "METRES")]
     threshold: f64,
+    /// How the map files lay out their pixels (as `nlos eval --gt-layout`): the Z-NLOS maps as published, or
+    /// ours.
+    #[arg(long, value_enum, default_value = "dlct")]
+    gt_layout: GtLayout,
 }
 
 /// The table's header, for a coverage threshold of `threshold` metres.
@@ -80,22 +86,9 @@ fn scenes(dir: &Path) -> Result<Vec<Scene>, CliError> {
     Ok(out)
 }
 
-/// The wall rectangle of a grid capture's scan points, half a spacing beyond the outer points.
-fn extent(capture: &Path) -> Result<[f32; 4], CliError> {
-    let t = nlos_transient::read(capture).map_err(CliError::input)?;
-    let pts = t.scan().sensors();
-    let Some((nx, ny)) = pts.grid_dims() else {
-        return Err(CliError::Input(format!("{}: the scan is not a grid, so it has no map grid", capture.display())));
-    };
-    let (lo, hi) = pts.bounds().unwrap_or_default();
-    let half = |lo: f32, hi: f32, n: usize| if n > 1 { 0.5 * (hi - lo) / (n - 1) as f32 } else { 0.5 };
-    let (hx, hy) = (half(lo.x, hi.x, nx), half(lo.y, hi.y, ny));
-    Ok([lo.x - hx, hi.x + hx, lo.y - hy, hi.y + hy])
-}
-
 fn row(scene: &str, method: &str, m: &MapMetrics, seconds: f64) -> String {
     let mm = |v: Option<f64>| v.map_or_else(|| "–".into(), |x| format!("{:.2}", 1e3 * x));
-    let deg = m.normal_error_mean_deg.map_or_else(|| "–".into(), |x| format!("{x:.1}"));
+    let deg = m.normal_error_mean_deg.map_or_else(|| "–".into(), |x| format!("{x:.1} ({} px)", m.normal_pixels));
     format!(
         "| {scene} | {method} | {:.1} % | {} | {} | {deg} | {seconds:.0} |",
         100.0 * m.coverage_within,
@@ -117,7 +110,8 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     println!("{head}");
     let mut table = vec![head];
     for s in &scenes {
-        let truth = truth_maps(&s.depth, s.normal.as_deref(), extent(&s.capture)?)?;
+        let place = MapPlace::Wall(s.capture.clone());
+        let truth = truth_maps(&s.depth, s.normal.as_deref(), args.gt_layout.into(), &place)?;
         let mut score = |method: &str, mesh: &nlos_mesh::SurfaceMesh, t: f64| -> Result<(), CliError> {
             let m = score_maps(mesh, &format!("{} ({method})", s.name), &truth, args.threshold)?;
             let line = row(&s.name, method, &m, t);

@@ -11,12 +11,10 @@
 //! the Z-NLOS scenes). `--volume CAPTURE --method lct|fk` scores a volumetric reconstruction of the capture
 //! (its surface: the arg-max depth of the kept columns) by the same code.
 
-use nlos_init::SurfaceParams;
 use nlos_optim::pipeline::{Config, Prepared, Volumetric};
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
-use nlos_mesh::map_metrics::{MapGrid, MapMetrics, Maps, evaluate_maps, mesh_maps};
+use nlos_mesh::map_metrics::{MapGrid, MapLayout, MapMetrics, Maps, evaluate_maps, mesh_maps};
 use nlos_mesh::metrics::{EvalParams, MAX_GRID, evaluate, load_for_eval};
 use nlos_mesh::{MeshError, SurfaceMesh};
 
@@ -31,6 +29,26 @@ pub(crate) enum VolumeMethod {
     Fk,
 }
 
+/// How the ground-truth map files lay out their pixels ([`MapLayout`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum GtLayout {
+    /// Ours: seen from the wall as an image, row 0 at the top (largest y), column 0 at the smallest x;
+    /// normals in our frame facing the wall.
+    Image,
+    /// The Z-NLOS ground truth as the directional LCT published it (`*_depth.mat`, `*_normal.mat`): the depth
+    /// map transposed, the normal map mirrored with its vectors away from the wall.
+    Dlct,
+}
+
+impl From<GtLayout> for MapLayout {
+    fn from(l: GtLayout) -> Self {
+        match l {
+            GtLayout::Image => MapLayout::Image,
+            GtLayout::Dlct => MapLayout::Dlct,
+        }
+    }
+}
+
 /// Arguments of `nlos eval`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
@@ -40,24 +58,26 @@ pub(crate) struct Args {
     /// The ground-truth mesh (OBJ, PLY or GLB).
     #[arg(long, value_name = "GT", required_unless_present = "gt_depth", conflicts_with = "gt_depth")]
     gt: Option<PathBuf>,
-    /// Ground-truth depth map (.npy, .mat or one-channel .exr, height × width, metres along +z from the wall; 0 or NaN: no
-    /// surface) on the wall grid of --extent, seen from the wall as an image: row 0 at the top (largest y),
-    /// column 0 at the left (smallest x).
+    /// Ground-truth depth map (.npy, .mat or one-channel .exr, metres along +z from the wall; 0, NaN or Inf: no
+    /// surface) on the wall grid of --extent (or of --wall), laid out as --gt-layout says.
     #[arg(long, value_name = "DEPTH")]
     gt_depth: Option<PathBuf>,
-    /// Ground-truth normal map (.npy, .mat or R, G, B .exr, height × width × 3, unit x, y, z in the same frame, facing
-    /// the wall) on the depth map's grid.
+    /// Ground-truth normal map (.npy, .mat or R, G, B .exr, × 3: unit x, y, z; NaN: no normal) on the depth
+    /// map's grid; scored where both maps and the reconstruction have a value (`normal_pixels`).
     #[arg(long, value_name = "NORMAL", requires = "gt_depth")]
     gt_normal: Option<PathBuf>,
-    /// The maps' wall rectangle `x0,x1,y0,y1` in metres.
-    #[arg(
-        long,
-        value_name = "X0,X1,Y0,Y1",
-        default_value = "-0.25,0.25,-0.25,0.25",
-        allow_hyphen_values = true,
-        value_parser = parse_extent
-    )]
-    extent: [f32; 4],
+    /// How the map files lay out their pixels: `image` (row 0 at the top, largest y; column 0 at the smallest
+    /// x; normals facing the wall) or `dlct` (the Z-NLOS maps as published).
+    #[arg(long, value_enum, default_value = "image", requires = "gt_depth")]
+    gt_layout: GtLayout,
+    /// The maps' wall rectangle `x0,x1,y0,y1` in metres (pixel edges) [default: -0.25,0.25,-0.25,0.25].
+    #[arg(long, value_name = "X0,X1,Y0,Y1", allow_hyphen_values = true, value_parser = parse_extent)]
+    extent: Option<[f32; 4]>,
+    /// Place the maps on this capture's wall grid instead of --extent: their first and last pixel centres on
+    /// the outermost points of its full scan grid (a Z-NLOS `.mat`'s `cameraGridSize`, so a subsampled file
+    /// places the full-size maps). --volume implies it.
+    #[arg(long, value_name = "CAPTURE", conflicts_with = "extent", requires = "gt_depth")]
+    wall: Option<PathBuf>,
     /// Depth tolerance of "coverage within" (metres).
     #[arg(long, default_value_t = 0.005, value_name = "METRES")]
     threshold: f64,
@@ -115,7 +135,8 @@ pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<Sur
         VolumeMethod::Fk => Volumetric::Fk,
     };
     let volume = prepared.volume(method, nlos_init::Material::Diffuse, None).map_err(|e| fail(e.to_string()))?;
-    let surface = SurfaceParams { max_depth: prepared.surface_depth, ..SurfaceParams::object() };
+    // The LCT start's extraction (compact-object settings, max depth, the step allowed by the spacing).
+    let surface = prepared.surface_params(Volumetric::Lct);
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 
@@ -131,34 +152,82 @@ pub(crate) fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> 
     read.map_err(CliError::input)
 }
 
-/// The ground-truth maps of `depth_file` (and `normal_file`) on the wall rectangle `extent`
-/// (`x0, x1, y0, y1`).
-pub(crate) fn truth_maps(depth_file: &Path, normal_file: Option<&Path>, extent: [f32; 4]) -> Result<Maps, CliError> {
+/// Where the maps lie on the wall.
+#[derive(Debug, Clone)]
+pub(crate) enum MapPlace {
+    /// The rectangle `x0, x1, y0, y1` of the pixels' outer edges.
+    Extent([f32; 4]),
+    /// The wall grid of a capture ([`capture_extent`]).
+    Wall(PathBuf),
+}
+
+/// The pixel-edge rectangle of a `width × height` map on `capture`'s wall grid: pixel centres from one
+/// outermost point of the full scan grid to the other (a Z-NLOS `.mat`'s `cameraGridSize`, else the points'
+/// own bounds), so the rectangle reaches half a pixel beyond them.
+pub(crate) fn capture_extent(capture: &Path, width: usize, height: usize) -> Result<[f32; 4], CliError> {
+    let wall = match nlos_transient::detect(capture).map_err(CliError::input)? {
+        nlos_transient::Format::ZNlosMat => {
+            nlos_transient::formats::mat::znlos_wall(capture).map_err(CliError::input)?
+        }
+        _ => None,
+    };
+    let [x0, x1, y0, y1] = match wall {
+        Some(r) => r,
+        None => {
+            let t = nlos_transient::read(capture).map_err(CliError::input)?;
+            let (lo, hi) = t.scan().sensors().bounds().unwrap_or_default();
+            [lo.x, hi.x, lo.y, hi.y]
+        }
+    };
+    // Half a pixel; a one-pixel side spans the wall's side (or 1 cm when the points are one line).
+    let half =
+        |lo: f32, hi: f32, n: usize| if n > 1 { 0.5 * (hi - lo) / (n - 1) as f32 } else { 0.5 * (hi - lo).max(0.01) };
+    let (hx, hy) = (half(x0, x1, width), half(y0, y1, height));
+    Ok([x0 - hx, x1 + hx, y0 - hy, y1 + hy])
+}
+
+/// The ground-truth maps of `depth_file` (and `normal_file`), laid out as `layout`, placed on the wall by
+/// `place`.
+pub(crate) fn truth_maps(
+    depth_file: &Path,
+    normal_file: Option<&Path>,
+    layout: MapLayout,
+    place: &MapPlace,
+) -> Result<Maps, CliError> {
     let bad = |file: &Path, what: String| CliError::Input(format!("{}: {what}", file.display()));
     let (depth, shape) = read_map(depth_file)?;
-    let &[height, width] = shape.as_slice() else {
-        return Err(bad(depth_file, format!("a depth map is height × width, found shape {shape:?}")));
+    let &[rows, cols] = shape.as_slice() else {
+        return Err(bad(depth_file, format!("a depth map is rows × columns, found shape {shape:?}")));
     };
-    let [x0, x1, y0, y1] = extent;
+    let (depth, width, height) = layout.depth_to_image(&depth, [rows, cols]);
+    let [x0, x1, y0, y1] = match place {
+        MapPlace::Extent(e) => *e,
+        MapPlace::Wall(capture) => capture_extent(capture, width, height)?,
+    };
     let grid = MapGrid { width, height, x_range: [x0, x1], y_range: [y0, y1] };
-    if let Some(i) = depth.iter().position(|z| z.is_infinite()) {
-        return Err(bad(depth_file, format!("depth {} at pixel {i} is not finite (no surface is 0 or NaN)", depth[i])));
-    }
+    // 0, negative, NaN and Inf (the readers' NaN) are "no surface".
     let depth: Vec<f32> = depth.into_iter().map(|z| if z > 0.0 { z } else { f32::NAN }).collect();
     let normals = match normal_file {
         None => None,
         Some(file) => {
             let (n, nshape) = read_map(file)?;
-            if nshape != [height, width, 3] {
+            let &[nr, nc, 3] = nshape.as_slice() else {
+                return Err(bad(file, format!("a normal map is rows × columns × 3 (x, y, z), found shape {nshape:?}")));
+            };
+            let (normals, nw, nh) = layout.normals_to_image(&n, [nr, nc]);
+            if (nw, nh) != (width, height) {
                 return Err(bad(
                     file,
                     format!(
-                        "a normal map is height × width × 3 ({height} × {width} × 3 for this depth map; the last axis \
-                         holds x, y, z), found shape {nshape:?}"
+                        "the normal map is {nr} × {nc} × 3; the depth map {} needs {} × {} × 3 in the `{layout:?}` \
+                         layout",
+                        depth_file.display(),
+                        if layout == MapLayout::Dlct { width } else { height },
+                        if layout == MapLayout::Dlct { height } else { width },
                     ),
                 ));
             }
-            Some(n.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+            Some(normals)
         }
     };
     let maps = Maps { grid, depth, normals };
@@ -183,7 +252,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let reconstruction = reconstruction(args)?;
     let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
     if let Some(depth_file) = &args.gt_depth {
-        let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.extent)?;
+        let place = match (&args.wall, &args.volume, args.extent) {
+            (Some(capture), _, _) | (None, Some(capture), None) => MapPlace::Wall(capture.clone()),
+            (None, _, extent) => MapPlace::Extent(extent.unwrap_or([-0.25, 0.25, -0.25, 0.25])),
+        };
+        let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.gt_layout.into(), &place)?;
         let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
         let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         println!("{line}");

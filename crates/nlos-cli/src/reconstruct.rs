@@ -323,7 +323,7 @@ fn report_options(run: &Run<'_>, prepared: &Prepared, params: &ReconstructParams
     let data = run.data;
     let name = data.file_name().map_or_else(|| data.display().to_string(), |n| n.to_string_lossy().into());
     let c = run.config;
-    let s = &c.schedule;
+    let s = &params.schedule;
     let parameters = vec![
         ("data", data.display().to_string()),
         ("initial surface", c.init.to_string()),
@@ -332,8 +332,12 @@ fn report_options(run: &Run<'_>, prepared: &Prepared, params: &ReconstructParams
         (
             "schedule",
             format!(
-                "{} stages from resolution {}, {} blocks of {} steps",
-                s.max_stages, s.initial_resolution, s.max_blocks_per_stage, s.shape_iterations
+                "{} stages from resolution {} (first edge {:.1} mm), {} blocks of {} steps",
+                s.max_stages,
+                s.initial_resolution,
+                1e3 * s.target_edge_length(0),
+                s.max_blocks_per_stage,
+                s.shape_iterations
             ),
         ),
         ("rebin, subsample", format!("{}, {}", c.capture.rebin, c.capture.subsample)),

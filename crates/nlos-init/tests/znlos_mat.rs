@@ -10,20 +10,23 @@ use nlos_init::{LctParams, lct};
 use nlos_transient::{Layout, formats::Format};
 
 /// A NeTF file of a plane at `depth` (their frame: the plane y = −depth facing the wall y = 0), an A × B wall
-/// grid over ±0.3 m, T bins of `delta` metres of path from 0; the histograms by a small point-sample
-/// renderer (cos⁴/r⁴ weights of a 121 × 121 grid of plane points).
+/// grid over ±0.3 m, T bins of `delta` metres of **distance from the wall** (NeTF's `r = i·deltaT`); the
+/// histograms by a small point-sample renderer (cos⁴/r⁴ weights of a 121 × 121 grid of plane points).
+/// `data(:, ia, ib)` is the point of position column `ia·B + ib`, as NeTF flattens its grid.
 fn netf_plane(depth: f64, a: usize, b: usize, bins: usize, delta: f64) -> Vec<u8> {
     let lin = |i: usize, n: usize, w: f64| -w + 2.0 * w * i as f64 / (n - 1) as f64;
-    // Wall point p = ia + A·ib (MATLAB's column-major order of data(:, ia, ib)): theirs (x, 0, z).
-    let wall: Vec<[f64; 3]> = (0..a * b).map(|p| [lin(p % a, a, 0.3), 0.0, lin(p / a, b, 0.3)]).collect();
+    // Position column q = ia·B + ib: theirs (x, 0, z) = (lin(ia), 0, lin(ib)).
+    let wall: Vec<[f64; 3]> = (0..a * b).map(|q| [lin(q / b, a, 0.3), 0.0, lin(q % b, b, 0.3)]).collect();
     let mut data = vec![0.0f64; bins * a * b];
-    for (p, w) in wall.iter().enumerate() {
+    for (q, w) in wall.iter().enumerate() {
+        // data(:, ia, ib) is stored (column-major) at ia + A·ib.
+        let p = q / b + a * (q % b);
         for j in 0..121 {
             for i in 0..121 {
                 let x = [lin(i, 121, 0.25), -depth, lin(j, 121, 0.25)];
                 let d = [x[0] - w[0], x[1] - w[1], x[2] - w[2]];
                 let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                let k = (2.0 * r / delta) as usize;
+                let k = (r / delta) as usize;
                 if k < bins {
                     data[k + bins * p] += (depth / r).powi(4) / r.powi(4);
                 }
@@ -46,7 +49,7 @@ fn netf_plane(depth: f64, a: usize, b: usize, bins: usize, delta: f64) -> Vec<u8
 
 #[test]
 fn a_netf_plane_reads_as_a_confocal_grid_at_its_depth() {
-    let (depth, delta) = (0.5, 0.004);
+    let (depth, delta) = (0.5, 0.002);
     let dir = std::env::temp_dir().join(format!("nlos-znlos-mat-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let file = dir.join("plane.mat");
@@ -66,7 +69,7 @@ fn a_netf_plane_reads_as_a_confocal_grid_at_its_depth() {
     let col = &v.data[(cx + v.nx * cy) * v.nz..(cx + v.nx * cy + 1) * v.nz];
     let iz = (0..v.nz).max_by(|&i, &j| col[i].total_cmp(&col[j])).expect("voxels");
     let z = v.z.at(iz);
-    eprintln!("LCT depth {z:.4} m (plane at {depth} m, bin {:.4} m of depth)", delta / 2.0);
-    assert!((z - depth).abs() <= delta / 2.0 + 1e-9, "plane at {z} m, expected {depth} ± one bin");
+    eprintln!("LCT depth {z:.4} m (plane at {depth} m, bin {delta:.4} m of depth)");
+    assert!((z - depth).abs() <= delta + 1e-9, "plane at {z} m, expected {depth} ± one bin");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -17,6 +17,10 @@
 //!
 //! A mesh gives its maps by [`mesh_maps`] (first hit of a +z ray per pixel, the hit face's normal); a
 //! volume's arg-max depth map gives normals by [`normals_from_depth`] (central differences).
+//!
+//! **Files.** [`MapLayout`] says how a map file's pixels and vectors relate to this grid: ours, or the
+//! Z-NLOS ground truth as D-LCT published it. A pixel whose normal is missing (NaN) while its depth is not
+//! is left out of the normal error only; [`MapMetrics::normal_pixels`] says on how many pixels it is.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -81,6 +85,57 @@ impl MapGrid {
     }
 }
 
+/// How a map file lays out its pixels (and its normals' components) against [`MapGrid`]'s image.
+///
+/// Decided from the published files, not from files written here: `tests/znlos_published.rs` checks each
+/// against the Z-NLOS bunny's capture (its first returns against the depth map's nearest surface) and the
+/// two maps against each other (masks, normals against the depth map's slopes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MapLayout {
+    /// This crate's (module docs): row 0 at the top (largest y), column 0 at the smallest x; normals in our
+    /// frame, facing the wall.
+    #[default]
+    Image,
+    /// The Z-NLOS ground truth of the directional LCT (Young et al., CVPR 2020; `zaragoza/*_depth.mat`,
+    /// `*_normal.mat`, used by NeTF and the surface methods after it), in our frame (the wall's
+    /// x, and its y = Z-NLOS z, the reader's axes). The depth map is the transpose of our image: its element
+    /// `(r, c)` is at our pixel `(c, r)`, so its rows run along +x and its columns down from the top. The
+    /// normal map is our image mirrored left to right, and its vectors point away from the wall: element
+    /// `(r, c)` holds `−n` of our pixel `(r, W − 1 − c)`. (As stored, the two masks overlap on 16,844 of
+    /// the bunny's 26,706 pixels; so read, on all of them.)
+    Dlct,
+}
+
+impl MapLayout {
+    /// A depth map stored `shape = [rows, cols]` in C order, as our image: `(values, width, height)`.
+    pub fn depth_to_image(self, values: &[f32], shape: [usize; 2]) -> (Vec<f32>, usize, usize) {
+        let [rows, cols] = shape;
+        match self {
+            MapLayout::Image => (values.to_vec(), cols, rows),
+            // Our (i, j) = stored (j, i): width = rows, height = cols.
+            MapLayout::Dlct => ((0..cols * rows).map(|k| values[(k / rows) + cols * (k % rows)]).collect(), rows, cols),
+        }
+    }
+
+    /// A normal map stored `shape = [rows, cols, 3]` in C order, as our image of vectors in our frame:
+    /// `(normals, width, height)`.
+    pub fn normals_to_image(self, values: &[f32], shape: [usize; 2]) -> (Vec<Vec3>, usize, usize) {
+        let [rows, cols] = shape;
+        let at = |r: usize, c: usize| {
+            let k = 3 * (c + cols * r);
+            Vec3::new(values[k], values[k + 1], values[k + 2])
+        };
+        let image = (0..rows * cols).map(|k| {
+            let (r, c) = (k / cols, k % cols);
+            match self {
+                MapLayout::Image => at(r, c),
+                MapLayout::Dlct => -at(r, cols - 1 - c),
+            }
+        });
+        (image.collect(), cols, rows)
+    }
+}
+
 /// Depth and (optionally) normal maps on one grid.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Maps {
@@ -88,13 +143,14 @@ pub struct Maps {
     pub grid: MapGrid,
     /// Depth per pixel, metres; `NaN` where there is no surface.
     pub depth: Vec<f32>,
-    /// Unit normal per pixel facing the wall (ignored where the depth is `NaN`).
+    /// Unit normal per pixel facing the wall (ignored where the depth is `NaN`; `NaN` where the normal map
+    /// has no value).
     pub normals: Option<Vec<Vec3>>,
 }
 
 impl Maps {
-    /// Checks the sizes, and that every normal inside the depth's mask is a finite unit vector facing the
-    /// wall.
+    /// Checks the sizes, and that every normal inside the depth's mask is a unit vector facing the wall or
+    /// missing (a NaN component).
     ///
     /// # Errors
     /// [`MeshError::Format`] naming `what` (e.g. the file) and the problem: sizes that differ from the grid,
@@ -120,7 +176,7 @@ impl Maps {
                 ),
             ));
         }
-        let inside = || normals.iter().zip(&self.depth).filter(|(_, z)| !z.is_nan()).map(|(n, _)| *n);
+        let inside = || normals.iter().zip(&self.depth).filter(|(n, z)| !z.is_nan() && !n.is_nan()).map(|(n, _)| *n);
         if let Some((i, n)) = inside().enumerate().find(|(_, n)| !(n.is_finite() && (n.length() - 1.0).abs() < 1e-2)) {
             return Err(bad(
                 "normal",
@@ -174,8 +230,11 @@ pub struct MapMetrics {
     pub depth_error_mean_interior: Option<f64>,
     /// Mean |Δz| over the rest of the mask both have, metres.
     pub depth_error_mean_silhouette: Option<f64>,
-    /// Mean angle between the normals over the pixels both have, degrees (None without normal maps).
+    /// Mean angle between the normals over the pixels both have where the truth has a normal, degrees
+    /// (None without normal maps).
     pub normal_error_mean_deg: Option<f64>,
+    /// Pixels the normal error is computed on: both have a surface and the truth's normal map a value.
+    pub normal_pixels: usize,
 }
 
 /// Scores `reconstruction` against `truth` on the truth's grid (module docs); `threshold` is the depth
@@ -229,13 +288,18 @@ pub fn evaluate_maps(reconstruction: &Maps, truth: &Maps, threshold: f64) -> Res
     let mut sorted: Vec<f64> = pairs.iter().map(|p| p.1).collect();
     sorted.sort_by(f64::total_cmp);
     let median = median_of_sorted(&sorted);
-    let normal_error_mean_deg = match (&reconstruction.normals, &truth.normals) {
-        (Some(a), Some(b)) => mean(
-            &mut pairs
-                .iter()
-                .map(|&(i, _)| f64::from(a[i].normalize().dot(b[i].normalize()).clamp(-1.0, 1.0)).acos().to_degrees()),
-        ),
-        _ => None,
+    let angles: Vec<f64> = match (&reconstruction.normals, &truth.normals) {
+        (Some(a), Some(b)) => pairs
+            .iter()
+            .filter(|&&(i, _)| !a[i].is_nan() && !b[i].is_nan())
+            .map(|&(i, _)| f64::from(a[i].normalize().dot(b[i].normalize()).clamp(-1.0, 1.0)).acos().to_degrees())
+            .collect(),
+        _ => Vec::new(),
+    };
+    let normal_error_mean_deg = if reconstruction.normals.is_some() && truth.normals.is_some() {
+        mean(&mut angles.iter().copied())
+    } else {
+        None
     };
     Ok(MapMetrics {
         width: w,
@@ -252,6 +316,7 @@ pub fn evaluate_maps(reconstruction: &Maps, truth: &Maps, threshold: f64) -> Res
         depth_error_mean_interior: mean(&mut pairs.iter().filter(|p| interior[p.0]).map(|p| p.1)),
         depth_error_mean_silhouette: mean(&mut pairs.iter().filter(|p| !interior[p.0]).map(|p| p.1)),
         normal_error_mean_deg,
+        normal_pixels: angles.len(),
     })
 }
 

@@ -4,7 +4,7 @@
 
 use glam::{Quat, Vec3};
 use nlos_mesh::MeshError;
-use nlos_mesh::map_metrics::{MapGrid, Maps, evaluate_maps, mesh_maps, normals_from_depth};
+use nlos_mesh::map_metrics::{MapGrid, MapLayout, Maps, evaluate_maps, mesh_maps, normals_from_depth};
 
 fn grid() -> MapGrid {
     MapGrid { width: 48, height: 40, x_range: [-0.25, 0.25], y_range: [-0.2, 0.2] }
@@ -72,6 +72,43 @@ fn a_tilted_plane_against_a_flat_truth_scores_its_tilt() {
     assert!((mean - 15.0).abs() < 0.1, "{mean}");
 }
 
+/// A normal map without a value (NaN) where the depth map has a surface leaves that pixel out of the normal
+/// error only, and says on how many pixels the error is.
+#[test]
+fn missing_normals_are_left_out_and_counted() {
+    let truth = plate_maps(0.4, 0.0);
+    let rec = mesh_maps(&plate(0.4, 0.0), &grid()).expect("maps");
+    let all = evaluate_maps(&rec, &truth, 0.005).expect("scores");
+    assert_eq!(all.normal_pixels, all.both_pixels);
+    let mut holes = truth.clone();
+    let inside: Vec<usize> = (0..holes.depth.len()).filter(|&i| !holes.depth[i].is_nan()).take(10).collect();
+    inside.iter().for_each(|&i| holes.normals.as_mut().expect("normals")[i] = Vec3::NAN);
+    let m = evaluate_maps(&rec, &holes, 0.005).expect("scores");
+    let lost = inside.iter().filter(|&&i| !rec.depth[i].is_nan()).count();
+    assert_eq!((m.both_pixels, m.normal_pixels), (all.both_pixels, all.both_pixels - lost));
+    assert!(m.normal_error_mean_deg.expect("normals") < 0.05);
+}
+
+/// `MapLayout`: ours is the identity; the D-LCT depth map is our image transposed (a file of 2 rows of 3
+/// is our image of 3 rows of 2), its normal map our image mirrored left to right with the vectors negated.
+#[test]
+fn map_layouts_place_pixels_as_documented() {
+    // Stored 2 × 3, C order: (r, c) at c + 3r.
+    let v: Vec<f32> = (0..6).map(|k| k as f32).collect();
+    assert_eq!(MapLayout::Image.depth_to_image(&v, [2, 3]), (v.clone(), 3, 2));
+    // Transposed: our image is 2 wide and 3 high; our (i, j) is stored (j, i).
+    let (t, w, h) = MapLayout::Dlct.depth_to_image(&v, [2, 3]);
+    assert_eq!((w, h), (2, 3));
+    assert_eq!(t, vec![0.0, 3.0, 1.0, 4.0, 2.0, 5.0]);
+    let n: Vec<f32> = (0..18).map(|k| k as f32).collect();
+    let (ours, w, h) = MapLayout::Dlct.normals_to_image(&n, [2, 3]);
+    assert_eq!((w, h), (3, 2));
+    // Our (0, 0) is stored (0, 2) negated: components 6, 7, 8.
+    assert_eq!(ours[0], Vec3::new(-6.0, -7.0, -8.0));
+    assert_eq!(ours[3 + 2], Vec3::new(-9.0, -10.0, -11.0));
+    assert_eq!(MapLayout::Image.normals_to_image(&n, [2, 3]).0[4], Vec3::new(12.0, 13.0, 14.0));
+}
+
 #[test]
 fn bad_maps_are_typed_errors() {
     let truth = plate_maps(0.4, 0.0);
@@ -80,11 +117,11 @@ fn bad_maps_are_typed_errors() {
     assert!(
         matches!(evaluate_maps(&truth, &short, 0.005), Err(MeshError::Format { ref field, .. }) if field == "depth")
     );
-    let mut nan = truth.clone();
-    let inside = nan.depth.iter().position(|z| !z.is_nan()).expect("mask");
-    nan.normals.as_mut().expect("normals")[inside] = Vec3::NAN;
+    let inside = truth.depth.iter().position(|z| !z.is_nan()).expect("mask");
+    let mut long = truth.clone();
+    long.normals.as_mut().expect("normals")[inside] = Vec3::new(0.0, 0.0, -2.0);
     assert!(
-        matches!(evaluate_maps(&truth, &nan, 0.005), Err(MeshError::Format { ref field, .. }) if field == "normal")
+        matches!(evaluate_maps(&truth, &long, 0.005), Err(MeshError::Format { ref field, .. }) if field == "normal")
     );
     let mut away = truth.clone();
     away.normals.as_mut().expect("normals").iter_mut().for_each(|n| *n = -*n);

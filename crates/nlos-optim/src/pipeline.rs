@@ -529,6 +529,8 @@ pub struct Prepared {
     pub surface_depth: Option<f64>,
     /// What the `auto` settings decided, one sentence each, for the user.
     pub notes: Vec<String>,
+    /// The configuration's schedule sized to the fitted capture ([`Schedule::sized_to`]).
+    pub schedule: Schedule,
 }
 
 impl Prepared {
@@ -608,7 +610,13 @@ impl Prepared {
             1 => fitted,
             k => fitted.subsample(k, k).map_err(|e| config_error("capture.subsample", e.to_string()))?,
         };
-        Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes })
+        let (schedule, note) = config.schedule.sized_to(
+            grid_spacing(measured.scan().lasers()),
+            measured.time().bin_width,
+            measured.measurements(),
+        );
+        notes.extend(note);
+        Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes, schedule })
     }
 
     /// The optimiser's parameters: `config` resolved against this capture (noise model, sensor fit,
@@ -639,7 +647,7 @@ impl Prepared {
             return Err(config_error("render.max_level", format!("{max_level}: from 1 to 64")));
         }
         p.sampling = SamplingSchedule::Splat(SplatRule { max_level, ..SplatRule::default() });
-        p.schedule = config.schedule;
+        p.schedule = self.schedule;
         let o = &config.optimiser;
         (p.lr_interior, p.lr_boundary, p.lr_reflectance) = (o.lr_interior, o.lr_boundary, o.lr_reflectance);
         (p.regulariser_ratio, p.boundary_smoothing) = (o.smoothing, o.boundary_smoothing);
@@ -785,9 +793,17 @@ impl Prepared {
     /// The surface extraction of `method`'s start: the settings for compact objects for LCT
     /// ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns, about half the
     /// bunny's silhouette), the plain extraction otherwise; no voxel beyond [`Prepared::surface_depth`].
+    ///
+    /// The largest depth step between neighbouring columns that still joins them grows with the scan's
+    /// spacing: at least the extraction's own (5 cm), and what a surface at [`MAX_START_SLOPE`] to the wall
+    /// makes between two columns. On the 64 × 64 captures over 0.5–2 m (spacing 8–31 mm) that is the fixed
+    /// 5 cm up to 18 mm and 8.6 cm at 31 mm; on the published 8 × 8 Z-NLOS bunny (12.5 cm) a fixed 5 cm tore
+    /// every cell of its sloping surface apart but two.
     pub fn surface_params(&self, method: Volumetric) -> SurfaceParams {
         let base = if method == Volumetric::Lct { SurfaceParams::object() } else { SurfaceParams::default() };
-        SurfaceParams { max_depth: base.max_depth.or(self.surface_depth), ..base }
+        let spacing = grid_spacing(self.full.scan().lasers());
+        let max_depth_jump = base.max_depth_jump.map(|j| j.max(MAX_START_SLOPE * spacing));
+        SurfaceParams { max_depth: base.max_depth.or(self.surface_depth), max_depth_jump, ..base }
     }
 
     /// The initial surface: a volumetric reconstruction of [`Prepared::full`] turned into a mesh
@@ -805,6 +821,17 @@ impl Prepared {
         let volume = self.volume(method, config.reflectance.model.material(), None)?;
         Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
     }
+}
+
+/// The steepest slope (depth per lateral metre, 70°) of the start's surface between two neighbouring
+/// columns ([`Prepared::surface_params`]).
+pub const MAX_START_SLOPE: f64 = 2.75;
+
+/// The larger spacing of a grid of points (metres), 0 for a list or a single point.
+fn grid_spacing(points: &nlos_transient::PointSet) -> f64 {
+    let (Some((nx, ny)), Some((lo, hi))) = (points.grid_dims(), points.bounds()) else { return 0.0 };
+    let step = |lo: f32, hi: f32, n: usize| if n > 1 { f64::from(hi - lo) / (n - 1) as f64 } else { 0.0 };
+    step(lo.x, hi.x, nx).max(step(lo.y, hi.y, ny))
 }
 
 /// A volumetric method of the start ([`Prepared::volume`]).

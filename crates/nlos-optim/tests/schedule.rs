@@ -1,6 +1,7 @@
 //! Coarse to fine in time (`Schedule::rebin_fraction`): a stage fits the capture with bins summed up to a
 //! fraction of its edge length — exactly the run on the rebinned capture, with a sensor fit through the
-//! response of the summed bins; a bad fraction is a typed error naming the setting.
+//! response of the summed bins; a bad fraction is a typed error naming the setting. The schedule sized to
+//! the capture's spacing and bins (`Schedule::sized_to`).
 #![allow(clippy::unwrap_used)]
 
 mod common;
@@ -23,6 +24,28 @@ fn stages_sum_bins_up_to_half_their_edge_length() {
     let off = Schedule { rebin_fraction: 0.0, ..d };
     assert_eq!(off.rebin(0, 0.0012), 1);
     assert_eq!(d.rebin(0, 0.0), usize::MAX, "a zero bin width saturates (the run clamps to the bins)");
+}
+
+/// `Schedule::sized_to`: the shared captures (spacing at most 11.1 mm, bins at most 4 mm, 4,096
+/// measurements) keep the default schedule; a coarser scan starts at 0.9 spacings, coarse bins at 1.5 bins;
+/// fewer measurements lower the face cap. What it catches: a 32 × 32 capture over 1 m run at the 64 × 64
+/// seed's edges (the 32 × 32 Z-NLOS bunny ended at 56,692 faces, longer than a 64 × 64 run).
+#[test]
+fn the_schedule_follows_the_scan_spacing_and_the_bins() {
+    let d = Schedule::default();
+    for (spacing, bin) in [(0.5 / 63.0, 0.0012), (0.7 / 63.0, 0.0012), (0.4 / 63.0, 0.0012), (0.49 / 63.0, 0.004)] {
+        let (s, note) = d.sized_to(spacing, bin, 4096);
+        assert_eq!((s, note), (d, None), "spacing {spacing}, bins {bin}");
+    }
+    let edge = |n: usize| d.sized_to(1.0 / (n - 1) as f64, 0.006, n * n).0;
+    let (e32, e64, e8) = (edge(32), edge(64), edge(8));
+    assert!((e32.target_edge_length(0) - 0.9 / 31.0).abs() < 1e-12);
+    assert!(e32.target_edge_length(0) > e64.target_edge_length(0) && e8.target_edge_length(0) > 0.1);
+    assert_eq!((e32.max_faces, e8.max_faces, e64.max_faces), (15 * 1024, 15 * 64, d.max_faces));
+    // Coarse bins (f-k's 32 ps: 9.6 mm of path) at a fine spacing.
+    let (s, note) = d.sized_to(0.004, 0.0096, 4096);
+    assert!((s.target_edge_length(0) - 1.5 * 0.0096).abs() < 1e-12, "{note:?}");
+    assert!(note.expect("said").contains("bins"));
 }
 
 /// A tilted 6 × 6-cell patch rendered on an 8 × 8 confocal grid (60 bins of 3 mm), and a start 1 cm behind it.

@@ -539,16 +539,32 @@ fn regression_hdf5_pure_chunk_offset_overflow_is_malformed() {
     let _ = formats::detect_bytes(bytes, f);
 }
 
-/// The same Z-NLOS scene — a 5 × 4 wall grid on y = 0 facing −y, histograms naming their point and bin —
-/// written as the dataset's HDF5 and as NeTF's `.mat` lands at the same points, with the same normals,
-/// histograms and time axis in our frame (the HDF5 alone says that its times hold the device legs).
+/// The same Z-NLOS scene as the dataset's HDF5 and as NeTF's `.mat` made from it by NeTF's own
+/// `zaragoza_preprocess.m` (done here step by step in MATLAB's index order): `h5read` (every dimension
+/// reversed), each histogram shifted earlier by `ceil(device legs / deltaT)` bins, pairs of bins averaged,
+/// `permute(data, [3, 1, 2])`, the positions flattened row by row (`(i − 1)·N + j`), `deltaT` kept. Both
+/// readers land at the same points with the same normals, and each histogram's mean path agrees within one
+/// bin of the HDF5 (the script's whole-bin shift): the HDF5's bins are `deltaT` of path with the device
+/// legs, the `.mat`'s `2·deltaT` without them.
+///
+/// What it catches: the `.mat` reader taking `deltaT` as path per bin (every mean path at half its length)
+/// or pairing `data(:, i, j)` with column `i + M·j` (MATLAB's column-major order, not the script's).
 #[test]
 fn znlos_hdf5_and_netf_mat_agree() {
-    let (a, b, t) = (4usize, 5usize, 6usize);
+    let (a, b, t) = (4usize, 5usize, 160usize);
     let n = a * b;
+    let delta = 0.004;
     // HDF5 C order: positions (3, A, B), point p = ia·B + ib at (0.1·ib − 0.2, 0, 0.05·ia − 0.1).
     let at = |p: usize| [0.1 * (p % b) as f32 - 0.2, 0.0, 0.05 * (p / b) as f32 - 0.1];
-    let value = |p: usize, k: usize| (100 * p + k) as f32;
+    let camera = [0.0f32, 0.1, 0.0];
+    let legs = |p: usize| 2.0 * f64::from(Vec3::from(at(p)).distance(Vec3::from(camera)));
+    // Histograms: two returns per point, at hidden paths depending on the point, in bins of the HDF5 axis
+    // (which holds the legs).
+    let value = |p: usize, k: usize| {
+        let hidden = k as f64 * delta - legs(p);
+        let bump = |c: f64| (-((hidden - c) / 0.01).powi(2)).exp();
+        (bump(0.04 + 0.002 * p as f64) + 0.5 * bump(0.09)) as f32
+    };
     let xyz: Vec<f32> = (0..3).flat_map(|c| (0..n).map(move |p| at(p)[c])).collect();
     let normals: Vec<f32> = (0..3).flat_map(|c| (0..n).map(move |_| if c == 1 { -1.0 } else { 0.0 })).collect();
     let data: Vec<f32> = (0..t).flat_map(|k| (0..n).map(move |p| value(p, k))).collect();
@@ -560,19 +576,43 @@ fn znlos_hdf5_and_netf_mat_agree() {
     for name in ["cameraGridNormals", "laserGridNormals"] {
         h.create_dataset(name).with_f32_data(&normals).with_shape(&[3, a as u64, b as u64]);
     }
-    h.create_dataset("cameraPosition").with_f32_data(&[0.0, 1.0, 0.0]).with_shape(&[3, 1]);
-    h.create_dataset("laserPosition").with_f32_data(&[0.0, 1.0, 0.0]).with_shape(&[3, 1]);
-    h.create_dataset("deltaT").with_f64_data(&[0.004]).with_shape(&[]);
+    h.create_dataset("cameraPosition").with_f32_data(&camera).with_shape(&[3, 1]);
+    h.create_dataset("laserPosition").with_f32_data(&camera).with_shape(&[3, 1]);
+    h.create_dataset("deltaT").with_f64_data(&[delta]).with_shape(&[]);
     h.create_dataset("t0").with_f64_data(&[0.0]).with_shape(&[]);
     h.create_dataset("isConfocal").with_i32_data(&[1]).with_shape(&[]);
     let hdf5 = formats::read_bytes_as(&h.finish().unwrap(), Format::ZNlos, Path::new("scene.hdf5")).unwrap();
-    // NeTF: data T×B×A column-major (data(k, ib, ia) pairs with column ib + B·ia = p), positions 3×N.
-    let mat_data: Vec<f64> = (0..n).flat_map(|p| (0..t).map(move |k| f64::from(value(p, k)))).collect();
-    let pos: Vec<f64> = (0..n).flat_map(|p| at(p).map(f64::from)).collect();
+    // zaragoza_preprocess.m. h5read: MATLAB data(i, j, k) = HDF5 data[k][j][i] (M = B, N = A), positions
+    // cameraGridPositions(i, j, :) likewise; the point of (i, j) is p = j·B + i.
+    let (m_rows, n_cols, half) = (b, a, t / 2);
+    let point = |i: usize, j: usize| j * b + i;
+    let shifted = |p: usize, k: usize| {
+        let tdist = (legs(p) / delta).ceil() as usize;
+        if k + tdist < t { f64::from(value(p, k + tdist)) } else { 0.0 } // circshift: wraps zeros here
+    };
+    // After permute([3, 1, 2]): T/2 × M × N, column-major: element (k, i, j) at k + T/2·(i + M·j).
+    let mut mat_data = vec![0.0f64; half * n];
+    for j in 0..n_cols {
+        for i in 0..m_rows {
+            for k in 0..half {
+                let p = point(i, j);
+                mat_data[k + half * (i + m_rows * j)] = 0.5 * (shifted(p, 2 * k) + shifted(p, 2 * k + 1));
+            }
+        }
+    }
+    // cameraGridPositions_re(:, (i − 1)·N + j) = cameraGridPositions(i, j, :).
+    let mut pos = vec![0.0f64; 3 * n];
+    for i in 0..m_rows {
+        for j in 0..n_cols {
+            for c in 0..3 {
+                pos[c + 3 * (i * n_cols + j)] = f64::from(at(point(i, j))[c]);
+            }
+        }
+    }
     let vars = vec![
-        mat5_writer::double("data", &[t as i32, b as i32, a as i32], mat_data),
+        mat5_writer::double("data", &[half as i32, m_rows as i32, n_cols as i32], mat_data),
         mat5_writer::double("cameraGridPositions", &[3, n as i32], pos),
-        mat5_writer::double("deltaT", &[1, 1], vec![0.004]),
+        mat5_writer::double("deltaT", &[1, 1], vec![delta]),
         mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.5, 0.0]),
     ];
     let bytes = mat5_writer::write(&vars, mat5_writer::Options::default());
@@ -580,11 +620,21 @@ fn znlos_hdf5_and_netf_mat_agree() {
     let (ph, pn) = (hdf5.scan().lasers(), netf.scan().lasers());
     assert_eq!(ph.layout, pn.layout);
     assert_eq!(ph.layout, Layout::Grid { nx: b, ny: a });
+    assert!(hdf5.time().includes_device_legs && !netf.time().includes_device_legs);
+    assert_eq!((netf.time().t0, netf.time().bin_width), (0.0, 2.0 * delta));
+    let mean_path = |tr: &Transient, p: usize, legs: f64| {
+        let ax = tr.time();
+        let (mut s, mut w) = (0.0, 0.0);
+        for (k, v) in tr.histogram(p).iter().enumerate() {
+            s += f64::from(*v) * (ax.bin_start(k) + 0.5 * ax.bin_width - legs);
+            w += f64::from(*v);
+        }
+        s / w
+    };
     for p in 0..n {
         assert!((ph.points[p] - pn.points[p]).length() < 1e-6, "point {p}: {} vs {}", ph.points[p], pn.points[p]);
         assert!((ph.normals[p] - pn.normals[p]).length() < 1e-6 && pn.normals[p] == Vec3::Z);
-        assert_eq!(hdf5.histogram(p), netf.histogram(p), "histogram {p}");
+        let (th, tn) = (mean_path(&hdf5, p, legs(p)), mean_path(&netf, p, 0.0));
+        assert!((th - tn).abs() <= delta, "point {p}: mean path {th:.4} m (HDF5) vs {tn:.4} m (.mat)");
     }
-    assert_eq!((hdf5.time().t0, hdf5.time().bin_width), (netf.time().t0, netf.time().bin_width));
-    assert!(hdf5.time().includes_device_legs && !netf.time().includes_device_legs);
 }

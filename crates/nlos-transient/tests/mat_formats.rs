@@ -220,8 +220,9 @@ fn tsai_lighting_that_forms_a_grid_is_a_grid() {
     assert_eq!(t.scan().lasers().layout, Layout::List);
 }
 
-/// A NeTF-preprocessed Z-NLOS file: 3 × 2 wall points on the plane y = `wall_y`, histogram p holding
-/// `p + 10 k`, plus the optional fields.
+/// A NeTF-preprocessed Z-NLOS file: 3 × 2 wall points on the plane y = `wall_y` (column q of the positions
+/// at x = 0.1·(q mod 3) − 0.1, z = 0.2·⌊q / 3⌋ − 0.1), `data` 4 × 3 × 2 whose histogram stored s-th
+/// (column-major: `data(:, i, j)`, s = i + 3j) holds `s + 10 k`, plus the optional fields.
 fn netf_vars(wall_y: f64, centre: Option<[f64; 3]>, extra: Vec<Var>) -> Vec<Var> {
     let (a, b, bins) = (3usize, 2usize, 4usize);
     let pos: Vec<f64> =
@@ -248,19 +249,22 @@ fn netf(vars: &[Var]) -> Result<Transient, TransientError> {
 
 /// The axes: their wall y = w with the scene at y < w is our z = 0 with the scene at z > 0 by `(x, z, −(y − w))`
 /// — the rotation the Z-NLOS HDF5 reader applies to walls whose normals are −y (`hdf5_formats.rs`,
-/// `to_ours`) — and `(x, −z, y − w)` for a scene at y > w; data(:, a, b) pairs with point a + A·b.
+/// `to_ours`) — and `(x, −z, y − w)` for a scene at y > w; `data(:, i, j)` pairs with column i·B + j
+/// (NeTF's row-by-row flattening), and `deltaT` is a distance from the wall: bins of twice it in path.
 #[test]
 fn netf_znlos_axes_and_data_order() {
     let t = netf(&netf_vars(0.3, Some([0.0, -0.2, 0.0]), vec![])).expect("read");
     assert!(t.scan().is_confocal() && !t.time().includes_device_legs);
-    assert_eq!((t.time().t0, t.time().bin_width, t.bins()), (0.0, 0.01, 4));
+    assert_eq!((t.time().t0, t.time().bin_width, t.bins()), (0.0, 0.02, 4));
     assert_eq!(t.scan().lasers().layout, Layout::Grid { nx: 3, ny: 2 });
     for p in 0..6 {
         let q = t.scan().lasers().points[p];
         let (x, z) = (0.1 * (p % 3) as f32 - 0.1, 0.2 * (p / 3) as f32 - 0.1);
         assert!((q - glam::Vec3::new(x, z, 0.0)).length() < 1e-6, "point {p}: {q}");
         assert_eq!(t.scan().lasers().normals[p], glam::Vec3::Z);
-        assert_eq!(t.histogram(p), &[p as f32, (p + 10) as f32, (p + 20) as f32, (p + 30) as f32]);
+        // Column p is data(:, i, j) with p = 2i + j, stored s-th with s = i + 3j.
+        let s = (p / 2 + 3 * (p % 2)) as f32;
+        assert_eq!(t.histogram(p), &[s, s + 10.0, s + 20.0, s + 30.0], "point {p}");
     }
     // The scene on the other side: z mirrored (the grid's rows run the other way, so they are relabelled).
     let t = netf(&netf_vars(0.3, Some([0.0, 0.9, 0.0]), vec![])).expect("read");
@@ -280,7 +284,8 @@ fn netf_znlos_times_with_the_device_legs() {
     let t = netf(&netf_vars(0.0, Some([0.0, -0.2, 0.0]), legs)).expect("read");
     assert!(t.time().includes_device_legs);
     assert_eq!(t.scan().sensor_device, Some(glam::Vec3::new(0.0, 0.0, -1.3)));
-    assert_eq!(t.time().t0, 2.0);
+    // t0 is a distance from the wall, as deltaT: 4 m of path.
+    assert_eq!(t.time().t0, 4.0);
 }
 
 #[test]
@@ -576,14 +581,19 @@ fn unsupported_version_and_bad_endian() {
     assert!(matches!(r, Err(TransientError::Malformed { .. })), "{r:?}");
 }
 
-/// `mat::read_array`: a MATLAB 2×3 matrix (column-major) comes back in C order, NaN kept; the only numeric
+/// `mat::read_array`: a MATLAB 2×3 matrix (column-major) comes back in C order, NaN kept and Inf turned
+/// into NaN (the published Z-NLOS depth map marks "no surface" with Inf); the only numeric
 /// variable is found by itself, a name picks among several.
 #[test]
 fn read_array_returns_c_order() {
     let dir = std::env::temp_dir().join(format!("nlos-read-array-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("dir");
     let f = dir.join("m.mat");
-    // M = [1 2 3; 4 5 NaN] stored column-major: 1 4 2 5 3 NaN.
+    // M = [1 2 3; 4 5 NaN] stored column-major: 1 4 2 5 3 NaN; then with Inf for the 5.
+    let m = double("depth", &[2, 3], vec![1.0, 4.0, 2.0, f64::INFINITY, 3.0, f64::NAN]);
+    std::fs::write(&f, write(std::slice::from_ref(&m), Options::default())).expect("write");
+    let (v, _, _) = nlos_transient::formats::mat::read_array(&f, None).expect("read with Inf");
+    assert!(v[4].is_nan() && v[5].is_nan(), "Inf and NaN both read as no value: {v:?}");
     let m = double("depth", &[2, 3], vec![1.0, 4.0, 2.0, 5.0, 3.0, f64::NAN]);
     std::fs::write(&f, write(std::slice::from_ref(&m), Options::default())).expect("write");
     let (v, dims, name) = nlos_transient::formats::mat::read_array(&f, None).expect("read");

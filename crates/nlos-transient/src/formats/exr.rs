@@ -135,12 +135,12 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Transient> {
 /// Reads an EXR image that is not a capture — a depth or normal map — as `(values, shape)` in C order: one
 /// channel (the only one, `Y` or `Z`… as [`pick_channel`]) gives shape `(height, width)`, three channels
 /// named `R, G, B` or `X, Y, Z` give `(height, width, 3)` with x, y, z from R, G, B (or X, Y, Z). Row 0 is the
-/// image's top. NaN is kept (a map's "no value"); infinities are an error.
+/// image's top. NaN and infinities are a map's "no value" and come back as NaN.
 ///
 /// # Errors
 /// [`TransientError::Io`], [`TransientError::Malformed`] (including a decoder panic),
 /// [`TransientError::Unsupported`] for several layers, deep data or a channel set that is neither one
-/// channel nor R, G, B / X, Y, Z; [`TransientError::NonFinite`] for an infinity.
+/// channel nor R, G, B / X, Y, Z.
 pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
     let file = path;
     let bytes = super::read_file(path)?;
@@ -179,10 +179,9 @@ pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
     let wanted: Vec<&str> = wanted.iter().map(|&i| names[i].as_str()).collect();
     let planes = decode_channels(&bytes, file, &wanted, width * height)?;
     let k = planes.len();
-    let values: Vec<f32> = (0..width * height).flat_map(|i| planes.iter().map(move |p| p[i])).collect();
-    if let Some(i) = values.iter().position(|v| v.is_infinite()) {
-        return Err(TransientError::NonFinite { file: file.into(), field: "exr map".into(), index: i });
-    }
+    let values: Vec<f32> = (0..width * height)
+        .flat_map(|i| planes.iter().map(move |p| if p[i].is_finite() { p[i] } else { f32::NAN }))
+        .collect();
     let shape = if k == 1 { vec![height, width] } else { vec![height, width, k] };
     Ok((values, shape))
 }

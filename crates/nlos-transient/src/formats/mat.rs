@@ -151,8 +151,8 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
     }
 }
 
-/// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN is
-/// kept as "no value", infinities are an error): the variable `name`, or the file's only numeric variable
+/// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN and
+/// infinities are "no value" and come back as NaN): the variable `name`, or the file's only numeric variable
 /// when `name` is None. Returns the values in **C order** (an `H×W` MATLAB matrix comes back as rows of W,
 /// element `(r, c)` at `c + W·r`; an `H×W×3` array's element `(r, c, k)` at `k + 3·(c + W·r)`), the MATLAB
 /// dimensions and the variable's name.
@@ -182,8 +182,23 @@ pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usiz
     let a = m.numeric(&chosen, "the array to read")?;
     let dims = a.header.dims.clone();
     // MATLAB stores column-major: the first index fastest.
-    let c_order = super::npy::fortran_to_c(&a.to_f32_nan(path)?, &dims);
+    let c_order = super::npy::fortran_to_c(&a.to_f32_map(path)?, &dims);
     Ok((c_order, dims, chosen))
+}
+
+/// The wall grid of a NeTF-preprocessed Z-NLOS file (`cameraGridSize`), in our frame: `[x0, x1, y0, y1]`,
+/// the rectangle from one outermost point of the **full** scan grid to the other, centred at the origin of
+/// the file's frame as the dataset's walls are. A file subsampled from a finer grid (the published 8 × 8
+/// bunny, every 32nd point of 256) keeps the full grid's size, so its ground-truth maps (256 × 256) are
+/// placed by this rectangle, not by the points the file holds. None when the file has no `cameraGridSize`
+/// or when its points do not lie inside that rectangle (a wall not centred at the origin).
+///
+/// # Errors
+/// As [`read`] for the file and `cameraGridSize` (wrong shape, non-finite or non-positive sides).
+pub fn znlos_wall(path: &Path) -> Result<Option<[f32; 4]>> {
+    let bytes = super::read_file(path)?;
+    let m = MatFile::parse(&bytes, path)?;
+    super::znlos_mat::wall(&m, path)
 }
 
 pub(super) fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> TransientError {

@@ -512,18 +512,15 @@ impl NumericArray<'_> {
         Ok(out)
     }
 
-    /// All values as `f32`, column-major, NaN kept (a map's "no value"); infinities rejected.
+    /// All values as `f32`, column-major, NaN and infinities (a map's "no value") as NaN.
     ///
     /// # Errors
-    /// [`TransientError::NonFinite`] naming the variable; as `for_each`.
-    pub(crate) fn to_f32_nan(&self, file: &Path) -> Result<Vec<f32>> {
+    /// As `for_each`.
+    pub(crate) fn to_f32_map(&self, file: &Path) -> Result<Vec<f32>> {
         let mut out = Vec::with_capacity(self.len());
-        self.for_each(file, |i, v| {
+        self.for_each(file, |_, v| {
             let x = v as f32;
-            if x.is_infinite() {
-                return Err(self.non_finite(file, i));
-            }
-            out.push(x);
+            out.push(if x.is_finite() { x } else { f32::NAN });
             Ok(())
         })?;
         Ok(out)

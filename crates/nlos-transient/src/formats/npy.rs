@@ -164,8 +164,8 @@ pub fn decode_npy_array(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usiz
     Ok((a.values, a.shape))
 }
 
-/// Loads a bare `.npy` array that may hold `NaN` (a map's "no value", as in depth maps), as
-/// [`read_npy_array`] otherwise; infinities are still an error.
+/// Loads a bare `.npy` array that may hold `NaN` or infinities (a map's "no value", as in depth maps: the
+/// published Z-NLOS maps mark "no surface" with Inf), both returned as `NaN`; as [`read_npy_array`] otherwise.
 ///
 /// # Errors
 /// As [`read_npy_array`].
@@ -255,8 +255,8 @@ fn parse_npy(bytes: &[u8], file: &Path) -> Result<Array> {
     parse_npy_with(bytes, file, false)
 }
 
-/// [`parse_npy`], with NaN accepted when `allow_nan` (infinities never are).
-fn parse_npy_with(bytes: &[u8], file: &Path, allow_nan: bool) -> Result<Array> {
+/// [`parse_npy`]; with `map`, NaN and infinities are a map's "no value" and come back as NaN.
+fn parse_npy_with(bytes: &[u8], file: &Path, map: bool) -> Result<Array> {
     let truncated = |detail: &str| TransientError::Truncated { file: file.into(), detail: detail.into() };
     if bytes.len() < 8 {
         if MAGIC.starts_with(&bytes[..bytes.len().min(6)]) {
@@ -316,8 +316,11 @@ fn parse_npy_with(bytes: &[u8], file: &Path, allow_nan: bool) -> Result<Array> {
         ));
     }
     let flat: Vec<f32> = data.chunks_exact(dtype.size).map(|c| convert(c, dtype)).collect();
-    let values = if fortran && shape.len() > 1 { fortran_to_c(&flat, &shape) } else { flat };
-    if let Some(i) = values.iter().position(|v| !(v.is_finite() || allow_nan && v.is_nan())) {
+    let mut values = if fortran && shape.len() > 1 { fortran_to_c(&flat, &shape) } else { flat };
+    if map {
+        values.iter_mut().filter(|v| v.is_infinite()).for_each(|v| *v = f32::NAN);
+    }
+    if let Some(i) = values.iter().position(|v| !(v.is_finite() || map && v.is_nan())) {
         return Err(TransientError::NonFinite { file: file.into(), field: "npy data".into(), index: i });
     }
     Ok(Array { values, shape, descr })

@@ -3,16 +3,20 @@
 //! (NeTF, NLOS-NeuS, the Gaussian and self-calibrating ones) compare on.
 //!
 //! # Layout
-//! - `data`: T×A×B double, column-major (`t + T·(a + A·b)`): T time bins over an A×B wall grid (NeTF's
-//!   `load_zaragoza_data` reads it as `(Nz, Nx, Ny)`); a T×N array is accepted too.
-//! - `cameraGridPositions`: 3×N (or 3×A×B, or N×3) wall points, N = A·B, metres. Measurement `p` pairs
-//!   `data(:, a, b)` with column `p = a + A·b` of the positions — the column-major order in which MATLAB
-//!   flattens both arrays (the files were made in MATLAB from the dataset's HDF5).
-//! - `deltaT`: bin width in metres of optical path. `t0` (optional, default 0): path length of bin 0's start.
+//! - `data`: T×A×B double: T time bins over an A×B wall grid (NeTF's `load_zaragoza256_data` reads it as
+//!   `(L, M, N)`); a T×N array is accepted too.
+//! - `cameraGridPositions`: 3×N (or 3×A×B, or N×3) wall points, N = A·B, metres. The histogram `data(:, a, b)`
+//!   belongs to column **`a·B + b`** (0-based) of the positions: NeTF's preprocessing (`zaragoza_preprocess.m`)
+//!   flattens the grid of positions row by row (`(i − 1)·N + j`), and its training code pairs them by
+//!   `nlos_data.reshape(L, −1)` in C order. (Not MATLAB's column-major order: on the published bunny that
+//!   mirrors the capture about the grid's diagonal, and its first returns no longer match the ground truth;
+//!   `tests/znlos_published.rs`.)
+//! - `deltaT`: the bin width as a **one-way distance** from the wall, metres (see Time). `t0` (optional,
+//!   default 0; not in the published files): bin 0's start in the same unit.
 //! - `cameraPosition`, `hiddenVolumePosition`, `hiddenVolumeSize` (optional): the SPAD's position, the
-//!   centre and side(s) of the box that holds the hidden scene. `cameraGridSize`, `cameraGridPoints` and
-//!   anything else are not needed. Every file is confocal.
-//!
+//!   centre and side(s) of the box that holds the hidden scene. `cameraGridSize` (optional): the side(s) of
+//!   the wall's scan area, read by [`wall_extent`]. Anything else is not needed. Every file is confocal.
+
 //! # Axes
 //! Z-NLOS walls are planes of constant y (their scenes put the hidden object at y < 0 of a wall at y = 0;
 //! NeTF's bunny box is centred at y = −0.5). Ours is the plane z = 0 with the scene at z > 0. The wall's
@@ -23,11 +27,20 @@
 //! points out as the grid they form (`crate::read` does it for every format).
 //!
 //! # Time
-//! NeTF's model measures paths from the wall (wall → x → wall, `t = 2r`), so the preprocessed files hold
-//! times without the device legs and with `t0 = 0`. A file whose returns all begin after the farthest point of
-//! its hidden volume could return (`2 ·` the largest wall-to-box distance, plus four bins) must still
-//! include them (laser → wall and wall → SPAD, as the dataset's HDF5 does): the time axis is then marked
-//! [`TimeAxis::includes_device_legs`] with the SPAD (and, confocal, the laser) at `cameraPosition`, so that
+//! Bin `i` is the sphere of **radius** `i·deltaT` around its scan point: the loaders and renderers of the
+//! methods that use these files compute `r = i·c·deltaT` with `c = 1`. Why: NeTF's preprocessing of the
+//! dataset's HDF5 (whose bins are `deltaT` of optical path, device legs included — our Z-NLOS HDF5
+//! reader) shifts each histogram by the device legs and then averages pairs of bins
+//! (`(data(:,:,1:2:end) + data(:,:,2:2:end)) / 2`) while keeping `deltaT`: one bin of the file is `2·deltaT`
+//! of path from the wall and back (`t = 2r`), so the time axis read here has bins of `2·deltaT` from
+//! `2·t0`. On the published bunny (`deltaT` 3 mm) the first bin holding signal, about 100, is 0.30 m, the
+//! ground truth's nearest depth 0.299 m; reading `deltaT` as path instead puts every surface at half its
+//! depth.
+//!
+//! A file whose returns all begin after the farthest point of its hidden volume could return (`2 ·` the
+//! largest wall-to-box distance, plus four bins) must still include the device legs (laser → wall and
+//! wall → SPAD, as the dataset's HDF5 does): the time axis is then marked [`TimeAxis::includes_device_legs`]
+//! with the SPAD (and, confocal, the laser) at `cameraPosition`, so that
 //! [`crate::Transient::remove_device_legs`] takes them off. A direct reflection off the wall, where
 //! present, stays in the data: the gate of the reconstruction removes it as for any capture.
 
@@ -101,9 +114,10 @@ fn frame(file: &Path, points: &[Vec3], scene: Option<Vec3>) -> Result<impl Fn(Ve
 /// Reads a NeTF-preprocessed Z-NLOS `.mat` (see the module docs).
 pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     let d = m.numeric("data", "NeTF's Z-NLOS files hold the T×A×B histograms in `data`")?;
-    let (bins, n) = match d.header.dims.as_slice() {
-        [t, a, b] => (*t, a * b),
-        [t, n] => (*t, *n),
+    // `cols`: B of a T×A×B array (data(:, a, b) is position column a·B + b), 1 for T×N.
+    let (bins, n, cols) = match d.header.dims.as_slice() {
+        [t, a, b] => (*t, a * b, *b),
+        [t, n] => (*t, *n, 1),
         _ => return Err(wrong_shape(file, &d.header, "T×A×B (time bins × wall grid) or T×N")),
     };
     if bins == 0 || n == 0 {
@@ -124,17 +138,21 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     if let Some(i) = points.iter().position(|q| !q.is_finite()) {
         return Err(TransientError::NonFinite { file: file.into(), field: "cameraGridPositions".into(), index: i });
     }
-    let delta = positive_scalar(m, file, "deltaT", "bin width in metres of path")?;
-    let t0 = if m.header("t0").is_some() { m.numeric("t0", "path length of bin 0")?.scalar(file)? } else { 0.0 };
+    // One-way distances per bin (module docs, Time): paths of twice that.
+    let delta = 2.0 * positive_scalar(m, file, "deltaT", "bin width as a distance from the wall, metres")?;
+    let t0 = if m.header("t0").is_some() { 2.0 * m.numeric("t0", "bin 0's distance")?.scalar(file)? } else { 0.0 };
     if !t0.is_finite() {
-        return Err(invalid(file, "t0", format!("{t0} must be finite (metres of path)")));
+        return Err(invalid(file, "t0", format!("{} must be finite (metres from the wall)", t0 / 2.0)));
     }
     let camera = vec3(m, file, "cameraPosition")?;
     let centre = vec3(m, file, "hiddenVolumePosition")?;
     let to_ours = frame(file, &points, centre)?;
     let mut data = vec![0.0f32; n * bins];
+    let rows = n / cols;
     d.for_each_f32(file, |idx, v| {
-        let (k, p) = (idx % bins, idx / bins);
+        // Stored column-major: idx = k + T·(a + A·b); the histogram of position column a·B + b.
+        let (k, s) = (idx % bins, idx / bins);
+        let p = (s % rows) * cols + s / rows;
         if let Some(x) = data.get_mut(p * bins + k) {
             *x = v;
         }
@@ -151,6 +169,29 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
         }
     }
     Ok(t)
+}
+
+/// The full scan grid's rectangle in our frame (`super::mat::znlos_wall`), None without `cameraGridSize`
+/// or when the points fall outside it.
+pub(super) fn wall(m: &MatFile<'_>, file: &Path) -> Result<Option<[f32; 4]>> {
+    if m.header("cameraGridSize").is_none() {
+        return Ok(None);
+    }
+    let a = m.numeric("cameraGridSize", "the side(s) of the scanned wall, metres")?;
+    let v = a.to_f64(file)?;
+    let (sx, sy) = match v.as_slice() {
+        [s] => (*s, *s),
+        [x, y] => (*x, *y),
+        _ => return Err(wrong_shape(file, &a.header, "1 or 2 values (the wall's sides)")),
+    };
+    if !(sx > 0.0 && sy > 0.0 && sx.is_finite() && sy.is_finite()) {
+        return Err(invalid(file, "cameraGridSize", format!("{sx} × {sy} m: the sides must be finite and > 0")));
+    }
+    let t = read(m, file)?;
+    let (hx, hy) = (0.5 * sx as f32, 0.5 * sy as f32);
+    let slack = 1e-3 * hx.max(hy);
+    let inside = t.scan().sensors().points.iter().all(|p| p.x.abs() <= hx + slack && p.y.abs() <= hy + slack);
+    Ok(inside.then_some([-hx, hx, -hy, hy]))
 }
 
 /// Half the side(s) of the hidden volume (`hiddenVolumeSize`: one side or three), None when absent.
