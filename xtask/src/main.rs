@@ -90,8 +90,9 @@ fn benchmark(args: &[String]) -> Result<(), String> {
 
 `nlos benchmark` on the Z-NLOS captures of `{name}` (ground-truth maps beside \
          each), {:.0} s in all: each capture reconstructed by LCT and f-k (their surfaces: the arg-max depth of the \
-         kept columns) and by `nlos reconstruct` with the default settings{}, scored by `nlos eval --gt-depth \
-         --gt-normal` on the capture's scan grid.\n\n{rows}",
+         kept columns) and by `nlos reconstruct` with the default settings{}, scored as `nlos eval --gt-depth \
+         --gt-normal --gt-layout dlct --wall CAPTURE` scores them: the maps as published, on the capture's full \
+         wall grid. Normal errors are over the pixels in brackets (the truth's and the method's surface).\n\n{rows}",
         accept::utc_now(),
         started.elapsed().as_secs_f64(),
         if extra.is_empty() { String::new() } else { format!(" and `{}`", extra.join(" ")) },

@@ -4,7 +4,8 @@
 //! [`crate::eval`]'s code, as one Markdown table.
 //!
 //! Ground truth beside `SCENE.mat` (or `SCENE.hdf5`): `SCENE_depth.npy` or `SCENE_depth.mat` (required),
-//! `SCENE_normal.npy` or `.mat` (optional), laid out as published (`--gt-layout dlct`, the default) or as
+//! `SCENE_normal.npy` or `.mat` (optional), `SCENE` the capture's stem or the stem cut at an underscore
+//! (`bunny_8x8.mat` is scored on `bunny_depth.mat`), laid out as published (`--gt-layout dlct`, the default) or as
 //! ours, on the capture's full wall grid (as `nlos eval --wall`): the maps' first and last pixel centres on
 //! the outermost points of the full scan grid, so a capture subsampled from 256 × 256 (the published 8 × 8
 //! bunny) is scored on the 256 × 256 maps.
@@ -58,10 +59,15 @@ struct Scene {
     normal: Option<PathBuf>,
 }
 
-/// The map `STEM_SUFFIX.npy` or `.mat` beside the capture.
+/// The map `NAME_SUFFIX.npy` or `.mat` beside the capture, NAME its stem or the stem cut at an underscore
+/// (`bunny_8x8.mat` finds `bunny_depth.mat`: the published maps serve every size of the capture).
 fn beside(capture: &Path, suffix: &str) -> Option<PathBuf> {
     let stem = capture.file_stem()?.to_string_lossy().into_owned();
-    ["npy", "mat"].iter().map(|e| capture.with_file_name(format!("{stem}_{suffix}.{e}"))).find(|p| p.is_file())
+    let names = std::iter::once(stem.as_str()).chain(stem.rmatch_indices('_').map(|(i, _)| &stem[..i]));
+    names
+        .filter(|n| !n.is_empty())
+        .flat_map(|n| ["npy", "mat"].map(|e| capture.with_file_name(format!("{n}_{suffix}.{e}"))))
+        .find(|p| p.is_file())
 }
 
 fn scenes(dir: &Path) -> Result<Vec<Scene>, CliError> {

@@ -212,7 +212,10 @@ pub(crate) fn truth_maps(
         Some(file) => {
             let (n, nshape) = read_map(file)?;
             let &[nr, nc, 3] = nshape.as_slice() else {
-                return Err(bad(file, format!("a normal map is rows × columns × 3 (x, y, z), found shape {nshape:?}")));
+                return Err(bad(
+                    file,
+                    format!("a normal map is rows × columns × 3 (the last axis holds x, y, z), found shape {nshape:?}"),
+                ));
             };
             let (normals, nw, nh) = layout.normals_to_image(&n, [nr, nc]);
             if (nw, nh) != (width, height) {

@@ -169,7 +169,8 @@ fn npy(path: &Path, data: &[f32], shape: &[usize]) {
 }
 
 /// `--gt-depth/--gt-normal`: a plane against its own maps scores 0 and 0°; a tilted plane scores its tilt;
-/// maps of the wrong size, with NaN normals or the wrong axis are errors naming the file.
+/// missing normals (NaN, Inf) are left out of the normal error, Inf depths are no surface; maps of the wrong
+/// size, with non-unit normals or the wrong axis are errors naming the file.
 #[test]
 fn depth_and_normal_maps() {
     let dir = scratch("maps");
@@ -208,10 +209,24 @@ fn depth_and_normal_maps() {
     };
     npy(&bad, &normal[..(h - 1) * w * 3], &[h - 1, w, 3]);
     fails(&["--gt-normal", b], "bad.npy");
+    let mut long = normal.clone();
+    long[5] = -2.0;
+    npy(&bad, &long, &[h, w, 3]);
+    fails(&["--gt-normal", b], "not a finite unit vector");
+    // A normal map without a value at one pixel (NaN, or Inf as the published maps mark no surface): that
+    // pixel is left out of the normal error only.
     let mut nan = normal.clone();
     nan[5] = f32::NAN;
+    nan[3 * 7] = f32::INFINITY;
     npy(&bad, &nan, &[h, w, 3]);
-    fails(&["--gt-normal", b], "not a finite unit vector");
+    let v = eval_json(&[&["eval", f, "--gt-depth", ds, "--gt-normal", b][..], &ext].concat());
+    assert_eq!((num(&v, "both_pixels"), num(&v, "normal_pixels")), ((w * h) as f64, (w * h - 2) as f64), "{v}");
+    // Inf in the depth map is no surface.
+    let mut holes = depth.clone();
+    holes[..w].fill(f32::INFINITY);
+    npy(&bad, &holes, &[h, w]);
+    let v = eval_json(&[&["eval", f, "--gt-depth", b][..], &ext].concat());
+    assert_eq!(num(&v, "gt_pixels"), (w * h - w) as f64, "{v}");
     npy(&bad, &normal, &[3, h, w]);
     fails(&["--gt-normal", b], "last axis");
     let away: Vec<f32> = normal.iter().map(|x| -x).collect();

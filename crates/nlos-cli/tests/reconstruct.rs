@@ -95,7 +95,7 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     assert!(rep.status.success(), "{}", text(&rep));
     let html = std::fs::read_to_string(out.join("report.html")).expect("report regenerated");
     assert!(html.contains("summed.png") && out.join("summed.png").is_file());
-    assert!(html.contains("1 stages from resolution 10, 1 blocks of 3 steps"), "parameters missing");
+    assert!(html.contains("1 stages from resolution 10 (first edge") && html.contains("mm), 1 blocks of 3 steps"));
     let missing = nlos(&["report", &dir.join("nowhere").to_string_lossy(), "--data", &d]);
     assert_eq!(missing.status.code(), Some(2), "{}", text(&missing));
     // The LCT initial surface sits at the square's depth.
