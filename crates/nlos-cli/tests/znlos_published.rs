@@ -8,7 +8,7 @@
 //! layout and sign), and `nlos eval` on the files as published. Each test says what it catches. Skipped with
 //! a printed reason when the shared data are absent (unless `NLOS_REQUIRE_DATA=1`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use glam::Vec3;
@@ -41,7 +41,7 @@ fn num(v: &Value, key: &str) -> f64 {
 
 /// The published depth map as our image (`MapLayout::Dlct`) with its grid on the capture's wall: pixel
 /// centres from one outermost point of the full 256 × 256 scan grid to the other.
-fn depth_image(capture: &PathBuf, depth: &PathBuf) -> (Vec<f32>, MapGrid) {
+fn depth_image(capture: &Path, depth: &Path) -> (Vec<f32>, MapGrid) {
     let (values, shape, _) = read_array(depth, Some("depth")).expect("depth map");
     let (image, width, height) = MapLayout::Dlct.depth_to_image(&values, [shape[0], shape[1]]);
     let [x0, x1, y0, y1] = znlos_wall(capture).expect("read").expect("cameraGridSize");
