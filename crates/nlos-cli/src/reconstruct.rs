@@ -230,6 +230,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         match outcome.stop {
             StopReason::MaxStages => "all stages ran",
             StopReason::FaceLimit => "face limit",
+            StopReason::TimeBudget => "time budget",
             StopReason::Interrupted => "interrupted (resume with --resume)",
         }
     );

@@ -19,8 +19,9 @@ use crate::sensor::SensorFit;
 /// per stage from 64). Stage k has resolution `res_k = initial_resolution · growthᵏ` and target edge
 /// length `L_k = extent / res_k`. Each stage runs blocks (a shape block of `shape_iterations` Adam steps,
 /// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
-/// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages or
-/// when the next stage would exceed `max_faces` faces.
+/// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages,
+/// when the next stage would exceed `max_faces` faces, or when its predicted time would exceed
+/// `time_budget` ([`Schedule::block_fits`]).
 ///
 /// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
 /// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
@@ -59,6 +60,11 @@ pub struct Schedule {
     /// Largest summed bin of a stage as a fraction of its target edge length, both in metres (default 0.5;
     /// 0: every stage at the capture's resolution).
     pub rebin_fraction: f64,
+    /// Seconds of the reference machine (2 cores) the blocks may take (default 480: ten minutes less what the
+    /// start, the residual patches and the stage changes take; 0: no budget). A block is started only when
+    /// the blocks so far and its own predicted time fit ([`Schedule::block_fits`]). Predicted from face
+    /// counts, not timed, so the run stays a deterministic function of its inputs on every machine.
+    pub time_budget: f64,
 }
 
 impl Default for Schedule {
@@ -74,6 +80,7 @@ impl Default for Schedule {
             reflectance_iterations: 5,
             rel_tol: 1e-3,
             rebin_fraction: 0.5,
+            time_budget: 480.0,
         }
     }
 }
@@ -132,6 +139,34 @@ impl Schedule {
         }
         let note = (!said.is_empty()).then(|| format!("schedule sized to the capture: {}", said.join("; ")));
         (out, note)
+    }
+}
+
+/// Seconds per face, per measurement and per logged shape step that a block costs on the reference machine
+/// (2 cores), everything in the block included (reflectance steps, pruning, evolution, visibility), when
+/// the data are fitted through a sensor response: 1.2–1.6e-7 over every block of the three Stanford
+/// captures' default runs (4,096 measurements, 2,048 bins of 4 ps).
+pub const BLOCK_COST_SENSOR_S: f64 = 1.4e-7;
+/// The same for a fit of intensities by L2 (no sensor response): measured on the shared bunny's default
+/// run at the seed's setup (6.0–8.6e-8 per block).
+pub const BLOCK_COST_L2_S: f64 = 7.0e-8;
+
+impl Schedule {
+    /// Predicted seconds of the reference machine for `face_steps` (the sum over shape steps of the mesh's
+    /// faces) on `measurements` histograms, through a sensor response or not ([`BLOCK_COST_SENSOR_S`],
+    /// [`BLOCK_COST_L2_S`]).
+    pub fn predicted_seconds(face_steps: f64, measurements: usize, sensor: bool) -> f64 {
+        face_steps * measurements as f64 * if sensor { BLOCK_COST_SENSOR_S } else { BLOCK_COST_L2_S }
+    }
+
+    /// Whether a block on a mesh of about `faces` faces may start when the blocks so far took `face_steps`
+    /// ([`Schedule::time_budget`]): their predicted seconds and the block's (`shape_iterations` steps)
+    /// within the budget. A stage ends early when its next block does not fit, and the next stage is not
+    /// started when its first block does not.
+    pub fn block_fits(&self, face_steps: f64, faces: f64, measurements: usize, sensor: bool) -> bool {
+        let steps = f64::from(self.shape_iterations);
+        self.time_budget <= 0.0
+            || Self::predicted_seconds(face_steps + faces * steps, measurements, sensor) <= self.time_budget
     }
 }
 

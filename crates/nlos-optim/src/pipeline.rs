@@ -492,6 +492,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("schedule.shape_iterations", "Adam steps on the vertices per block"),
     ("schedule.reflectance_iterations", "Adam steps on the reflectance per block (0: none)"),
     ("schedule.rel_tol", "a stage ends when a block lowers the loss by less than this fraction"),
+    ("schedule.time_budget", "seconds of a 2-core machine the blocks may take, predicted from faces (0: none)"),
     (
         "schedule.rebin_fraction",
         "a stage sums bins up to this fraction of its edge length (0: all at the capture's bins)",

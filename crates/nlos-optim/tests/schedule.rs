@@ -9,7 +9,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{OptimError, ReconstructParams, Schedule, SensorBackground, SensorFit, reconstruct};
+use nlos_optim::{OptimError, ReconstructParams, Schedule, SensorBackground, SensorFit, StopReason, reconstruct};
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::sensor::BinKernel;
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -80,6 +80,33 @@ fn one_stage(k: u32) -> ReconstructParams {
         residual: None,
         ..ReconstructParams::default()
     }
+}
+
+/// The time budget (`Schedule::time_budget`): predicted from face counts, so a budget that holds two blocks
+/// of the patch's mesh but not three ends the run after two, with the stop reason saying why, and a run
+/// with the same budget again ends at the same mesh (deterministic, whatever the machine's speed).
+/// What it catches: a budget read from the wall clock (different stops on different machines) or one that
+/// lets a block start past it.
+#[test]
+fn the_time_budget_stops_blocks_deterministically() {
+    let (measured, start) = capture_and_start();
+    let mut params = one_stage(1);
+    params.schedule.max_stages = 3;
+    params.schedule.max_blocks_per_stage = 4;
+    params.schedule.rel_tol = 0.0;
+    let free = reconstruct(&measured, &start, &params).unwrap();
+    assert_eq!(free.stop, StopReason::MaxStages);
+    // What two blocks of the first stage cost, predicted: their logged face counts.
+    let first: Vec<usize> = free.log.iterations.iter().take(6).map(|r| r.faces).collect();
+    let two = Schedule::predicted_seconds(first.iter().sum::<usize>() as f64, measured.measurements(), false);
+    let three = two + Schedule::predicted_seconds(3.0 * first[5] as f64, measured.measurements(), false);
+    params.schedule.time_budget = 0.5 * (two + three);
+    let cut = reconstruct(&measured, &start, &params).unwrap();
+    assert_eq!(cut.stop, StopReason::TimeBudget);
+    assert_eq!((cut.blocks_done, cut.log.iterations.len()), (2, 6), "two blocks of three steps");
+    let again = reconstruct(&measured, &start, &params).unwrap();
+    assert_eq!(positions(&again.mesh), positions(&cut.mesh));
+    assert!(Schedule::default().block_fits(0.0, 1e4, 4096, true), "a 10k-face block fits an empty budget");
 }
 
 fn positions(mesh: &SurfaceMesh) -> Vec<Vec3> {

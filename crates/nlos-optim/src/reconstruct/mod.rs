@@ -649,8 +649,16 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
         // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
         let converged = !(rel >= sch.rel_tol);
-        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage;
-        let last_block = stage_ends && st.stage + 1 >= sch.max_stages;
+        // The time budget (predicted from face counts, so deterministic): the next block of this stage, and
+        // the first of the next stage at its estimated face count, must fit.
+        let face_steps: f64 = st.log.iterations.iter().map(|r| r.faces as f64).sum();
+        let fits = |faces: f64| sch.block_fits(face_steps, faces, measured.measurements(), params.sensor.is_some());
+        let over_budget = !fits(st.triangles.len() as f64);
+        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
+        let next_edge = sch.target_edge_length(st.stage + 1);
+        let next_faces = surface_area(&st.positions, &st.triangles) / (3f64.sqrt() / 4.0 * next_edge * next_edge);
+        let next_over_budget = stage_ends && !fits(next_faces);
+        let last_block = stage_ends && (st.stage + 1 >= sch.max_stages || next_over_budget);
 
         // ---- boundary pruning,
         // residual back-projection at the end of a stage but the last ----
@@ -751,6 +759,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
                 let est = surface_area(&st.positions, &st.triangles) / (3f64.sqrt() / 4.0 * l * l);
                 if est > sch.max_faces as f64 {
                     st.finished = Some(StopReason::FaceLimit);
+                } else if next_over_budget {
+                    st.finished = Some(StopReason::TimeBudget);
                 }
             }
         } else {
