@@ -756,7 +756,7 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 7] = [
+pub const SCENARIOS: [(&str, &str); 8] = [
     ("bunny", "the shared bunny, rendered at the seed's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
@@ -770,6 +770,7 @@ pub const SCENARIOS: [(&str, &str); 7] = [
         "znlos",
         "the Z-NLOS benchmark (`cargo xtask benchmark znlos DIR`): LCT, f-k and the fit against depth/normal maps",
     ),
+    ("fuzz", "every reader a user reaches, fuzzed (`cargo xtask fuzz`): runs, coverage, crashes per target"),
 ];
 
 const RESULTS: &str = "docs/results.md";

@@ -11,6 +11,9 @@
 //! - `cargo xtask benchmark znlos DIR [-- ARGS…]`: `nlos benchmark DIR ARGS…` (every Z-NLOS capture of DIR
 //!   with ground-truth maps beside it: LCT, f-k and the surface fit, scored against the maps); its table
 //!   replaces the `znlos` section of `docs/results.md`.
+//! - `cargo xtask fuzz [--minutes N] [TARGET…]`: a fuzzing campaign, N minutes (default 60) per target of
+//!   `fuzz/` (cargo-fuzz on nightly, installed when missing); its table replaces the `fuzz` section of
+//!   `docs/results.md` (see `fuzz.rs`).
 //! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`.
 //! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
 //! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
@@ -18,6 +21,7 @@
 //! - `cargo xtask help`.
 
 mod accept;
+mod fuzz;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -32,6 +36,7 @@ fn main() -> ExitCode {
         Some("test") => test(&args[1..]),
         Some("status") => accept::update_readme(&workspace_root()),
         Some("benchmark") => benchmark(&args[1..]),
+        Some("fuzz") => fuzz::fuzz(&workspace_root(), &args[1..]),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
             println!("       cargo xtask reconstruct ARGS...     the same as `nlos reconstruct ARGS...`");
@@ -45,6 +50,10 @@ fn main() -> ExitCode {
                 "                                           LCT, f-k and the fit on DIR's Z-NLOS captures against"
             );
             println!("                                           their depth/normal maps; writes docs/results.md");
+            println!("       cargo xtask fuzz [--minutes N] [TARGET...]");
+            println!(
+                "                                           N minutes (60) per fuzz target; writes docs/results.md"
+            );
             println!("       cargo xtask status                  the README's status table from docs/results.md");
             println!(
                 "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"

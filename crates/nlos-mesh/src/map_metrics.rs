@@ -108,24 +108,28 @@ pub enum MapLayout {
 
 impl MapLayout {
     /// A depth map stored `shape = [rows, cols]` in C order, as our image: `(values, width, height)`.
+    /// Values missing from a short `values` are NaN (no surface).
     pub fn depth_to_image(self, values: &[f32], shape: [usize; 2]) -> (Vec<f32>, usize, usize) {
         let [rows, cols] = shape;
+        let at = |i: usize| values.get(i).copied().unwrap_or(f32::NAN);
+        let n = rows.saturating_mul(cols);
         match self {
-            MapLayout::Image => (values.to_vec(), cols, rows),
+            MapLayout::Image => ((0..n).map(at).collect(), cols, rows),
             // Our (i, j) = stored (j, i): width = rows, height = cols.
-            MapLayout::Dlct => ((0..cols * rows).map(|k| values[(k / rows) + cols * (k % rows)]).collect(), rows, cols),
+            MapLayout::Dlct => ((0..n).map(|k| at((k / rows) + cols * (k % rows))).collect(), rows, cols),
         }
     }
 
     /// A normal map stored `shape = [rows, cols, 3]` in C order, as our image of vectors in our frame:
-    /// `(normals, width, height)`.
+    /// `(normals, width, height)`; missing values are NaN (no normal).
     pub fn normals_to_image(self, values: &[f32], shape: [usize; 2]) -> (Vec<Vec3>, usize, usize) {
         let [rows, cols] = shape;
+        let get = |i: usize| values.get(i).copied().unwrap_or(f32::NAN);
         let at = |r: usize, c: usize| {
             let k = 3 * (c + cols * r);
-            Vec3::new(values[k], values[k + 1], values[k + 2])
+            Vec3::new(get(k), get(k + 1), get(k + 2))
         };
-        let image = (0..rows * cols).map(|k| {
+        let image = (0..rows.saturating_mul(cols)).map(|k| {
             let (r, c) = (k / cols, k % cols);
             match self {
                 MapLayout::Image => at(r, c),

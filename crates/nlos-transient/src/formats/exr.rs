@@ -142,8 +142,14 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Transient> {
 /// [`TransientError::Unsupported`] for several layers, deep data or a channel set that is neither one
 /// channel nor R, G, B / X, Y, Z.
 pub fn read_image(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
-    let file = path;
-    let bytes = super::read_file(path)?;
+    decode_image(&super::read_file(path)?, path)
+}
+
+/// [`read_image`] on the bytes of a file (`file` names it in errors).
+///
+/// # Errors
+/// As [`read_image`].
+pub fn decode_image(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
     let malformed = |e: exr::error::Error| TransientError::Malformed { file: file.into(), detail: format!("EXR: {e}") };
     let meta = guard(file, || MetaData::read_from_buffered(Cursor::new(&bytes), false))?.map_err(malformed)?;
     let [header] = meta.headers.as_slice() else {

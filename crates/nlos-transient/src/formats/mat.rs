@@ -161,8 +161,15 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
 /// As [`read`]; [`TransientError::MissingField`] when `name` is absent or the file holds no or several
 /// numeric variables (naming them).
 pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usize>, String)> {
-    let bytes = super::read_file(path)?;
-    let m = MatFile::parse(&bytes, path)?;
+    decode_array(&super::read_file(path)?, path, name)
+}
+
+/// [`read_array`] on the bytes of a file (`path` names it in errors).
+///
+/// # Errors
+/// As [`read_array`].
+pub fn decode_array(bytes: &[u8], path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usize>, String)> {
+    let m = MatFile::parse(bytes, path)?;
     let chosen = match name {
         Some(n) => n.to_owned(),
         None => {
@@ -196,8 +203,15 @@ pub fn read_array(path: &Path, name: Option<&str>) -> Result<(Vec<f32>, Vec<usiz
 /// # Errors
 /// As [`read`] for the file and `cameraGridSize` (wrong shape, non-finite or non-positive sides).
 pub fn znlos_wall(path: &Path) -> Result<Option<[f32; 4]>> {
-    let bytes = super::read_file(path)?;
-    let m = MatFile::parse(&bytes, path)?;
+    znlos_wall_bytes(&super::read_file(path)?, path)
+}
+
+/// [`znlos_wall`] on the bytes of a file (`path` names it in errors).
+///
+/// # Errors
+/// As [`znlos_wall`].
+pub fn znlos_wall_bytes(bytes: &[u8], path: &Path) -> Result<Option<[f32; 4]>> {
+    let m = MatFile::parse(bytes, path)?;
     super::znlos_mat::wall(&m, path)
 }
 

@@ -171,7 +171,15 @@ pub fn decode_npy_array(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usiz
 /// As [`read_npy_array`].
 pub fn read_npy_map(path: impl AsRef<Path>) -> Result<(Vec<f32>, Vec<usize>)> {
     let path = path.as_ref();
-    let a = parse_npy_with(&super::read_file(path)?, path, true)?;
+    decode_npy_map(&super::read_file(path)?, path)
+}
+
+/// [`read_npy_map`] on the bytes of a file (`file` names it in errors).
+///
+/// # Errors
+/// As [`decode_npy_array`], but NaN and infinities are kept as NaN.
+pub fn decode_npy_map(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
+    let a = parse_npy_with(bytes, file, true)?;
     Ok((a.values, a.shape))
 }
 
