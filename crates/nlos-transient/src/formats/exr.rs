@@ -183,7 +183,7 @@ pub fn decode_image(bytes: &[u8], file: &Path) -> Result<(Vec<f32>, Vec<usize>)>
         });
     };
     let wanted: Vec<&str> = wanted.iter().map(|&i| names[i].as_str()).collect();
-    let planes = decode_channels(&bytes, file, &wanted, width * height)?;
+    let planes = decode_channels(bytes, file, &wanted, width * height)?;
     let k = planes.len();
     let values: Vec<f32> = (0..width * height)
         .flat_map(|i| planes.iter().map(move |p| if p[i].is_finite() { p[i] } else { f32::NAN }))
