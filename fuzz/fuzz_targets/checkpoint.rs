@@ -3,20 +3,11 @@
 //! checkpoint that passes every check would have to match the capture's fingerprint and the settings).
 #![no_main]
 
-use std::sync::OnceLock;
-
 use libfuzzer_sys::fuzz_target;
 use nlos_optim::{Hooks, ReconstructParams, resume};
-use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
-fn capture() -> &'static Transient {
-    static CAPTURE: OnceLock<Transient> = OnceLock::new();
-    CAPTURE.get_or_init(|| {
-        let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.25, 0.25).expect("grid"));
-        let time = TimeAxis::new(0.0, 0.02, 64).expect("axis");
-        Transient::new(scan, time, vec![1.0; 16 * 64]).expect("capture")
-    })
-}
+#[path = "common/mod.rs"]
+mod common;
 
 fuzz_target!(|data: &[u8]| {
     let dir = std::env::temp_dir().join(format!("nlos-fuzz-checkpoint-{}", std::process::id()));
@@ -24,5 +15,5 @@ fuzz_target!(|data: &[u8]| {
         return;
     }
     let params = ReconstructParams { out_dir: Some(dir), ..ReconstructParams::default() };
-    let _ = resume(capture(), &params, Hooks::default());
+    let _ = resume(common::capture(), &params, Hooks::default());
 });
