@@ -157,33 +157,28 @@ pub(crate) fn read_map(path: &Path) -> Result<(Vec<f32>, Vec<usize>), CliError> 
 pub(crate) enum MapPlace {
     /// The rectangle `x0, x1, y0, y1` of the pixels' outer edges.
     Extent([f32; 4]),
-    /// The wall grid of a capture ([`capture_extent`]).
+    /// The wall grid of a capture ([`capture_wall`]).
     Wall(PathBuf),
 }
 
-/// The pixel-edge rectangle of a `width × height` map on `capture`'s wall grid: pixel centres from one
-/// outermost point of the full scan grid to the other (a Z-NLOS `.mat`'s `cameraGridSize`, else the points'
-/// own bounds), so the rectangle reaches half a pixel beyond them.
-pub(crate) fn capture_extent(capture: &Path, width: usize, height: usize) -> Result<[f32; 4], CliError> {
+/// The rectangle of `capture`'s full scan grid, from one outermost point to the other (a Z-NLOS `.mat`'s
+/// `cameraGridSize`, else the points' own bounds): where a map of that grid has its outer pixel centres
+/// ([`MapGrid::spanning`]).
+pub(crate) fn capture_wall(capture: &Path) -> Result<[f32; 4], CliError> {
     let wall = match nlos_transient::detect(capture).map_err(CliError::input)? {
         nlos_transient::Format::ZNlosMat => {
             nlos_transient::formats::mat::znlos_wall(capture).map_err(CliError::input)?
         }
         _ => None,
     };
-    let [x0, x1, y0, y1] = match wall {
+    Ok(match wall {
         Some(r) => r,
         None => {
             let t = nlos_transient::read(capture).map_err(CliError::input)?;
             let (lo, hi) = t.scan().sensors().bounds().unwrap_or_default();
             [lo.x, hi.x, lo.y, hi.y]
         }
-    };
-    // Half a pixel; a one-pixel side spans the wall's side (or 1 cm when the points are one line).
-    let half =
-        |lo: f32, hi: f32, n: usize| if n > 1 { 0.5 * (hi - lo) / (n - 1) as f32 } else { 0.5 * (hi - lo).max(0.01) };
-    let (hx, hy) = (half(x0, x1, width), half(y0, y1, height));
-    Ok([x0 - hx, x1 + hx, y0 - hy, y1 + hy])
+    })
 }
 
 /// The ground-truth maps of `depth_file` (and `normal_file`), laid out as `layout`, placed on the wall by
@@ -200,11 +195,10 @@ pub(crate) fn truth_maps(
         return Err(bad(depth_file, format!("a depth map is rows × columns, found shape {shape:?}")));
     };
     let (depth, width, height) = layout.depth_to_image(&depth, [rows, cols]);
-    let [x0, x1, y0, y1] = match place {
-        MapPlace::Extent(e) => *e,
-        MapPlace::Wall(capture) => capture_extent(capture, width, height)?,
+    let grid = match place {
+        MapPlace::Extent([x0, x1, y0, y1]) => MapGrid { width, height, x_range: [*x0, *x1], y_range: [*y0, *y1] },
+        MapPlace::Wall(capture) => MapGrid::spanning(width, height, capture_wall(capture)?),
     };
-    let grid = MapGrid { width, height, x_range: [x0, x1], y_range: [y0, y1] };
     // 0, negative, NaN and Inf (the readers' NaN) are "no surface".
     let depth: Vec<f32> = depth.into_iter().map(|z| if z > 0.0 { z } else { f32::NAN }).collect();
     let normals = match normal_file {
@@ -222,11 +216,9 @@ pub(crate) fn truth_maps(
                 return Err(bad(
                     file,
                     format!(
-                        "the normal map is {nr} × {nc} × 3; the depth map {} needs {} × {} × 3 in the `{layout:?}` \
-                         layout",
+                        "the normal map is {nr} × {nc} × 3; the depth map {} needs {height} × {width} × 3 (in either \
+                         layout the normal map is stored as rows of our image)",
                         depth_file.display(),
-                        if layout == MapLayout::Dlct { width } else { height },
-                        if layout == MapLayout::Dlct { height } else { width },
                     ),
                 ));
             }

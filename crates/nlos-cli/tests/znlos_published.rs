@@ -44,9 +44,8 @@ fn num(v: &Value, key: &str) -> f64 {
 fn depth_image(capture: &Path, depth: &Path) -> (Vec<f32>, MapGrid) {
     let (values, shape, _) = read_array(depth, Some("depth")).expect("depth map");
     let (image, width, height) = MapLayout::Dlct.depth_to_image(&values, [shape[0], shape[1]]);
-    let [x0, x1, y0, y1] = znlos_wall(capture).expect("read").expect("cameraGridSize");
-    let (hx, hy) = (0.5 * (x1 - x0) / (width - 1) as f32, 0.5 * (y1 - y0) / (height - 1) as f32);
-    (image, MapGrid { width, height, x_range: [x0 - hx, x1 + hx], y_range: [y0 - hy, y1 + hy] })
+    let wall = znlos_wall(capture).expect("read").expect("cameraGridSize");
+    (image, MapGrid::spanning(width, height, wall))
 }
 
 /// The surface points of a depth image (NaN: none).

@@ -54,6 +54,19 @@ impl MapGrid {
         (x as f32, y as f32)
     }
 
+    /// The grid of `width × height` pixels whose first and last pixel centres lie on the edges of the
+    /// rectangle `[x0, x1, y0, y1]` (a map of the scan points themselves, as the Z-NLOS maps are of their
+    /// 256 × 256 scan grid): the pixels reach half a pixel beyond it. A side of one pixel spans the
+    /// rectangle's side (at least 1 cm).
+    pub fn spanning(width: usize, height: usize, centres: [f32; 4]) -> Self {
+        let [x0, x1, y0, y1] = centres;
+        let half = |lo: f32, hi: f32, n: usize| {
+            if n > 1 { 0.5 * (hi - lo) / (n - 1) as f32 } else { 0.5 * (hi - lo).max(0.01) }
+        };
+        let (hx, hy) = (half(x0, x1, width), half(y0, y1, height));
+        Self { width, height, x_range: [x0 - hx, x1 + hx], y_range: [y0 - hy, y1 + hy] }
+    }
+
     /// Pixels in the map.
     pub fn len(&self) -> usize {
         self.width * self.height

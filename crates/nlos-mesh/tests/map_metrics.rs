@@ -109,6 +109,18 @@ fn map_layouts_place_pixels_as_documented() {
     assert_eq!(MapLayout::Image.normals_to_image(&n, [2, 3]).0[4], Vec3::new(12.0, 13.0, 14.0));
 }
 
+/// `MapGrid::spanning`: the outer pixel centres lie on the rectangle's edges (the Z-NLOS maps' 256 pixels
+/// on the 256 scan points over 1 m: pixels of 1/255 m).
+#[test]
+fn a_spanning_grid_puts_its_outer_pixel_centres_on_the_rectangle() {
+    let g = MapGrid::spanning(256, 128, [-0.5, 0.5, -0.25, 0.25]);
+    let (x, y) = g.pixel_center(0, 0);
+    assert!((x + 0.5).abs() < 1e-6 && (y - 0.25).abs() < 1e-6, "({x}, {y})");
+    let (x, y) = g.pixel_center(127, 255);
+    assert!((x - 0.5).abs() < 1e-6 && (y + 0.25).abs() < 1e-6, "({x}, {y})");
+    assert!((g.x_range[1] - g.x_range[0] - 256.0 / 255.0).abs() < 1e-5);
+}
+
 #[test]
 fn bad_maps_are_typed_errors() {
     let truth = plate_maps(0.4, 0.0);

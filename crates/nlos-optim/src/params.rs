@@ -351,6 +351,9 @@ impl ReconstructParams {
         if !(s.rel_tol.is_finite() && s.rel_tol >= 0.0) {
             return bad("schedule.rel_tol", s.rel_tol, "must be finite and >= 0");
         }
+        if !(s.time_budget.is_finite() && s.time_budget >= 0.0) {
+            return bad("schedule.time_budget", s.time_budget, "must be finite and >= 0 seconds (0: no budget)");
+        }
         if !(s.rebin_fraction.is_finite() && s.rebin_fraction >= 0.0) {
             return bad("schedule.rebin_fraction", s.rebin_fraction, "must be finite and >= 0 (0: no summed bins)");
         }

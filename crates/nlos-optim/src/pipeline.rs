@@ -828,11 +828,9 @@ impl Prepared {
 /// columns ([`Prepared::surface_params`]).
 pub const MAX_START_SLOPE: f64 = 2.75;
 
-/// The larger spacing of a grid of points (metres), 0 for a list or a single point.
+/// The larger spacing of a grid of points (metres), 0 for a list.
 fn grid_spacing(points: &nlos_transient::PointSet) -> f64 {
-    let (Some((nx, ny)), Some((lo, hi))) = (points.grid_dims(), points.bounds()) else { return 0.0 };
-    let step = |lo: f32, hi: f32, n: usize| if n > 1 { f64::from(hi - lo) / (n - 1) as f64 } else { 0.0 };
-    step(lo.x, hi.x, nx).max(step(lo.y, hi.y, ny))
+    points.grid_spacing().map_or(0.0, |(dx, dy)| dx.max(dy))
 }
 
 /// A volumetric method of the start ([`Prepared::volume`]).

@@ -153,3 +153,14 @@ fn a_bad_fraction_is_a_typed_error_naming_the_setting() {
         assert!(matches!(err, OptimError::InvalidParameter { name: "schedule.rebin_fraction", .. }), "{err}");
     }
 }
+
+#[test]
+fn a_bad_time_budget_is_a_typed_error_naming_the_setting() {
+    let (measured, start) = capture_and_start();
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let mut p = one_stage(1);
+        p.schedule.time_budget = bad;
+        let err = reconstruct(&measured, &start, &p).unwrap_err();
+        assert!(matches!(err, OptimError::InvalidParameter { name: "schedule.time_budget", .. }), "{err}");
+    }
+}

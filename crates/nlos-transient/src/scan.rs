@@ -121,6 +121,15 @@ impl PointSet {
         }
     }
 
+    /// The spacing `(dx, dy)` of a [`Layout::Grid`] (metres): its extent along each axis over the gaps
+    /// between its points (0 along an axis of one point); `None` for a list or an empty set.
+    pub fn grid_spacing(&self) -> Option<(f64, f64)> {
+        let (nx, ny) = self.grid_dims()?;
+        let (lo, hi) = self.bounds()?;
+        let step = |lo: f32, hi: f32, n: usize| if n > 1 { f64::from(hi - lo) / (n - 1) as f64 } else { 0.0 };
+        Some((step(lo.x, hi.x, nx), step(lo.y, hi.y, ny)))
+    }
+
     /// Axis-aligned bounds `(min, max)` of the points; `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.points.first()?;

@@ -238,3 +238,13 @@ fn signal_end_path_ends_after_the_last_return_that_stands_above_the_background()
     // Nothing at or after min_path: the whole axis.
     assert_eq!(t.signal_end_path(10.0), t.time().end());
 }
+
+/// `PointSet::grid_spacing`: a grid's extent over its gaps per axis; none for a list.
+#[test]
+fn grid_spacing_of_a_grid_and_of_a_list() {
+    let g = nlos_transient::PointSet::wall_grid(5, 3, 0.2, 0.1).expect("grid");
+    let (dx, dy) = g.grid_spacing().expect("a grid");
+    assert!((dx - 0.1).abs() < 1e-6 && (dy - 0.1).abs() < 1e-6, "({dx}, {dy})");
+    let list = nlos_transient::PointSet::list(g.points.clone());
+    assert_eq!(list.grid_spacing(), None);
+}
