@@ -15,7 +15,7 @@
 //!   default 0; not in the published files): bin 0's start in the same unit.
 //! - `cameraPosition`, `hiddenVolumePosition`, `hiddenVolumeSize` (optional): the SPAD's position, the
 //!   centre and side(s) of the box that holds the hidden scene. `cameraGridSize` (optional): the side(s) of
-//!   the wall's scan area, read by [`wall_extent`]. Anything else is not needed. Every file is confocal.
+//!   the wall's scan area, read by `mat::znlos_wall`. Anything else is not needed. Every file is confocal.
 
 //! # Axes
 //! Z-NLOS walls are planes of constant y (their scenes put the hidden object at y < 0 of a wall at y = 0;
