@@ -1,9 +1,10 @@
-//! `cargo xtask fuzz [--minutes N] [TARGET…]`: a fuzzing campaign of every target in `fuzz/` (or the ones
-//! named), one after the other, N minutes each (default 60), with cargo-fuzz on the nightly toolchain
-//! (installed with `cargo install cargo-fuzz` when missing). Each target's corpus lives in
+//! `cargo xtask fuzz [--minutes N] [--jobs J] [TARGET…]`: a fuzzing campaign of every target in `fuzz/` (or
+//! the ones named), N minutes each (default 60), J at a time (default 1), with cargo-fuzz on the nightly
+//! toolchain (installed with `cargo install cargo-fuzz` when missing). Each target's corpus lives in
 //! `out/fuzz/corpus/TARGET`, seeded from the project's fixtures and the small shared files; crashes land in
-//! `fuzz/artifacts/TARGET`. The table (target, runs, coverage, crashes, minutes) replaces the `fuzz` section
-//! of `docs/results.md`.
+//! `fuzz/artifacts/TARGET`. Each target's row (minutes, runs, coverage, crashes, date) replaces its row in the
+//! `fuzz` section of `docs/results.md`; the rows of targets not run this time are kept, so the campaigns of
+//! one target at a time add up to the table.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -47,6 +48,8 @@ struct Campaign {
     runs: Option<u64>,
     coverage: Option<u64>,
     crashes: usize,
+    /// Wall-clock minutes the campaign ran.
+    minutes: f64,
 }
 
 fn ensure_cargo_fuzz() -> Result<(), String> {
@@ -77,6 +80,7 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
     let before = std::fs::read_dir(&artifacts).map_or(0, |d| d.count());
     let secs = (minutes * 60.0).round().max(1.0) as u64;
     println!("==== fuzz {target}: {secs} s ====");
+    let started = std::time::Instant::now();
     let out = Command::new("cargo")
         .current_dir(root)
         .args(["+nightly", "fuzz", "run", "-O", target])
@@ -103,13 +107,51 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
             log.lines().rev().take(30).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join("\n")
         );
     }
-    Ok(Campaign { runs: stat("stat::number_of_executed_units"), coverage, crashes })
+    let minutes = started.elapsed().as_secs_f64() / 60.0;
+    println!("==== fuzz {target}: done after {minutes:.1} min, {crashes} crashes ====");
+    Ok(Campaign { runs: stat("stat::number_of_executed_units"), coverage, crashes, minutes })
+}
+
+/// The table's row of one target: `| `name` | reads | minutes | runs | coverage | crashes | date |`.
+fn row(name: &str, what: &str, c: &Campaign, date: &str) -> String {
+    let n = |v: Option<u64>| v.map_or_else(|| "–".into(), |x| x.to_string());
+    format!("| `{name}` | {what} | {:.0} | {} | {} | {} | {date} |", c.minutes, n(c.runs), n(c.coverage), c.crashes)
+}
+
+/// The rows of the `fuzz` section now in `doc`, by target (rows of the current seven-column form only).
+fn previous_rows(doc: &str) -> Vec<(String, String)> {
+    let Some(start) = doc.find("<!-- scenario: fuzz -->") else { return Vec::new() };
+    let end = doc[start..].find("<!-- end: fuzz -->").map_or(doc.len(), |e| start + e);
+    doc[start..end]
+        .lines()
+        .filter(|l| l.starts_with("| `") && l.matches('|').count() == 8)
+        .filter_map(|l| {
+            let name = l.split('`').nth(1)?;
+            Some((name.to_string(), l.to_string()))
+        })
+        .collect()
+}
+
+/// The whole table's verdict from its rows: FAIL on any crash, PASS when every target ran ≥ 60 minutes.
+fn verdict(rows: &[String]) -> &'static str {
+    let cells = |r: &String| r.split('|').map(|c| c.trim().to_string()).collect::<Vec<_>>();
+    let crashed = rows.iter().any(|r| cells(r).get(6).is_some_and(|c| c != "0" && c != "–"));
+    let complete = rows.len() == TARGETS.len()
+        && rows.iter().all(|r| cells(r).get(3).and_then(|m| m.parse::<f64>().ok()).is_some_and(|m| m >= 59.5));
+    if crashed {
+        "FAIL"
+    } else if complete {
+        "PASS"
+    } else {
+        "measured"
+    }
 }
 
 /// Runs `cargo xtask fuzz ARGS`.
 pub fn fuzz(root: &Path, args: &[String]) -> Result<(), String> {
-    let usage = "usage: cargo xtask fuzz [--minutes N] [TARGET...]";
+    let usage = "usage: cargo xtask fuzz [--minutes N] [--jobs J] [TARGET...]";
     let mut minutes = 60.0;
+    let mut jobs = 1usize;
     let mut chosen: Vec<&str> = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -121,6 +163,13 @@ pub fn fuzz(root: &Path, args: &[String]) -> Result<(), String> {
                     .filter(|m| m.is_finite() && *m > 0.0)
                     .ok_or(format!("--minutes takes a positive number; {usage}"))?;
             }
+            "--jobs" => {
+                jobs = it
+                    .next()
+                    .and_then(|j| j.parse::<usize>().ok())
+                    .filter(|j| *j > 0)
+                    .ok_or(format!("--jobs takes a positive whole number; {usage}"))?;
+            }
             t => match TARGETS.iter().find(|(n, _)| *n == t) {
                 Some((n, _)) => chosen.push(n),
                 None => return Err(format!("unknown target `{t}` (one of {:?}); {usage}", TARGETS.map(|t| t.0))),
@@ -128,29 +177,57 @@ pub fn fuzz(root: &Path, args: &[String]) -> Result<(), String> {
         }
     }
     ensure_cargo_fuzz()?;
-    let mut rows = Vec::new();
+    let todo: Vec<(&str, &str)> =
+        TARGETS.iter().copied().filter(|(n, _)| chosen.is_empty() || chosen.contains(n)).collect();
+    // Build every target first: parallel campaigns would otherwise queue on cargo's build lock.
+    let status = Command::new("cargo")
+        .current_dir(root)
+        .args(["+nightly", "fuzz", "build", "-O"])
+        .status()
+        .map_err(|e| format!("cannot run cargo fuzz: {e}"))?;
+    if !status.success() {
+        return Err("cargo fuzz build failed".into());
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..jobs.min(todo.len()) {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                    let Some((name, what)) = todo.get(i) else { break };
+                    let c = campaign(root, name, minutes);
+                    results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, *name, *what, c));
+                }
+            });
+        }
+    });
+    let mut results = results.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+    results.sort_by_key(|r| r.0);
+    let date = accept::utc_now();
+    let doc = std::fs::read_to_string(root.join("docs/results.md")).unwrap_or_default();
+    let mut rows: Vec<(String, String)> = previous_rows(&doc);
     let mut failed = Vec::new();
-    for (name, what) in TARGETS.iter().filter(|(n, _)| chosen.is_empty() || chosen.contains(n)) {
-        let c = campaign(root, name, minutes)?;
-        let n = |v: Option<u64>| v.map_or_else(|| "–".into(), |x| x.to_string());
-        rows.push(format!("| `{name}` | {what} | {} | {} | {} |", n(c.runs), n(c.coverage), c.crashes));
+    for (_, name, what, c) in results {
+        let c = c?;
         if c.crashes > 0 {
-            failed.push(*name);
+            failed.push(name);
+        }
+        let r = row(name, what, &c, &date);
+        match rows.iter_mut().find(|(n, _)| n == name) {
+            Some(old) => old.1 = r,
+            None => rows.push((name.to_string(), r)),
         }
     }
-    let status = if !failed.is_empty() {
-        "FAIL"
-    } else if minutes >= 60.0 {
-        "PASS"
-    } else {
-        "measured"
-    };
+    let rows: Vec<String> =
+        TARGETS.iter().filter_map(|(n, _)| rows.iter().find(|(m, _)| m == n).map(|(_, r)| r.clone())).collect();
     let md = format!(
-        "## fuzz — {status} — {}\n\n`cargo xtask fuzz --minutes {minutes}`: {minutes} min per target on this machine \
-         (cargo-fuzz, libFuzzer, AddressSanitizer), corpora seeded from the fixtures and the small shared files. \
-         Done when every target ran 60 minutes with no crash.\n\n| target | reads | runs | coverage | crashes |\n\
-         |---|---|---|---|---|\n{}\n",
-        accept::utc_now(),
+        "## fuzz — {} — {date}\n\n`cargo xtask fuzz [--minutes N] [--jobs J] [TARGET…]` on this machine's 2 cores \
+         (cargo-fuzz, libFuzzer, AddressSanitizer), corpora seeded from the fixtures and the small shared files and \
+         kept between campaigns; each row is its target's latest campaign. Done when every target ran 60 minutes \
+         with no crash.\n\n| target | reads | minutes | runs | coverage | crashes | date |\n\
+         |---|---|---|---|---|---|---|\n{}\n",
+        verdict(&rows),
         rows.join("\n")
     );
     accept::record(root, "fuzz", &md)?;

@@ -538,3 +538,39 @@ fn apply_window_is_the_whole_rows_convolution_on_its_bins() {
         }
     }
 }
+
+/// A direct return cut at its maximum (a pre-rectified capture) gets back the rising side its top implies:
+/// a Gaussian core of σ = 5 bins with a slow tail after it, cut 1 bin after its centre, is completed with a
+/// Gaussian of that width whose centre is zero delay; a return that keeps its rising side is not touched.
+#[test]
+fn rising_side_cut_by_the_axis_is_completed_from_the_top() {
+    let sigma = 5.0;
+    // The response at x bins from its centre: a Gaussian core, then a slow exponential tail after it.
+    let h = |x: f64| (-0.5 * (x / sigma).powi(2)).exp() + if x > 0.0 { 0.05 * (1.0 - (-x / 3.0).exp()) } else { 0.0 };
+    // Cut 1.0 bin after the centre: bin k's centre is at x = k + 0.5 + 0.5.
+    let cut: Vec<f64> = (0..200).map(|k| h(k as f64 + 1.0)).collect();
+    let (done, zero) = jitter::complete_rising_side(cut.clone(), 0);
+    let before = done.len() - cut.len();
+    assert_eq!(&done[before..], &cut[..], "the recorded bins are kept");
+    // Zero delay at the Gaussian's centre, half a bin before the recorded axis's start.
+    assert!(
+        (zero - (before as f64 - 0.5)).abs() < 0.35,
+        "zero delay at {zero} bins, the centre at {}",
+        before as f64 - 0.5
+    );
+    // Down to about 3σ before the centre, and the filled bins follow the Gaussian.
+    assert!((14..=17).contains(&before), "{before} bins put before the axis");
+    for (j, &v) in done[..before].iter().enumerate() {
+        let x = j as f64 + 0.5 - zero;
+        let want = h(x.min(0.0));
+        assert!((v - want).abs() < 0.08 * want + 1e-3, "bin {j} (x = {x:.2}): {v} vs {want}");
+    }
+    // A return with its rising side (maximum 4 bins in) is whole.
+    let whole: Vec<f64> = (0..200).map(|k| h(k as f64 + 0.5 - 4.0)).collect();
+    let (same, zero) = jitter::complete_rising_side(whole.clone(), 4);
+    assert_eq!(same, whole);
+    assert_eq!(zero, 4.5);
+    // A flat top (no curvature to fit) is not completed.
+    let (flat, zero) = jitter::complete_rising_side(vec![1.0; 50], 0);
+    assert_eq!((flat.len(), zero), (50, 0.5));
+}
