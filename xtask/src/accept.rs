@@ -544,6 +544,26 @@ fn real(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
         if !opts.quick {
             check(&mut text, &mut pass, &format!("{:.0} s ≤ 600 s on this machine", ran.wall_s), ran.wall_s <= 600.0);
         }
+        // The whole schedule: every stage started and ended by its own rule, none cut by the time budget.
+        let log: nlos_optim::RunLog = serde_json::from_str(
+            &std::fs::read_to_string(run_dir.join("run_log.json")).map_err(|e| format!("{name} run log: {e}"))?,
+        )
+        .map_err(|e| format!("{name} run log: {e}"))?;
+        let edges = |f: fn(&nlos_optim::StageRecord) -> f64| {
+            log.stages.iter().map(|r| format!("{:.1}", 1e3 * f(r))).collect::<Vec<_>>().join(", ")
+        };
+        check(
+            &mut text,
+            &mut pass,
+            &format!(
+                "the whole schedule ran: {} stages at {} mm edges (the schedule's {} mm), stop `{}`",
+                log.stages.len(),
+                edges(|r| r.edge_length),
+                edges(|r| r.schedule_edge_length),
+                ran.stdout.lines().rev().find_map(|l| l.split("stop: ").nth(1)).unwrap_or("?").trim()
+            ),
+            ran.stdout.contains("stop: all stages ran"),
+        );
         if name.contains("chart") {
             // A plane: the 10th–90th percentile spread of the vertices' depths about their least-squares plane
             // within 10 mm (about two depth bins at --rebin 8; a fit that turns the print into relief spreads

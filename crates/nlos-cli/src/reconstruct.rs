@@ -219,12 +219,12 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     }
     let last = outcome.log.iterations.last();
     println!(
-        "{}: {} faces, {} vertices after {} blocks (stage {}); loss {:.4e}; scale {:.4e}; stop: {}",
+        "{}: {} faces, {} vertices after {} blocks in {} stages; loss {:.4e}; scale {:.4e}; stop: {}",
         out.join("mesh.obj").display(),
         outcome.mesh.n_faces(),
         outcome.mesh.n_vertices(),
         outcome.blocks_done,
-        outcome.stage + 1,
+        outcome.log.stages.len(),
         last.map_or(f64::NAN, |r| r.loss),
         outcome.scale,
         match outcome.stop {
@@ -234,6 +234,27 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             StopReason::Interrupted => "interrupted (resume with --resume)",
         }
     );
+    let coarsened: Vec<String> = outcome
+        .log
+        .stages
+        .iter()
+        .filter(|r| r.edge_length > r.schedule_edge_length * (1.0 + 1e-9))
+        .map(|r| {
+            format!(
+                "stage {} at {:.1} mm (schedule {:.1} mm)",
+                r.stage + 1,
+                1e3 * r.edge_length,
+                1e3 * r.schedule_edge_length
+            )
+        })
+        .collect();
+    if !coarsened.is_empty() {
+        println!(
+            "time budget: {} edges, so that every stage ran whole within schedule.time_budget = {} s",
+            coarsened.join(", "),
+            params.schedule.time_budget
+        );
+    }
     if outcome.stop != StopReason::Interrupted && !args.no_report {
         let run = Run { data, out, config: &config, resumed: args.resume };
         write_report(&run, &prepared, &params, gt.as_ref()).map_err(|e| match e {

@@ -59,11 +59,11 @@ pub use boundary_smoothing::BoundarySmoothing;
 pub use error::{OptimError, Result};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
-pub use params::{ReconstructParams, SamplingSchedule, Schedule};
+pub use params::{ReconstructParams, SamplingSchedule, Schedule, faces_at};
 pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, RowTerm, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
-    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StepKind, StopReason, reconstruct,
+    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason, reconstruct,
     reconstruct_with, resume,
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};

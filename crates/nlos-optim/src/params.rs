@@ -20,8 +20,10 @@ use crate::sensor::SensorFit;
 /// length `L_k = extent / res_k`. Each stage runs blocks (a shape block of `shape_iterations` Adam steps,
 /// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
 /// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages,
-/// when the next stage would exceed `max_faces` faces, or when its predicted time would exceed
-/// `time_budget` ([`Schedule::block_fits`]).
+/// or when the next stage would exceed `max_faces` faces. Stages after the first are planned at their start
+/// for the time budget ([`Schedule::planned_edge`]): when the stages left would not fit `time_budget` whole
+/// at the schedule's edges, they refine by less, so that every stage runs all its blocks; only when not
+/// even that fits do blocks stop at the budget ([`Schedule::block_fits`]).
 ///
 /// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
 /// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
@@ -61,9 +63,10 @@ pub struct Schedule {
     /// 0: every stage at the capture's resolution).
     pub rebin_fraction: f64,
     /// Seconds of the reference machine (2 cores) the blocks may take (default 480: ten minutes less what the
-    /// start, the residual patches and the stage changes take; 0: no budget). A block is started only when
-    /// the blocks so far and its own predicted time fit ([`Schedule::block_fits`]). Predicted from face
-    /// counts, not timed, so the run stays a deterministic function of its inputs on every machine.
+    /// start, the residual patches and the stage changes take; 0: no budget). Each stage after the first is
+    /// planned so that it and the stages after it fit whole ([`Schedule::planned_edge`]); a block is started
+    /// only when the blocks so far and its own predicted time fit ([`Schedule::block_fits`]). Predicted from
+    /// face counts, not timed, so the run stays a deterministic function of its inputs on every machine.
     pub time_budget: f64,
 }
 
@@ -167,6 +170,69 @@ impl Schedule {
         let steps = f64::from(self.shape_iterations);
         self.time_budget <= 0.0
             || Self::predicted_seconds(face_steps + faces * steps, measurements, sensor) <= self.time_budget
+    }
+}
+
+/// Faces of a mesh of `area` m² remeshed to edges of `edge` m (equilateral triangles).
+pub fn faces_at(area: f64, edge: f64) -> f64 {
+    area / (3f64.sqrt() / 4.0 * edge * edge)
+}
+
+impl Schedule {
+    /// Predicted seconds of one stage on a mesh of `faces` faces, all its blocks run.
+    fn stage_seconds(&self, faces: f64, measurements: usize, sensor: bool) -> f64 {
+        let steps = f64::from(self.max_blocks_per_stage) * f64::from(self.shape_iterations);
+        Self::predicted_seconds(faces * steps, measurements, sensor)
+    }
+
+    /// The target edge of stage `stage` ≥ 1, planned at its start so that it and the stages after it fit
+    /// the time budget whole ([`Schedule::time_budget`]): `previous` is the edge of the stage before, `area`
+    /// the mesh's area now (m²) and `face_steps` the shape steps' faces so far. The remaining stages refine
+    /// by a common growth `g ≤ growth`, the largest for which all their blocks (`max_blocks_per_stage` each,
+    /// on the faces of the current area at their edges) are predicted to fit what the budget has left
+    /// (bisection; deterministic). Never finer than the stage's own edge ([`Schedule::target_edge_length`]);
+    /// `g = 1` (the previous edge again) when not even that fits, and the blocks then stop at the budget
+    /// ([`Schedule::block_fits`]). Without a budget, the stage's own edge. Why: a large object (the S and U
+    /// capture's two letters, 0.14 m²) at the default edges would need 12,600 faces in the third stage and
+    /// about 900 s; cutting the stage short, or skipping it, left its refinement undone, whereas a
+    /// slightly coarser third stage runs every block.
+    #[allow(clippy::too_many_arguments)]
+    pub fn planned_edge(
+        &self,
+        stage: u32,
+        previous: f64,
+        area: f64,
+        face_steps: f64,
+        measurements: usize,
+        sensor: bool,
+    ) -> f64 {
+        let own = self.target_edge_length(stage);
+        if self.time_budget <= 0.0 || stage == 0 || !(area.is_finite() && area > 0.0) {
+            return own;
+        }
+        let left = self.time_budget - Self::predicted_seconds(face_steps, measurements, sensor);
+        let stages = self.max_stages.saturating_sub(stage);
+        let cost = |g: f64| -> f64 {
+            (1..=stages)
+                .map(|j| {
+                    let edge = (previous / g.powi(j as i32)).max(self.target_edge_length(stage + j - 1));
+                    self.stage_seconds(faces_at(area, edge), measurements, sensor)
+                })
+                .sum()
+        };
+        let growth = self.growth.max(1.0);
+        if cost(growth) <= left {
+            return (previous / growth).max(own);
+        }
+        if cost(1.0) > left {
+            return previous.max(own);
+        }
+        let (mut lo, mut hi) = (1.0, growth);
+        for _ in 0..50 {
+            let mid = 0.5 * (lo + hi);
+            if cost(mid) <= left { lo = mid } else { hi = mid }
+        }
+        (previous / lo).max(own)
     }
 }
 

@@ -164,3 +164,37 @@ fn a_bad_time_budget_is_a_typed_error_naming_the_setting() {
         assert!(matches!(err, OptimError::InvalidParameter { name: "schedule.time_budget", .. }), "{err}");
     }
 }
+
+/// `Schedule::planned_edge`: the stages left refine by the largest common growth whose blocks fit what the
+/// budget has left — the schedule's own edges when they fit, coarser ones (never finer than the schedule's,
+/// never coarser than the stage before) when they do not, and the previous edge when nothing fits.
+/// What it catches: a plan that overruns the budget, one that coarsens more than it must, or one that
+/// refines past the schedule.
+#[test]
+fn later_stages_are_planned_to_fit_the_budget_whole() {
+    let s = Schedule::default();
+    let (m, sensor) = (4096, true);
+    let (e0, e1, e2) = (s.target_edge_length(0), s.target_edge_length(1), s.target_edge_length(2));
+    let stage_cost = |edge: f64, area: f64| {
+        let steps = f64::from(s.max_blocks_per_stage * s.shape_iterations);
+        Schedule::predicted_seconds(nlos_optim::faces_at(area, edge) * steps, m, sensor)
+    };
+    // A small object (the chart's 0.03 m²): the schedule's own edges.
+    assert_eq!(s.planned_edge(1, e0, 0.03, 2e5, m, sensor), e1);
+    // Without a budget, or at stage 0: the schedule's.
+    let free = Schedule { time_budget: 0.0, ..s };
+    assert_eq!(free.planned_edge(1, e0, 10.0, 2e5, m, sensor), e1);
+    assert_eq!(s.planned_edge(0, e0, 10.0, 0.0, m, sensor), e0);
+    // A large one (the S and U's 0.14 m² after a first stage of 2.3·10⁵ face-steps): coarser, and exactly
+    // what fits — stages 1 and 2 at the common growth fill what is left, a hair finer would not fit.
+    let (area, done) = (0.14, 2.3e5);
+    let left = s.time_budget - Schedule::predicted_seconds(done, m, sensor);
+    let edge = s.planned_edge(1, e0, area, done, m, sensor);
+    assert!(edge > e1 && edge < e0, "{edge}");
+    let g = e0 / edge;
+    let plan = |g: f64| stage_cost((e0 / g).max(e1), area) + stage_cost((e0 / (g * g)).max(e2), area);
+    assert!(plan(g) <= left * (1.0 + 1e-9), "{} > {left}", plan(g));
+    assert!(plan(g * 1.001) > left, "the growth is the largest that fits");
+    // Nothing left: the previous edge again (the blocks then stop at the budget).
+    assert_eq!(s.planned_edge(1, e0, area, 1e7, m, sensor), e0);
+}

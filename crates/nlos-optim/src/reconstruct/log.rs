@@ -62,6 +62,23 @@ pub struct RunLog {
     /// Self-intersection checks: of the start, after every remeshing and at the end of every block.
     #[serde(default)]
     pub intersections: Vec<IntersectionRecord>,
+    /// The stages started: the edge each was run at ([`crate::Schedule::planned_edge`]).
+    #[serde(default)]
+    pub stages: Vec<StageRecord>,
+}
+
+/// A stage as it was started: its target edge, planned for the time budget, beside the schedule's own.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    /// The stage (0-based).
+    pub stage: u32,
+    /// Target edge length it ran at (m).
+    pub edge_length: f64,
+    /// The schedule's own edge for it ([`crate::Schedule::target_edge_length`]); larger `edge_length`:
+    /// coarsened so that the stages left fit the time budget whole.
+    pub schedule_edge_length: f64,
+    /// Bins of the capture summed in it ([`crate::Schedule::rebin_at`]).
+    pub bins_summed: usize,
 }
 
 /// When the surface is checked for self-intersections ([`IntersectionRecord`]).

@@ -57,7 +57,7 @@ use crate::adam::{VectorAdam, VertexAdam};
 use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
-use crate::params::{ReconstructParams, SamplingSchedule};
+use crate::params::{ReconstructParams, SamplingSchedule, faces_at};
 use crate::prune::{PruneRecord, RowLoss, prune_boundary};
 use crate::reflectance::Reflectance;
 use crate::regularizer::{NormalSmoothing, auto_weight};
@@ -414,10 +414,16 @@ struct StageData {
 }
 
 impl StageData {
-    /// The data of stage `stage`; `background` is the sensor fit's background on the capture's own bins.
-    fn new(measured: &Transient, params: &ReconstructParams, stage: u32, background: f64) -> Result<Self> {
-        let k = params.schedule.rebin(stage, measured.time().bin_width).min(measured.bins());
-        let k = if params.data.weights.is_some() { 1 } else { k };
+    /// Bins summed by a stage of target edge `edge` (none with per-bin weights, defined on the capture's bins).
+    fn bins_summed(measured: &Transient, params: &ReconstructParams, edge: f64) -> usize {
+        let k = params.schedule.rebin_at(edge, measured.time().bin_width).min(measured.bins());
+        if params.data.weights.is_some() { 1 } else { k }
+    }
+
+    /// The data of stage `stage` at target edge `edge`; `background` is the sensor fit's background on the
+    /// capture's own bins.
+    fn new(measured: &Transient, params: &ReconstructParams, stage: u32, edge: f64, background: f64) -> Result<Self> {
+        let k = Self::bins_summed(measured, params, edge);
         let capture = if k > 1 {
             Some(measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?)
         } else {
@@ -471,15 +477,15 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
     let mut stage_data: Option<StageData> = None;
     while st.finished.is_none() {
+        let target = stage_edge(&mut st, params, measured);
         let sd: &StageData = match stage_data.take() {
             Some(d) if d.stage == st.stage => stage_data.insert(d),
-            _ => stage_data.insert(StageData::new(measured, params, st.stage, background)?),
+            _ => stage_data.insert(StageData::new(measured, params, st.stage, target, background)?),
         };
         let measured: &Transient = sd.capture.as_ref().unwrap_or(measured);
         let sensor = sd.sensor.as_ref();
         let data = measured.data();
         let norm = data_normaliser(params, data)?;
-        let target = sch.target_edge_length(st.stage);
         let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
         let fit = Fit { params, measured: data, sensor, norm };
         let mut renderer = Renderer::new(
@@ -655,8 +661,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let fits = |faces: f64| sch.block_fits(face_steps, faces, measured.measurements(), params.sensor.is_some());
         let over_budget = !fits(st.triangles.len() as f64);
         let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
-        let next_edge = sch.target_edge_length(st.stage + 1);
-        let next_faces = surface_area(&st.positions, &st.triangles) / (3f64.sqrt() / 4.0 * next_edge * next_edge);
+        let next_edge = planned_edge(&st, params, measured, st.stage + 1, target);
+        let next_faces = faces_at(surface_area(&st.positions, &st.triangles), next_edge);
         let next_over_budget = stage_ends && !fits(next_faces);
         let last_block = stage_ends && (st.stage + 1 >= sch.max_stages || next_over_budget);
 
@@ -755,8 +761,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             if st.stage >= sch.max_stages {
                 st.finished = Some(StopReason::MaxStages);
             } else {
-                let l = sch.target_edge_length(st.stage);
-                let est = surface_area(&st.positions, &st.triangles) / (3f64.sqrt() / 4.0 * l * l);
+                let l = planned_edge(&st, params, measured, st.stage, target);
+                let est = faces_at(surface_area(&st.positions, &st.triangles), l);
                 if est > sch.max_faces as f64 {
                     st.finished = Some(StopReason::FaceLimit);
                 } else if next_over_budget {
@@ -781,6 +787,37 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
     }
     Ok(outcome(&st, mesh, st.finished.unwrap_or(StopReason::MaxStages)))
+}
+
+/// The shape steps' faces so far (what the time budget counts, [`crate::Schedule::predicted_seconds`]).
+fn face_steps(st: &State) -> f64 {
+    st.log.iterations.iter().map(|r| r.faces as f64).sum()
+}
+
+/// The edge stage `stage` would be planned at now, after a stage of edge `previous`
+/// ([`crate::Schedule::planned_edge`]).
+fn planned_edge(st: &State, params: &ReconstructParams, measured: &Transient, stage: u32, previous: f64) -> f64 {
+    let area = surface_area(&st.positions, &st.triangles);
+    let sensor = params.sensor.is_some();
+    params.schedule.planned_edge(stage, previous, area, face_steps(st), measured.measurements(), sensor)
+}
+
+/// The target edge of the current stage: as recorded when it started (a resumed run keeps it), or planned
+/// now and recorded ([`StageRecord`]).
+fn stage_edge(st: &mut State, params: &ReconstructParams, measured: &Transient) -> f64 {
+    if let Some(r) = st.log.stages.iter().find(|r| r.stage == st.stage) {
+        return r.edge_length;
+    }
+    let sch = &params.schedule;
+    let previous = st.log.stages.last().map_or_else(|| sch.target_edge_length(0), |r| r.edge_length);
+    let edge = planned_edge(st, params, measured, st.stage, previous);
+    st.log.stages.push(StageRecord {
+        stage: st.stage,
+        edge_length: edge,
+        schedule_edge_length: sch.target_edge_length(st.stage),
+        bins_summed: StageData::bins_summed(measured, params, edge),
+    });
+    edge
 }
 
 /// The outcome of a run in state `st` with its mesh.
