@@ -48,7 +48,7 @@ struct Campaign {
     runs: Option<u64>,
     coverage: Option<u64>,
     crashes: usize,
-    /// Wall-clock minutes the campaign ran.
+    /// Minutes the campaign fuzzed (libFuzzer's count; the wall clock when it printed none).
     minutes: f64,
 }
 
@@ -107,7 +107,13 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
             log.lines().rev().take(30).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join("\n")
         );
     }
-    let minutes = started.elapsed().as_secs_f64() / 60.0;
+    // libFuzzer's own "Done N runs in S second(s)": the fuzzing time, without the build before it.
+    let fuzzed = log.lines().rev().find_map(|l| {
+        let rest = l.strip_prefix("Done ")?;
+        let secs = rest.split(" runs in ").nth(1)?.split_whitespace().next()?;
+        secs.parse::<f64>().ok()
+    });
+    let minutes = fuzzed.unwrap_or_else(|| started.elapsed().as_secs_f64()) / 60.0;
     println!("==== fuzz {target}: done after {minutes:.1} min, {crashes} crashes ====");
     Ok(Campaign { runs: stat("stat::number_of_executed_units"), coverage, crashes, minutes })
 }

@@ -85,6 +85,7 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         iterations: (0..20).map(|i| record(i, u32::from(i >= 12), 1.0 / (1.0 + i as f64))).collect(),
         rollbacks: 1,
         intersections: Vec::new(),
+        stages: Vec::new(),
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
     let ck = serde_json::json!({ "reflectance": Reflectance::default() });
