@@ -133,7 +133,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Transient> {
 }
 
 /// Reads an EXR image that is not a capture — a depth or normal map — as `(values, shape)` in C order: one
-/// channel (the only one, `Y` or `Z`… as [`pick_channel`]) gives shape `(height, width)`, three channels
+/// channel (the only one, `Y` or `Z`… as `pick_channel`) gives shape `(height, width)`, three channels
 /// named `R, G, B` or `X, Y, Z` give `(height, width, 3)` with x, y, z from R, G, B (or X, Y, Z). Row 0 is the
 /// image's top. NaN and infinities are a map's "no value" and come back as NaN.
 ///

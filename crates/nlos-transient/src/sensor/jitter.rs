@@ -235,7 +235,7 @@ impl JitterResponse {
     /// make light arrive before a surface's own path, and explains the early rise of every hidden return with
     /// surface nearer the wall: a flat plane fitted to the 40 cm chart's counts was best at 0.401 m through
     /// the cut response and at 0.404–0.407 m with a Gaussian rise of 3–7.4 bins, whose Poisson deviance was
-    /// lower by 2 % at every width ([`complete_rising_side`]). So when fewer than two bins precede the maximum,
+    /// lower by 2 % at every width (`complete_rising_side`). So when fewer than two bins precede the maximum,
     /// the top of the return (the bins from the maximum on that stay above 80 % of it) is fitted with a
     /// Gaussian (a parabola through their logarithms); the bins before the axis are filled with it down to
     /// three standard deviations before its centre, and zero delay is put at its centre.
