@@ -62,6 +62,18 @@ fn ensure_cargo_fuzz() -> Result<(), String> {
     if status.success() { Ok(()) } else { Err("cargo install cargo-fuzz failed".into()) }
 }
 
+/// libFuzzer's artifacts that are failures (a `slow-unit-` file is not: see [`campaign`]).
+const FAILURES: [&str; 4] = ["crash-", "leak-", "timeout-", "oom-"];
+
+/// Files in `dir` whose names start with one of `prefixes`.
+fn artifacts_named(dir: &Path, prefixes: &[&str]) -> usize {
+    std::fs::read_dir(dir).map_or(0, |d| {
+        d.filter_map(Result::ok)
+            .filter(|e| prefixes.iter().any(|k| e.file_name().to_string_lossy().starts_with(k)))
+            .count()
+    })
+}
+
 fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String> {
     let corpus = root.join("out/fuzz/corpus").join(target);
     std::fs::create_dir_all(&corpus).map_err(|e| format!("{}: {e}", corpus.display()))?;
@@ -77,7 +89,8 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
         std::fs::write(corpus.join("seed-defaults.toml"), text).map_err(|e| e.to_string())?;
     }
     let artifacts = root.join("fuzz/artifacts").join(target);
-    let before = std::fs::read_dir(&artifacts).map_or(0, |d| d.count());
+    let before = artifacts_named(&artifacts, &FAILURES);
+    let slow_before = artifacts_named(&artifacts, &["slow-unit-"]);
     let secs = (minutes * 60.0).round().max(1.0) as u64;
     println!("==== fuzz {target}: {secs} s ====");
     let started = std::time::Instant::now();
@@ -99,7 +112,14 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
         let mut it = l.split_whitespace();
         it.position(|w| w == "cov:").and_then(|_| it.next()).and_then(|c| c.parse().ok())
     });
-    let after = std::fs::read_dir(&artifacts).map_or(0, |d| d.count());
+    // Failures are libFuzzer's crash-, leak-, timeout- and oom- files; a slow-unit- file only says an input
+    // took over ten seconds of wall clock (a campaign at low priority on a busy machine writes them for inputs
+    // that take a fraction of a second alone), and is reported apart.
+    let after = artifacts_named(&artifacts, &FAILURES);
+    let slow = artifacts_named(&artifacts, &["slow-unit-"]).saturating_sub(slow_before);
+    if slow > 0 {
+        println!("fuzz {target}: {slow} slow units in {} (inputs over 10 s of wall clock)", artifacts.display());
+    }
     let crashes = after.saturating_sub(before) + usize::from(!out.status.success() && after == before);
     if !out.status.success() {
         eprintln!(
