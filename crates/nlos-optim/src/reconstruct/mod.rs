@@ -657,8 +657,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let converged = !(rel >= sch.rel_tol);
         // The time budget (predicted from face counts, so deterministic): the next block of this stage, and
         // the first of the next stage at its estimated face count, must fit.
-        let face_steps: f64 = st.log.iterations.iter().map(|r| r.faces as f64).sum();
-        let fits = |faces: f64| sch.block_fits(face_steps, faces, measured.measurements(), params.sensor.is_some());
+        let done = face_steps(&st);
+        let fits = |faces: f64| sch.block_fits(done, faces, measured.measurements(), params.sensor.is_some());
         let over_budget = !fits(st.triangles.len() as f64);
         let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
         let next_edge = planned_edge(&st, params, measured, st.stage + 1, target);

@@ -366,6 +366,8 @@ const MIN_RISE_BINS: usize = 2;
 const TOP_FRACTION: f64 = 0.8;
 /// At most this many bins of the top are fitted (a flat top of a slow return would otherwise run on).
 const MAX_TOP_BINS: usize = 32;
+/// Widest Gaussian that completes a rising side, in bins: four times the most bins of a top.
+const MAX_SIGMA_BINS: f64 = 4.0 * MAX_TOP_BINS as f64;
 
 /// A direct return whose rising side the axis cut off ([`JitterResponse::from_direct_return`]), completed.
 ///
@@ -376,7 +378,8 @@ const MAX_TOP_BINS: usize = 32;
 /// of centre `μ = −b/2q` (held at or before the maximum's centre) and deviation `σ = √(−1/2q)`. Bins are put
 /// before the axis down to `μ − 3σ` and filled with that Gaussian, the recorded bins kept as they are.
 /// Returns the histogram and the position of zero delay in bins from its start (the Gaussian's centre).
-/// A top that does not curve down (`q ≥ 0`, or fewer than 3 bins above 80 %) is not completed.
+/// A top that does not curve down (`q ≥ 0`, or fewer than 3 bins above 80 %), or one flatter than a Gaussian of
+/// [`MAX_SIGMA_BINS`], is not completed.
 pub(crate) fn complete_rising_side(counts: Vec<f64>, peak: usize) -> (Vec<f64>, f64) {
     let whole = (counts, peak as f64 + 0.5);
     if peak >= MIN_RISE_BINS {
@@ -387,24 +390,24 @@ pub(crate) fn complete_rising_side(counts: Vec<f64>, peak: usize) -> (Vec<f64>, 
     if n < 3 {
         return whole;
     }
-    // Normal equations of the quadratic fit in x = 0..n−1 (the bins' centres from the maximum's).
-    let mut m = [[0.0f64; 3]; 3];
-    let mut r = [0.0f64; 3];
+    // Normal equations of the quadratic fit in x = 0..n−1 (the bins' centres from the maximum's): Caruana's
+    // Gaussian fit, a least-squares parabola through the logarithms (Caruana, Searle & Shupe, Anal. Chem.
+    // 58, 1986).
+    let (mut m, mut r) = (glam::DMat3::ZERO, glam::DVec3::ZERO);
     for (i, &c) in whole.0[peak..peak + n].iter().enumerate() {
         let x = i as f64;
-        let p = [1.0, x, x * x];
-        for (row, &pi) in m.iter_mut().zip(&p) {
-            for (mij, &pj) in row.iter_mut().zip(&p) {
-                *mij += pi * pj;
-            }
-        }
-        for (ri, &pi) in r.iter_mut().zip(&p) {
-            *ri += pi * c.ln();
-        }
+        let p = glam::DVec3::new(1.0, x, x * x);
+        m += glam::DMat3::from_cols(p * p.x, p * p.y, p * p.z);
+        r += p * c.ln();
     }
-    let Some([a, b, q]) = solve3(m, r) else { return whole };
-    // A top that does not curve down (or a NaN from a degenerate fit) has no Gaussian to complete.
-    if q.is_nan() || q >= 0.0 {
+    let det = m.determinant();
+    if det.is_nan() || det.abs() <= 1e-12 {
+        return whole;
+    }
+    let glam::DVec3 { x: a, y: b, z: q } = m.inverse() * r;
+    // A top that does not curve down (or a NaN from a degenerate fit) has no Gaussian to complete; nor has one
+    // so flat that its 3σ would run past MAX_SIGMA_BINS (a plateau, not a peak: nothing to mirror).
+    if q.is_nan() || q >= 0.0 || (-0.5 / q).sqrt() > MAX_SIGMA_BINS {
         return whole;
     }
     let sigma = (-0.5 / q).sqrt();
@@ -418,27 +421,6 @@ pub(crate) fn complete_rising_side(counts: Vec<f64>, peak: usize) -> (Vec<f64>, 
     let mut out: Vec<f64> = (0..before).map(|j| gaussian(j as f64 - before as f64 - peak as f64)).collect();
     out.extend(whole.0);
     (out, before as f64 + peak as f64 + 0.5 + mu)
-}
-
-/// Solves the 3 × 3 system `m x = r` (Cramer's rule); `None` when it is singular.
-fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
-    let det = |m: &[[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(&m);
-    if d.is_nan() || d.abs() <= 1e-12 {
-        return None;
-    }
-    let mut x = [0.0; 3];
-    for (c, xc) in x.iter_mut().enumerate() {
-        let mut mc = m;
-        for (row, &rv) in mc.iter_mut().zip(&r) {
-            row[c] = rv;
-        }
-        *xc = det(&mc) / d;
-    }
-    Some(x)
 }
 
 /// Re-labels an in-memory error with the file it came from.

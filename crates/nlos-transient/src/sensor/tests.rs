@@ -574,3 +574,15 @@ fn rising_side_cut_by_the_axis_is_completed_from_the_top() {
     let (flat, zero) = jitter::complete_rising_side(vec![1.0; 50], 0);
     assert_eq!((flat.len(), zero), (50, 0.5));
 }
+
+/// A top that falls too slowly to be a peak (a plateau: its Gaussian would be wider than any sensor's) and a
+/// degenerate one (all equal but the first) are left as they are, with no allocation on the width's scale.
+#[test]
+fn plateau_or_degenerate_top_is_not_completed() {
+    let plateau: Vec<f64> = (0..100).map(|k| 1.0 - 1e-9 * (k * k) as f64).collect();
+    let (out, zero) = jitter::complete_rising_side(plateau.clone(), 0);
+    assert_eq!((out, zero), (plateau, 0.5));
+    let flat: Vec<f64> = std::iter::once(2.0).chain(std::iter::repeat_n(1.9, 40)).collect();
+    let (out, _) = jitter::complete_rising_side(flat.clone(), 0);
+    assert!(out.len() <= flat.len() + 3 * 128 + 2, "{} bins", out.len());
+}
