@@ -1,4 +1,4 @@
-//! Collision-aware evolution (issue 7): one `evolve` call with improvement, and one without, on a
+//! Collision-aware evolution: one `evolve` call with improvement, and one without, on a
 //! 51 200-face open height field (160 × 160 grid, the optimiser's kind of mesh: open, with a boundary) with
 //! random displacements of up to 0.1·L per axis (L the mean edge length).
 //!

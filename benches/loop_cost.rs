@@ -1,10 +1,10 @@
 //! The renderer as the optimiser runs it (`nlos_optim::ReconstructParams::default()`): one forward + adjoint
-//! (`loss_and_gradient`, L2) at the seed's setup — confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins of
+//! (`loss_and_gradient`, L2) at Tsai et al. 2019's setup — confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins of
 //! 1.2 mm, summed as the stage of each mesh sums them (`nlos_optim::Schedule::rebin`: 3 at 7.8 mm edges) — with the tent kernel, `Sampling::Splat(SplatRule::default())` and cached visibility (level 1,
 //! built outside the timed loop, as the optimiser does once per remeshing), on the LCT start of the shared
 //! bunny (`fixtures/bunny_lct_start.obj`, from `cargo xtask fixtures`) remeshed isotropically as the
 //! optimiser's stages do: (a) 7.8 mm edges (stage 0, about 3.2k faces), (b) about 20k faces, (c) about 200k
-//! faces (100k vertices, the seed's scale; visibility off there: its cache takes minutes to build). The
+//! faces (100k vertices, Tsai et al. 2019's scale; visibility off there: its cache takes minutes to build). The
 //! former rule and the others are compared by `crates/nlos-render/examples/loop_cost.rs` (the adaptive quadrature the
 //! optimiser ran before takes 20 s an iteration, too long for a benchmark). Figures: docs/performance.md.
 #![allow(missing_docs)]

@@ -1,6 +1,6 @@
 //! Memory at scale: the peak heap of the loop's renderer (construction + one forward + adjoint, the
 //! configuration of `loop_cost.rs`) on the LCT start of the shared bunny (`fixtures/bunny_lct_start.obj`)
-//! remeshed to about 3k, 20k and 200k faces, at the seed's setup (confocal 64 × 64, 1200 bins).
+//! remeshed to about 3k, 20k and 200k faces, at Tsai et al. 2019's setup (confocal 64 × 64, 1200 bins).
 //! `cargo bench --bench memory` prints one line per size: faces, peak heap above the mesh alone, and bytes
 //! per face. Not a criterion benchmark: it measures bytes, not time; the figures are in
 //! docs/performance.md.

@@ -1,12 +1,12 @@
-//! Criterion benchmarks at the seed's setup: confocal 64 × 64 over [−0.25, 0.25]² of the wall, 1200 bins of
+//! Criterion benchmarks at Tsai et al. 2019's setup: confocal 64 × 64 over [−0.25, 0.25]² of the wall, 1200 bins of
 //! 1.2 mm, the shared bunny (`shared/data/meshes/bunny_centered.obj`, 69,630 faces) and a naive 10k-face
 //! version (every 7th face). Deterministic mode, one sample per (triangle, measurement) (`fixed(1)`: at this
-//! mesh density a face spans a few bins, and the seed's 20,000 samples per measurement are 0.3 per face),
+//! mesh density a face spans a few bins, and Tsai et al. 2019's 20,000 samples per measurement are 0.3 per face),
 //! tent kernel. Visibility: cached (level 1: one shadow ray per triangle and measurement at setup; the full
 //! bunny's cache build, 2.9e8 shadow rays, takes about 34 s and is outside the timed loop). Throughput =
 //! (triangle × measurement) pairs per second.
 //!
-//! The `bunny10k_stratified20k_live` group times the seed's own scheme for comparison with the original renderer:
+//! The `bunny10k_stratified20k_live` group times Tsai et al. 2019's own scheme for comparison with the original renderer:
 //! stratified area sampling at 20,000 samples per measurement, a live shadow ray per sample (throughput there: samples per second).
 #![allow(missing_docs)]
 

@@ -1,13 +1,12 @@
 //! The `nlos` command end to end, in-process ([`nlos_cli::run`]), on the built-in fixtures: `info`,
 //! `reconstruct` (a short schedule, with the report and the ground truth), `eval`, and `--resume` of the
-//! finished run; a capture in the seed's own `.mat` format whose point list forms a grid; bad input exits 2.
+//! finished run; a capture in Tsai et al. 2019's own `.mat` format whose point list forms a grid; bad input exits 2.
 
 use std::process::ExitCode;
 
 mod common;
-#[path = "../crates/nlos-transient/tests/support/mat5_writer.rs"]
-mod mat5_writer;
 use common::{FAST, fixture_arg as fixture, scratch};
+use nlos_testdata::mat5;
 
 fn nlos(args: &[&str]) -> ExitCode {
     nlos_cli::run(std::iter::once("nlos").chain(args.iter().copied()))
@@ -65,13 +64,13 @@ fn a_tsai_capture_whose_points_form_a_grid_runs_with_defaults() {
     let pts = &t.scan().lasers().points;
     let lighting: Vec<f64> = (0..3).flat_map(|c| pts.iter().map(move |p| f64::from(p[c]))).collect();
     let vars = vec![
-        mat5_writer::double("transient", &[m as i32, bins as i32], transient),
-        mat5_writer::double("lighting", &[m as i32, 3], lighting),
-        mat5_writer::scalar("bin_width", t.time().bin_width),
+        mat5::double("transient", &[m as i32, bins as i32], transient),
+        mat5::double("lighting", &[m as i32, 3], lighting),
+        mat5::scalar("bin_width", t.time().bin_width),
     ];
     let dir = scratch("cli-tsai");
     let file = dir.join("capture.mat");
-    std::fs::write(&file, mat5_writer::write(&vars, mat5_writer::Options::default())).expect("write");
+    std::fs::write(&file, mat5::write(&vars, mat5::Options::default())).expect("write");
     let read = nlos_transient::read(&file).expect("read back");
     assert_eq!(read.scan().lasers().layout, t.scan().lasers().layout, "read as the grid it is");
     let f = file.to_string_lossy().into_owned();
@@ -100,15 +99,15 @@ fn benchmark_runs_on_znlos_files_with_maps() {
     }
     let pos: Vec<f64> = t.scan().lasers().points.iter().flat_map(|p| [f64::from(p.x), 0.0, f64::from(p.y)]).collect();
     let vars = vec![
-        mat5_writer::double("data", &[bins as i32, ny as i32, nx as i32], data),
-        mat5_writer::double("cameraGridPositions", &[3, m as i32], pos),
-        mat5_writer::double("deltaT", &[1, 1], vec![0.5 * t.time().bin_width]),
-        mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.4, 0.0]),
+        mat5::double("data", &[bins as i32, ny as i32, nx as i32], data),
+        mat5::double("cameraGridPositions", &[3, m as i32], pos),
+        mat5::double("deltaT", &[1, 1], vec![0.5 * t.time().bin_width]),
+        mat5::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.4, 0.0]),
     ];
     let dir = scratch("benchmark");
     let data_dir = dir.join("znlos");
     std::fs::create_dir_all(&data_dir).expect("dir");
-    let bytes = mat5_writer::write(&vars, mat5_writer::Options::default());
+    let bytes = mat5::write(&vars, mat5::Options::default());
     std::fs::write(data_dir.join("patch.mat"), &bytes).expect("write");
     std::fs::write(data_dir.join("unscored.mat"), &bytes).expect("write");
     // Ground-truth maps on the scan grid (one pixel per scan point, row 0 at the largest y).

@@ -55,6 +55,31 @@ fn has_time_of_day(line: &str) -> bool {
     })
 }
 
+/// Words of the project's history a user cannot look up: an issue number, or "the seed" for the paper's
+/// codebase (say "Tsai et al. 2019's setup", or what the setup is).
+fn names_history(line: &str) -> bool {
+    let lower = line.to_lowercase();
+    let issue = ["issue ", "issues "]
+        .iter()
+        .any(|w| lower.match_indices(w).any(|(i, _)| lower[i + w.len()..].starts_with(|c: char| c.is_ascii_digit())));
+    let seed = lower.match_indices("the seed").any(|(i, _)| {
+        !lower[i + "the seed".len()..].starts_with(|c: char| c.is_alphanumeric() || c == '_' || c == ' ')
+            || lower[i + "the seed".len()..].starts_with(" setup")
+    });
+    issue || seed
+}
+
+#[test]
+fn the_history_detector_detects() {
+    let (n, t) = ("issue ".to_string() + "7", "the ".to_string() + "seed");
+    assert!(names_history(&format!("(El Topo, {n})")));
+    assert!(names_history(&format!("{t}'s schedule")));
+    assert!(names_history(&format!("{t}-setup bunny")));
+    assert!(names_history(&format!("at {t} setup")));
+    assert!(!names_history("the same seed as before, a seeded generator, --seed 3"));
+    assert!(!names_history("the seed of the generator"));
+}
+
 #[test]
 fn the_time_of_day_detector_detects() {
     // Built at run time, so that this file holds no time of day itself.
@@ -80,6 +105,8 @@ fn no_machine_paths_times_of_day_or_load_in_tracked_text() {
         for (n, line) in text.lines().enumerate() {
             let what = if paths.iter().any(|p| line.contains(p.as_str())) {
                 "absolute path"
+            } else if names_history(line) {
+                "the project's history (an issue number, or an earlier codebase called \"the seed\")"
             } else if has_time_of_day(line) {
                 "time of day"
             } else if line.contains(&load) {
@@ -103,4 +130,63 @@ fn the_readme_is_short() {
     let readme = std::fs::read_to_string(root().join("README.md")).expect("README.md");
     let lines = readme.lines().count();
     assert!(lines <= 125, "README.md has {lines} lines; keep it a page (details go to docs/)");
+}
+
+/// The crate table of docs/ARCHITECTURE.md lists, for every workspace crate, its `[dependencies]` exactly as
+/// its `Cargo.toml` declares them (parenthesised remarks aside; `—` for none).
+#[test]
+fn the_architecture_crate_table_matches_the_manifests() {
+    let arch = std::fs::read_to_string(root().join("docs/ARCHITECTURE.md")).expect("docs/ARCHITECTURE.md");
+    let mut rows = std::collections::BTreeMap::new();
+    for line in arch.lines() {
+        let cells: Vec<&str> = line.split(" | ").collect();
+        let Some(name) = cells.first().and_then(|c| c.strip_prefix("| `")).and_then(|c| c.strip_suffix('`')) else {
+            continue;
+        };
+        if cells.len() != 3 || !(name.starts_with("nlos-") || name == "xtask") {
+            continue;
+        }
+        let mut listed = String::new();
+        let mut depth = 0;
+        for c in cells[2].trim_end_matches(" |").chars() {
+            match c {
+                '(' => depth += 1,
+                ')' => depth -= 1,
+                _ if depth == 0 => listed.push(c),
+                _ => {}
+            }
+        }
+        let deps: std::collections::BTreeSet<String> =
+            listed.split(',').map(|d| d.trim().to_string()).filter(|d| !d.is_empty() && d != "—").collect();
+        rows.insert(name.to_string(), deps);
+    }
+    let mut manifests: Vec<PathBuf> = std::fs::read_dir(root().join("crates"))
+        .expect("crates/")
+        .flatten()
+        .map(|e| e.path().join("Cargo.toml"))
+        .filter(|p| p.exists())
+        .collect();
+    manifests.push(root().join("xtask/Cargo.toml"));
+    let mut wrong = Vec::new();
+    for manifest in manifests {
+        let text = std::fs::read_to_string(&manifest).expect("Cargo.toml");
+        let toml: toml::Table = text.parse().expect("a valid Cargo.toml");
+        let name = toml["package"]["name"].as_str().expect("package.name").to_string();
+        let declared: std::collections::BTreeSet<String> = toml
+            .get("dependencies")
+            .and_then(|d| d.as_table())
+            .map(|d| d.keys().cloned().collect())
+            .unwrap_or_default();
+        match rows.remove(&name) {
+            None => wrong.push(format!("{name}: no row in the crate table")),
+            Some(listed) if listed != declared => wrong.push(format!(
+                "{name}: the table lists {:?}, Cargo.toml declares {:?}",
+                listed.difference(&declared).collect::<Vec<_>>(),
+                declared.difference(&listed).collect::<Vec<_>>()
+            )),
+            Some(_) => {}
+        }
+    }
+    wrong.extend(rows.keys().map(|name| format!("{name}: a row for a crate that is not in the workspace")));
+    assert!(wrong.is_empty(), "docs/ARCHITECTURE.md's crate table against the manifests:\n{}", wrong.join("\n"));
 }

@@ -1,4 +1,4 @@
-//! The loop's configuration shared by `loop_cost.rs` (time) and `memory.rs` (heap): the seed's setup, the
+//! The loop's configuration shared by `loop_cost.rs` (time) and `memory.rs` (heap): Tsai et al. 2019's setup, the
 //! LCT start of the shared bunny (`fixtures/bunny_lct_start.obj`) remeshed as the optimiser's stages do,
 //! and the renderer settings of `nlos_optim::ReconstructParams::default()`.
 #![allow(dead_code)]
@@ -24,7 +24,7 @@ pub fn seed_setup() -> (Scan, TimeAxis) {
     )
 }
 
-/// The seed's time axis as a stage with target edge length `edge` fits it: bins summed by
+/// Tsai et al. 2019's time axis as a stage with target edge length `edge` fits it: bins summed by
 /// `nlos_optim::Schedule::rebin_at` at the default `rebin_fraction` (coarse to fine in time; 3 bins at 7.8 mm,
 /// 1 at 3.1 mm and below).
 pub fn stage_axis(edge: f32) -> TimeAxis {

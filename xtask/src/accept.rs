@@ -1,5 +1,5 @@
-//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick]`: the acceptance runs of
-//! issue 8 (and the sensor comparison of issue 9). Each scenario runs the product end to end through the
+//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick]`: the acceptance runs
+//! (and the sensor comparison of the noise-aware fit against L2). Each scenario runs the product end to end through the
 //! built `nlos` binary — `nlos render` (ground truth → transient), `nlos reconstruct --init lct`, `nlos eval`
 //! of the LCT initial mesh and of the result against the ground truth — prints a table, checks the issue's
 //! targets and writes the figures (metrics, wall and CPU time, the command) into its section of
@@ -624,7 +624,7 @@ fn plane_fit(points: &[glam::Vec3]) -> ([f64; 3], f64) {
 }
 
 fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
-    // The clean transient: the seed-setup render of the shared bunny (64×64×1200 bins of 1.2 mm, the same
+    // The clean transient: the render at Tsai et al. 2019's setup of the shared bunny (64×64×1200 bins of 1.2 mm, the same
     // cached render as the `bunny` scenario). Its bins are 4 ps: the measured jitter (FWHM ≈ 37 ps, with
     // the SPAD's slow tail) spans about ten of them, so ignoring it (plain L2) visibly blurs and delays the
     // fitted transients, which is what the noise-aware fit is for.
@@ -659,7 +659,7 @@ fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "capture: the seed-setup render of the shared bunny as flux, {photons} signal photons per measurement, jitter `{}` (FWHM {:.0} ps), background {:.3} \
+        "capture: the render at Tsai et al. 2019's setup of the shared bunny as flux, {photons} signal photons per measurement, jitter `{}` (FWHM {:.0} ps), background {:.3} \
          counts per bin, seed {}\n",
         jitter_file.display(),
         jitter.fwhm_ps(),
@@ -777,7 +777,7 @@ thread_local! {
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
 pub const SCENARIOS: [(&str, &str); 8] = [
-    ("bunny", "the shared bunny, rendered at the seed's setup, 1000 photons: coverage, depth error, time"),
+    ("bunny", "the shared bunny, rendered at Tsai et al. 2019's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
     ("ggx", "a glossy (GGX) bunny at two roughnesses: the fitted roughness, the shape"),

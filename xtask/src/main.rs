@@ -177,7 +177,7 @@ fn demo() -> Result<(), String> {
 /// Runs the `nlos` CLI (built in release mode) with `args`.
 /// Regenerates `fixtures/`: the built-in scene's ground truth, capture and start (`fixtures/builtin/`, from
 /// [`nlos_optim::builtin::BuiltinScene::write_fixtures`]; no data needed, seconds) and, when the shared data
-/// are present, `fixtures/bunny_lct_start.obj`: the LCT start of the shared bunny at the seed's setup, as
+/// are present, `fixtures/bunny_lct_start.obj`: the LCT start of the shared bunny at Tsai et al. 2019's setup, as
 /// `nlos reconstruct` makes it — the ground truth rendered by `nlos render` (confocal 64 × 64 over
 /// [−0.25, 0.25]² m, 1200 bins of 1.2 mm), 1000 photons per measurement (Poisson, seed 1), `nlos init`
 /// (LCT, default settings); the loop benchmark (`benches/loop_cost.rs`) remeshes it as the optimiser does.

@@ -36,7 +36,7 @@ pub enum BrdfError {
     /// The Schlick reflectance at normal incidence F0 is NaN or outside `[0, 1]`.
     #[error(
         "Schlick F0 = {value} is outside [0, 1]: it is a reflectance at normal incidence (about 0.04 for \
-         dielectrics, 0.5-1 for metals); clamp it, use `Fresnel::One` for the seed's model, or build from an \
+         dielectrics, 0.5-1 for metals); clamp it, use `Fresnel::One` for Tsai et al. 2019's model, or build from an \
          unconstrained parameter with `GgxTheta`"
     )]
     InvalidF0 {

@@ -21,8 +21,8 @@ pub const ALPHA_MAX: f64 = 1.0;
 /// `h = (ω_l + ω_s)/|ω_l + ω_s|`, for `n·ω_l > 0` and `n·ω_s > 0`; 0 otherwise.
 ///
 /// * `D`: [`crate::microfacet::d`] (W07 eq. 33) with roughness α ∈ [[`ALPHA_MIN`], [`ALPHA_MAX`]].
-/// * `G`: Smith, [`Masking::Separable`] by default (the seed's), [`Masking::HeightCorrelated`] optional.
-/// * `F`: [`Fresnel::One`] by default (the seed's), [`Fresnel::Schlick`] optional.
+/// * `G`: Smith, [`Masking::Separable`] by default (Tsai et al. 2019's), [`Masking::HeightCorrelated`] optional.
+/// * `F`: [`Fresnel::One`] by default (Tsai et al. 2019's), [`Fresnel::Schlick`] optional.
 ///
 /// Fields are private so that every value satisfies the parameter domains; build with [`Ggx::new`] or,
 /// inside an optimiser, from unconstrained parameters with [`crate::GgxTheta`].

@@ -13,7 +13,7 @@ use crate::real::Real;
 /// Which Smith masking-shadowing function G couples the two directions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 pub enum Masking {
-    /// Separable (uncorrelated) form `G = G1(ω_l) G1(ω_s)` (W07 eq. 23, H14 eq. 98) — the seed's model.
+    /// Separable (uncorrelated) form `G = G1(ω_l) G1(ω_s)` (W07 eq. 23, H14 eq. 98) — Tsai et al. 2019's model.
     #[default]
     Separable,
     /// Height-correlated form `G = 1/(1 + Λ(ω_l) + Λ(ω_s))` (H14 eq. 99): more accurate, slightly brighter.

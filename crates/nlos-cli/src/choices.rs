@@ -27,6 +27,6 @@ pub(crate) enum VisibilityArg {
 pub(crate) enum ModeArg {
     /// Noise-free adaptive quadrature.
     Exact,
-    /// The seed's stratified area sampling.
+    /// Tsai et al. 2019's stratified area sampling.
     Mc,
 }

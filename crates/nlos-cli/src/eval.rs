@@ -124,7 +124,7 @@ fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
 /// The surface of a capture's volumetric reconstruction: the arg-max depth of the columns kept by the
 /// settings for compact objects (`SurfaceParams::object`, as `nlos reconstruct`'s LCT start), for LCT and
 /// f-k alike, so that both are scored by the same extraction. (With Otsu's threshold alone f-k keeps 6 % of
-/// the seed-setup bunny's pixels, the compact-object settings 25 %.)
+/// the bunny at Tsai et al. 2019's setup's pixels, the compact-object settings 25 %.)
 pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<SurfaceMesh, CliError> {
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));

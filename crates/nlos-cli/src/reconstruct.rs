@@ -326,7 +326,7 @@ pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Resu
 }
 
 /// The wall rectangle of the report's depth maps and metrics: the bounding rectangle of the whole capture's
-/// sensor points, before subsampling (the seed setup's [−0.25, 0.25]², as `nlos eval`), as
+/// sensor points, before subsampling (Tsai et al. 2019's setup's [−0.25, 0.25]², as `nlos eval`), as
 /// [`nlos_report::DepthView::over_scan`] takes it; `None` when they span no rectangle (the report then
 /// tries the fitted grid's, and says why it cannot).
 fn wall_area(full: &nlos_transient::Transient) -> Option<([f32; 2], [f32; 2])> {

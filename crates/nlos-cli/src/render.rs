@@ -25,7 +25,7 @@ pub(crate) struct Args {
     /// .exr → EXR).
     #[arg(long, value_name = "DATA")]
     out: PathBuf,
-    /// Copy the scan geometry and time axis of this capture (any readable format). Default: the seed's
+    /// Copy the scan geometry and time axis of this capture (any readable format). Default: Tsai et al. 2019's
     /// setup — confocal 64 × 64 over [−0.25, 0.25]² m, 1200 bins of 1.2 mm from path length 0.
     #[arg(long, value_name = "FILE")]
     setup: Option<PathBuf>,
@@ -39,7 +39,7 @@ pub(crate) struct Args {
     /// Both sides of every face reflect.
     #[arg(long)]
     two_sided: bool,
-    /// `exact`: noise-free adaptive quadrature; `mc`: the seed's stratified area sampling (--spp samples
+    /// `exact`: noise-free adaptive quadrature; `mc`: Tsai et al. 2019's stratified area sampling (--spp samples
     /// per measurement).
     #[arg(long, value_enum, default_value = "exact")]
     mode: ModeArg,

@@ -7,8 +7,7 @@ use std::process::{Command, Output};
 use glam::Vec3;
 use nlos_mesh::{SurfaceMesh, shapes};
 
-#[path = "../../nlos-transient/tests/support/mat5_writer.rs"]
-mod mat5_writer;
+use nlos_testdata::mat5;
 use serde_json::Value;
 
 fn nlos(args: &[&str]) -> Output {
@@ -242,9 +241,9 @@ fn a_matlab_depth_map_with_nan_background() {
     let (w, h) = (20usize, 10usize);
     // depth(r, c) = 0.4 on columns c < 10, NaN elsewhere; MATLAB stores (r, c) at r + h·c.
     let col_major: Vec<f64> = (0..w).flat_map(|c| (0..h).map(move |_| if c < 10 { 0.4 } else { f64::NAN })).collect();
-    let vars = vec![mat5_writer::double("depth", &[h as i32, w as i32], col_major)];
+    let vars = vec![mat5::double("depth", &[h as i32, w as i32], col_major)];
     let m = dir.join("depth.mat");
-    std::fs::write(&m, mat5_writer::write(&vars, mat5_writer::Options::default())).expect("write");
+    std::fs::write(&m, mat5::write(&vars, mat5::Options::default())).expect("write");
     let flat = dir.join("flat.obj");
     nlos_mesh::io::save(&plane(6, 0.4), &flat).expect("write");
     let v = eval_json(&[

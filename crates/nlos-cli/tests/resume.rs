@@ -1,6 +1,6 @@
 //! A run killed with SIGKILL right after its first checkpoint and continued with `--resume` ends with the
 //! same mesh and the same run log (bit for bit, wall-clock times aside) as an uninterrupted run with the
-//! same seed (issue 8: "A run killed mid-way (SIGKILL) and resumed ends with the same result").
+//! same seed ("A run killed mid-way (SIGKILL) and resumed ends with the same result").
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

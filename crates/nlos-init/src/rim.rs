@@ -6,7 +6,7 @@
 //! tell us about solid shape?", Perception 13, 1984): near its boundary the surface recedes steeply. A
 //! depth map taken from a volume's column maxima does not: the lateral blur of the volumetric methods gives
 //! the outer columns the depth of the brighter, nearer interior, so the mesh ends in a flat rim in front of
-//! the receding flanks (on the seed-setup bunny the LCT start's silhouette band is 17 mm off against 2 mm
+//! the receding flanks (on the bunny at Tsai et al. 2019's setup the LCT start's silhouette band is 17 mm off against 2 mm
 //! inside). The optimiser's pruning then deletes that rim (its light arrives early) instead of bending it back.
 //!
 //! [`round_rim`] moves every vertex within `R` of the mesh's boundary (distance `d` along the mesh's edges,

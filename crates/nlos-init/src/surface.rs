@@ -32,7 +32,7 @@ pub enum Threshold {
 /// [`SurfaceParams::object`] for the settings tuned for compact objects.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SurfaceParams {
-    /// Mask threshold: the seed of the mask. Default [`Threshold::Otsu`].
+    /// Mask threshold: where the mask starts before it grows. Default [`Threshold::Otsu`].
     pub threshold: Threshold,
     /// Hysteresis (Canny 1986): columns whose maximum reaches this fraction (0–1) of the largest column
     /// maximum join the mask when they connect (4-neighbours, within [`Self::max_depth_jump`]) to a column
@@ -43,7 +43,7 @@ pub struct SurfaceParams {
     pub grow_threshold: Option<f32>,
     /// Noise floor of the growth: a column joins the mask by hysteresis only when its maximum is also at
     /// least `median + k · 1.4826 · MAD` of all column maxima (a robust noise level: the empty columns are
-    /// the majority for a compact object; never above the seed threshold). With a background in the
+    /// the majority for a compact object; never above the starting threshold). With a background in the
     /// capture (ambient light, dark counts) every column's maximum rises, and growing down to
     /// [`Self::grow_threshold`] alone took half the wall (the bunny at 100 photons per measurement with
     /// 0.01 background counts per bin: 8,667 of 16,384 evaluation pixels, Chamfer 156 mm; with k = 1: 4,177
@@ -82,14 +82,14 @@ pub struct SurfaceParams {
     /// flat.
     pub rim_recession: f64,
     /// The core of the mask: kept columns whose maximum reaches this fraction (0–1) of the largest column
-    /// maximum (or the seed threshold, when lower). Every other kept column (the dim rim the lateral blur
+    /// maximum (or the starting threshold, when lower). Every other kept column (the dim rim the lateral blur
     /// spreads around an object, and the rim rings) takes the depth of the nearest core column plus
     /// `rim_recession · spacing · k²`, `k` its distance to that column in columns. Default `None`: every
     /// kept column is core (only the rim rings recede) ([`SurfaceParams::object`]: `Some(0.2)`).
     pub core_fraction: Option<f32>,
     /// Turn the mesh back toward its boundary: every vertex within this distance (metres) of the boundary
     /// recedes along +z by a quarter circle of this radius ([`crate::rim::round_rim`]; the per-column
-    /// [`Surface::depth`] is not changed). Default `None`: on the seed-setup bunny it trades mean depth error
+    /// [`Surface::depth`] is not changed). Default `None`: on the bunny at Tsai et al. 2019's setup it trades mean depth error
     /// for coverage (docs/accuracy.md).
     pub rim_radius: Option<f64>,
     /// Jacobi passes averaging each kept depth with its kept 4-neighbours. Default 0.
@@ -126,7 +126,7 @@ impl SurfaceParams {
     /// `--threshold`): seeded at Otsu's threshold and grown (hysteresis) down to 10 % of the largest
     /// column maximum, every region of at least 5 % of the largest's size kept, sub-voxel peaks, and the
     /// columns below 20 % of the maximum receding from the core (`rim_recession` 1). Tuned on two
-    /// renderings of the Stanford bunny 0.4 m behind the wall (the seed setup at 1,000 photons per
+    /// renderings of the Stanford bunny 0.4 m behind the wall (Tsai et al. 2019's setup at 1,000 photons per
     /// measurement and the independent path tracer's `reference/bunny_mc.hdf5`, 64 × 64 confocal over
     /// 0.5 m), where against Otsu's threshold alone it doubles the coverage, and against a plain 10 %
     /// threshold (the same coverage) it lowers the mean depth error by 6–13 %, the Chamfer distance by

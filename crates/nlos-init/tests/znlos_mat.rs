@@ -2,10 +2,9 @@
 //! fronto-parallel plane at a known depth, reads back as a confocal grid capture in our axes whose LCT puts
 //! the plane at that depth (within one bin).
 
-#[path = "../../nlos-transient/tests/support/mat5_writer.rs"]
-mod mat5_writer;
+use nlos_testdata::mat5;
 
-use mat5_writer::{Options, double, write};
+use mat5::{Options, double, write};
 use nlos_init::{LctParams, lct};
 use nlos_transient::{Layout, formats::Format};
 

@@ -1,8 +1,8 @@
-//! Evaluation of a reconstructed surface against the ground truth (`nlos eval`, issue 8).
+//! Evaluation of a reconstructed surface against the ground truth (`nlos eval`).
 //!
 //! **Depth maps.** Rays are cast along +z, from the relay wall (z = 0) into the hidden scene, through the
 //! centres of an `n × n` grid of pixels over the wall's scan area (default 128 × 128 over
-//! [−0.25, 0.25]² m, the seed's scan area). Pixel `(ix, iy)` has its centre at
+//! [−0.25, 0.25]² m, Tsai et al. 2019's scan area). Pixel `(ix, iy)` has its centre at
 //! `x = x₀ + (ix + ½)·(x₁ − x₀)/n`, `y = y₀ + (iy + ½)·(y₁ − y₀)/n` and is stored at `ix + n·iy` (x fastest,
 //! the workspace convention). Each ray's first hit on each mesh is found through a [`TriangleBvh`] with
 //! the Möller–Trumbore test [`crate::bvh::ray_triangle`] (both faces count; edge tolerance
@@ -14,7 +14,7 @@
 //!
 //! **Interior and silhouette band.** Near the ground truth's silhouette the surface turns edge-on, its depth
 //! changes by centimetres within one pixel, and a reconstruction's depth there is off by far more than
-//! inside (seed-setup bunny at 1000 photons, default fit: 5.1 mm mean over the band's 355 pixels hit on
+//! inside (the bunny at Tsai et al. 2019's setup at 1000 photons, default fit: 5.1 mm mean over the band's 355 pixels hit on
 //! both, 0.54 mm over the 1,734 interior ones; the band, a sixth of the pixels, carries two thirds of the
 //! 1.32 mm mean; docs/accuracy.md). The mean depth error is therefore also given apart
 //! for the *interior* pixels — ground-truth pixels whose `(2·SILHOUETTE_BAND + 1)²` neighbourhood
@@ -59,7 +59,7 @@ pub const SILHOUETTE_BAND: usize = 2;
 pub struct EvalParams {
     /// Pixels per side of the ray grid (`1..=`[`MAX_GRID`]; default 128).
     pub grid: usize,
-    /// Extent of the grid along x on the wall, metres (default [−0.25, 0.25], the seed's scan area).
+    /// Extent of the grid along x on the wall, metres (default [−0.25, 0.25], Tsai et al. 2019's scan area).
     pub x_range: [f32; 2],
     /// Extent of the grid along y on the wall, metres (default [−0.25, 0.25]).
     pub y_range: [f32; 2],

@@ -1,4 +1,4 @@
-//! Collision-aware evolution (issue 7): narrow-phase CCD against hand-built cases and brute force, and
+//! Collision-aware evolution: narrow-phase CCD against hand-built cases and brute force, and
 //! `evolve` on sheets, spheres and folded grids checked with the exact static intersection test.
 
 use glam::{DVec3, Vec3};
@@ -526,7 +526,7 @@ fn timing_50k_faces() {
     assert_clean(&m, "50k");
 }
 
-/// The seed's band (edges within 0.99–1.01·L) cannot hold for every edge of a triangle mesh: splits leave
+/// Tsai et al. 2019's band (edges within 0.99–1.01·L) cannot hold for every edge of a triangle mesh: splits leave
 /// halves far below 0.99·L, and collapses that would create an edge above 1.01·L are refused. With a fixed
 /// target `L` repeated calls must settle anyway: splits only in the first call, a face count that stops
 /// growing, and topology operations that die out (no endless churn).

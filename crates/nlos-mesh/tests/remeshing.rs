@@ -172,7 +172,7 @@ fn bad_parameters_are_typed_errors() {
 
 #[test]
 fn bunny_acceptance_at_3mm() {
-    // Issue 4's acceptance: every criterion asserted. Release-friendly (the test profile is optimised):
+    // The remesher's acceptance on the bunny: every criterion asserted. Release-friendly (the test profile is optimised):
     // about 5 s on the 2-core development machine.
     let Some(path) = nlos_testdata::shared("meshes/bunny_centered.obj") else { return };
     let input = io::load(path).expect("bunny loads");

@@ -1,5 +1,5 @@
 //! Adam (Kingma & Ba, "Adam: A Method for Stochastic Optimization", ICLR 2015, Algorithm 1), in two
-//! forms: the seed's per-vertex isotropic variant for vertex positions and the plain one for the
+//! forms: Tsai et al. 2019's per-vertex isotropic variant for vertex positions and the plain one for the
 //! reflectance parameters θ (the unconstrained space of `nlos_brdf::GgxTheta` / `LambertianTheta`).
 //!
 //! Algorithm 1, with bias correction:

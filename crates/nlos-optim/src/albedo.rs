@@ -1,6 +1,6 @@
 //! Spatially varying albedo: a map of log-albedo over the wall plane, fitted with the shape.
 //!
-//! The seed's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies — the
+//! Tsai et al. 2019's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies — the
 //! printed bars of a resolution chart, a label — then has only the shape to explain its intensity
 //! variations, and the fit turns them into relief (the 40 cm chart came out as bumps over 0.395–0.49 m,
 //! `docs/results.md`). With a map the same variations become albedo.

@@ -3,7 +3,7 @@
 //!
 //! The normal-smoothing term sees a boundary face only through its inner neighbours, so nothing keeps the
 //! boundary itself in order: boundary vertices move freely (at their own learning rate), pruning deletes
-//! single boundary faces, and the remesher refines what is left. On the seed-setup bunny the fitted mesh's
+//! single boundary faces, and the remesher refines what is left. On the bunny at Tsai et al. 2019's setup the fitted mesh's
 //! boundary turned by a median 51° at each vertex (a smooth outline at that edge length turns by a few
 //! degrees), its length grew from 3.5 m (the LCT start) to 7.3 m, 38 % of the vertices lay on it, and
 //! those vertices carried most of the normal error and of the Chamfer distance (rims curled away from the

@@ -1,5 +1,5 @@
 //! The built-in scene: a bumpy Lambertian patch facing the wall, rendered by `nlos-render` on a reduced
-//! version of the seed's setup, with Poisson photon noise from the SPAD model.
+//! version of Tsai et al. 2019's setup, with Poisson photon noise from the SPAD model.
 //!
 //! `cargo xtask reconstruct` (no arguments) reconstructs it; `fixtures/builtin/` holds its ground truth,
 //! its capture and its LCT start (`cargo xtask fixtures` writes them from this module), so that tests and
@@ -27,11 +27,11 @@ pub struct BuiltinScene {
     pub bump_sigma: f32,
     /// Grid cells per side of the ground-truth mesh.
     pub cells: usize,
-    /// Scan points per side (confocal, over the seed's [−0.25, 0.25]² m).
+    /// Scan points per side (confocal, over Tsai et al. 2019's [−0.25, 0.25]² m).
     pub grid: usize,
     /// Time bins (of `bin_width`, from path length 0).
     pub bins: usize,
-    /// Bin width, metres of path (the seed's 1.2 mm × 2).
+    /// Bin width, metres of path (Tsai et al. 2019's 1.2 mm × 2).
     pub bin_width: f64,
     /// Expected detected photons per measurement (Poisson noise).
     pub photons: f64,

@@ -8,7 +8,7 @@
 //! Building blocks:
 //! - [`loss`]: the data term — L2 of eq. (7) or Poisson NLL (`nlos_render::Loss`), per-bin weights, and an
 //!   unknown global intensity scale solved in closed form at every step;
-//! - [`sensor`]: the noise-aware data term (issue 9) — Poisson NLL of photon counts through the SPAD's
+//! - [`sensor`]: the noise-aware data term — Poisson NLL of photon counts through the SPAD's
 //!   jitter response with a background level, `scale·J(I) + b` (set [`ReconstructParams::sensor`]);
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;

@@ -27,23 +27,23 @@ use crate::sensor::SensorFit;
 ///
 /// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
 /// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
-/// first stage (10.4 mm edges by default) spans about fifteen 1.2 mm bins of the seed's setup, so its shape is
+/// first stage (10.4 mm edges by default) spans about fifteen 1.2 mm bins of Tsai et al. 2019's setup, so its shape is
 /// fitted as well from 4.8 mm bins, and one forward + adjoint then costs about a fifth (the splat rule's
-/// sub-triangle level follows the bin width); at the default fraction 0.5 the seed's stages sum 4, 2 and 1
+/// sub-triangle level follows the bin width); at the default fraction 0.5 Tsai et al. 2019's stages sum 4, 2 and 1
 /// bins. The sensor fit ([`crate::SensorFit`]) and per-bin weights are defined on the capture's own bins:
 /// with either, every stage runs at the capture's resolution.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Schedule {
-    /// Resolution of the first stage (default 48; the seed's is 64).
+    /// Resolution of the first stage (default 48; Tsai et al. 2019's is 64).
     pub initial_resolution: f64,
-    /// Resolution factor between stages (default 1.5, the seed's).
+    /// Resolution factor between stages (default 1.5, Tsai et al. 2019's).
     pub growth: f64,
-    /// Numerator of `L = extent/res` in metres (default 0.5, the seed's; about the width of the scene).
+    /// Numerator of `L = extent/res` in metres (default 0.5, Tsai et al. 2019's; about the width of the scene).
     pub extent: f64,
-    /// Number of stages (default 3: res 48, 72, 108, target edges 10.4, 6.9 and 4.6 mm; the seed's schedule
-    /// is 4 stages from 64). At the seed's setup (64 × 64 × 1200, 2 cores) one forward + adjoint costs about
-    /// 0.8 s at the bunny's 3k faces and 3.7 s at 20k (docs/performance.md), so the seed's fourth stage
+    /// Number of stages (default 3: res 48, 72, 108, target edges 10.4, 6.9 and 4.6 mm; Tsai et al. 2019's schedule
+    /// is 4 stages from 64). At Tsai et al. 2019's setup (64 × 64 × 1200, 2 cores) one forward + adjoint costs about
+    /// 0.8 s at the bunny's 3k faces and 3.7 s at 20k (docs/performance.md), so Tsai et al. 2019's fourth stage
     /// (about 27k faces) alone would take longer than this whole schedule; this is the configuration the
     /// acceptance runs have measured since the subsampled days, now at full resolution.
     pub max_stages: u32,
@@ -112,7 +112,7 @@ impl Schedule {
     /// path), `measurements` histograms: the first stage's target edge is at least [`EDGE_PER_SPACING`]
     /// spacings and [`EDGE_PER_BIN`] bins (`extent` raised; later stages follow by `growth`), and no stage
     /// has more than [`FACES_PER_MEASUREMENT`] faces per measurement. Why: detail finer than the scan's
-    /// spacing or the bins cannot be told apart by the data, and only costs time; the seed's 64 × 64 scan
+    /// spacing or the bins cannot be told apart by the data, and only costs time; Tsai et al. 2019's 64 × 64 scan
     /// over 0.5 m (7.9 mm, its 10.4 mm first edge is 1.3 spacings) and every shared capture (at most
     /// 11.1 mm, 4 mm bins, 4,096 measurements) keep the schedule as set, while a 32 × 32 scan over 1 m
     /// starts at 28 mm and an 8 × 8 one at 11 cm. Returns the sentence saying what changed, if anything.
@@ -151,7 +151,7 @@ impl Schedule {
 /// captures' default runs (4,096 measurements, 2,048 bins of 4 ps).
 pub const BLOCK_COST_SENSOR_S: f64 = 1.4e-7;
 /// The same for a fit of intensities by L2 (no sensor response): measured on the shared bunny's default
-/// run at the seed's setup (6.0–8.6e-8 per block).
+/// run at Tsai et al. 2019's setup (6.0–8.6e-8 per block).
 pub const BLOCK_COST_L2_S: f64 = 7.0e-8;
 
 impl Schedule {
@@ -248,14 +248,14 @@ pub const FACES_PER_MEASUREMENT: usize = 15;
 pub enum SamplingSchedule {
     /// Closed-form time integration of each (sub-)triangle against the tent kernel
     /// (`nlos_render::Sampling::Splat`): noise-free, exact in time whatever the bins a face spans. The
-    /// default (`SplatRule::default()`): at the seed's setup one forward + adjoint on the bunny's 3.2k-face
+    /// default (`SplatRule::default()`): at Tsai et al. 2019's setup one forward + adjoint on the bunny's 3.2k-face
     /// first stage takes under a second on 2 cores, against 20 s for the adaptive quadrature below at
     /// `max_level` 8, at a bin-level error against the exact quadrature of 1.46e-3 against its 1.52e-3
     /// (docs/performance.md).
     Splat(SplatRule),
     /// Noise-free quadrature with an adaptive level per (triangle, measurement) (`DeterministicRule`).
     Deterministic(DeterministicRule),
-    /// The seed's stratified area sampling, `initial_samples · growthᵏ` samples per measurement in stage k;
+    /// Tsai et al. 2019's stratified area sampling, `initial_samples · growthᵏ` samples per measurement in stage k;
     /// the sampling seed is drawn once per block from the run's RNG (so a run is reproducible).
     Stratified {
         /// Samples per measurement in stage 0.
@@ -276,7 +276,7 @@ impl Default for SamplingSchedule {
 pub struct ReconstructParams {
     /// Data term: loss (default L2, eq. 7), weights (none), scale solving (on).
     pub data: DataTerm,
-    /// Noise-aware fit of photon counts (issue 9, [`crate::sensor`]): when set, the data term is the Poisson
+    /// Noise-aware fit of photon counts ([`crate::sensor`]): when set, the data term is the Poisson
     /// NLL of `scale·J(I) + b` against the counts, replacing `data.loss` (`data.solve_scale` still applies;
     /// per-bin weights are not supported with it). Default None.
     pub sensor: Option<SensorFit>,
@@ -310,7 +310,7 @@ pub struct ReconstructParams {
     /// default 1.
     pub boundary_smoothing: f64,
     /// Spatially varying albedo ([`crate::albedo`]): a map of log-albedo over the wall plane, fitted in the
-    /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in the seed).
+    /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in Tsai et al. 2019).
     /// For scenes whose reflectance varies (printed patterns, labels), which a uniform albedo turns into
     /// relief. With a Lambertian BRDF the reflectance blocks then run for the map alone.
     pub albedo_map: Option<AlbedoMapParams>,
@@ -322,7 +322,7 @@ pub struct ReconstructParams {
     /// Remeshing after every shape block (default: `RemeshParams::fast()` with the boundary remeshed along
     /// itself, so boundary edges follow the target length too).
     pub remesh: RemeshParams,
-    /// Collision-aware evolution (El Topo, issue 7, [`nlos_mesh::evolve::evolve`]) of each shape block's
+    /// Collision-aware evolution (El Topo, [`nlos_mesh::evolve::evolve`]) of each shape block's
     /// accumulated displacement, from the block's starting positions, before the reflectance block and the
     /// next remeshing (default `Some` with `improve: false` and `edge_length: None` → the stage's target
     /// length; `None` applies the displacements as they are). `improve` is always treated as false: the

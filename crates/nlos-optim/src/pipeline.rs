@@ -215,7 +215,7 @@ pub enum Noise {
     Auto,
     /// Poisson photon counts: λ is set against the misfit above the noise floor.
     Counts,
-    /// λ against the whole data term (the seed's rule).
+    /// λ against the whole data term (Tsai et al. 2019's rule).
     None,
 }
 

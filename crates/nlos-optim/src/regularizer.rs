@@ -23,7 +23,7 @@
 //! vertex gradient with the last face's contribution; the regression test
 //! `regression_vertex_gradient_overwritten_instead_of_summed` fails on such an implementation.)
 //!
-//! **Automatic weight** ([`auto_weight`]): the seed balances the terms by their ratio, `λ = β E_data / R`,
+//! **Automatic weight** ([`auto_weight`]): Tsai et al. 2019 balance the terms by their ratio, `λ = β E_data / R`,
 //! so the regulariser contributes a fixed fraction β of the data term when the weight is set. It is set at
 //! the start of every shape block and held fixed within it (Adam sees one objective per block).
 

@@ -60,7 +60,7 @@ pub struct ResidualParams {
     /// Wiener signal-to-noise ratio of the residual's LCT (> 0; default 0.1, as `nlos init`).
     pub snr: f64,
     /// A residual column becomes surface only when its point lies more than this far from the mesh
-    /// (metres, > 0; default 0.005: several LCT depth voxels and bins of the seed setup, so that the fit's
+    /// (metres, > 0; default 0.005: several LCT depth voxels and bins of Tsai et al. 2019's setup, so that the fit's
     /// own error around the mesh is not taken for a missing part). Larger values cut parts that lie close
     /// to the mesh: at 0.02 the bunny's ears, whose lower halves lie within 2 cm of the head, were cut to
     /// their tips.

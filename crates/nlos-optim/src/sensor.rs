@@ -1,4 +1,4 @@
-//! The noise-aware data term (issue 9; Tsai et al. 2019, Sec. 7 propose it): fit photon **counts** through
+//! The noise-aware data term (Tsai et al. 2019, Sec. 7 propose it): fit photon **counts** through
 //! the SPAD's linear response instead of intensities.
 //!
 //! ## Model

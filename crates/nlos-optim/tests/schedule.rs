@@ -17,7 +17,7 @@ use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 #[test]
 fn stages_sum_bins_up_to_half_their_edge_length() {
     let d = Schedule::default();
-    // The seed's 1.2 mm bins (4 ps): edges 10.4, 6.9, 4.6 mm → 4, 2, 1 bins; then 1.
+    // Tsai et al. 2019's 1.2 mm bins (4 ps): edges 10.4, 6.9, 4.6 mm → 4, 2, 1 bins; then 1.
     assert_eq!((0..4).map(|k| d.rebin(k, 0.0012)).collect::<Vec<_>>(), [4, 2, 1, 1]);
     // The independent renderer's 4 mm bins are already coarser than half an edge: never summed.
     assert_eq!((0..3).map(|k| d.rebin(k, 0.004)).collect::<Vec<_>>(), [1, 1, 1]);

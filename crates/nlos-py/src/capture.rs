@@ -192,7 +192,7 @@ pub(crate) fn load(py: Python<'_>, path: PathBuf) -> PyResult<Capture> {
 }
 
 /// An empty capture (zeros) that only carries a geometry and a time axis: the setup to render with.
-/// Defaults are the seed's setup: confocal 64 × 64 spots over [−0.25, 0.25]² m, 1200 bins of 1.2 mm.
+/// Defaults are Tsai et al. 2019's setup: confocal 64 × 64 spots over [−0.25, 0.25]² m, 1200 bins of 1.2 mm.
 #[pyfunction]
 #[pyo3(signature = (n = 64, half_width = 0.25, bins = 1200, dt = 0.0012, t0 = 0.0))]
 pub(crate) fn confocal_setup(

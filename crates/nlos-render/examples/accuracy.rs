@@ -1,4 +1,4 @@
-//! Transient error of the sampling rules at the seed's setup (full bunny, 1200 bins of 1.2 mm, tent kernel,
+//! Transient error of the sampling rules at Tsai et al. 2019's setup (full bunny, 1200 bins of 1.2 mm, tent kernel,
 //! visibility off) on a subset of measurements, against a fine deterministic reference:
 //! `cargo run --release -p nlos-render --example accuracy -- [stride]`.
 #![allow(missing_docs)]

@@ -1,5 +1,5 @@
 //! Bin-level error of the renderer's rules against the exact quadrature at the optimiser's configuration:
-//! the seed's setup (confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel, visibility off) on
+//! Tsai et al. 2019's setup (confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel, visibility off) on
 //! the LCT start of the shared bunny (`fixtures/bunny_lct_start.obj`) remeshed to the first stage's 7.8 mm
 //! edges (or EDGE_MM), every `stride`-th scan point per axis:
 //! `cargo run --release -p nlos-render --example loop_accuracy -- [stride] [EDGE_MM]`.

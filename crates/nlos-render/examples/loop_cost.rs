@@ -1,4 +1,4 @@
-//! Time of one forward + adjoint with the optimiser's renderer settings at the seed's setup (confocal
+//! Time of one forward + adjoint with the optimiser's renderer settings at Tsai et al. 2019's setup (confocal
 //! 64 × 64 over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent kernel, cached visibility), on the LCT start of
 //! the shared bunny (`fixtures/bunny_lct_start.obj`) remeshed to a target edge length, for each rule:
 //! `cargo run --release -p nlos-render --example loop_cost -- [EDGE_MM] [reps] [rules]`

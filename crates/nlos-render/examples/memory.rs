@@ -1,4 +1,4 @@
-//! Peak memory at the seed's scale: a 100k-vertex mesh (a 317 × 317 height field, 200k faces, facing the
+//! Peak memory at Tsai et al. 2019's scale: a 100k-vertex mesh (a 317 × 317 height field, 200k faces, facing the
 //! wall), confocal 64 × 64 scan, 1200 bins of 1.2 mm, fixed(1) rule, tent kernel; renderer construction,
 //! forward pass and fused loss-and-gradient. Prints the peak resident set size (VmHWM from /proc) after each
 //! step: `cargo run --release -p nlos-render --example memory -- [off|cached]`. With `cached` the

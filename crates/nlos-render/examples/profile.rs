@@ -1,6 +1,6 @@
-//! Manual timing at the seed's setup (the criterion benchmark's scenes), for profiling:
+//! Manual timing at Tsai et al. 2019's setup (the criterion benchmark's scenes), for profiling:
 //! `cargo run --release -p nlos-render --example profile -- [10k|70k|both|strat10k|strat70k] [reps]`
-//! (`strat*`: the seed's stratified sampling at 20,000 samples per measurement with live shadow rays).
+//! (`strat*`: Tsai et al. 2019's stratified sampling at 20,000 samples per measurement with live shadow rays).
 #![allow(missing_docs)]
 
 use std::time::Instant;

@@ -124,7 +124,7 @@
 //! order: forward, adjoint and loss are bit-identical whatever rayon's schedule (`tests/determinism.rs`
 //! compares pools of 1, 2 and 3 threads).
 //!
-//! The fixed rule at the seed's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent
+//! The fixed rule at Tsai et al. 2019's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent
 //! kernel, `fixed(1)`, which the optimiser does not run; `benches/render.rs`, `examples/profile.rs`) on this
 //! project's machine: 2 cores of an AMD EPYC
 //! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, otherwise idle, criterion medians:
@@ -140,7 +140,7 @@
 //! (pairs = triangles × measurements: 4.07e7 and 2.85e8; forward + adjoint is `loss_and_gradient`, which
 //! renders too). Before packing the same runs took 0.32 s and 1.65 s. The original renderer (C++, Embree,
 //! TBB, one thread, stratified at 20,000 samples per measurement) took 68 s and about 165 s: 320× and 170×
-//! slower, at a larger transient error (below). The seed's own scheme in this renderer (stratified 20,000
+//! slower, at a larger transient error (below). Tsai et al. 2019's own scheme in this renderer (stratified 20,000
 //! samples per measurement, a live shadow ray per sample; the `bunny10k_stratified20k_live` group) runs at
 //! 4.73 s forward and 9.69 s forward + adjoint on the 10k bunny (17 M samples per second, forward), against
 //! the original's 27 s and 68 s: 5.7× and 7× faster, the shadow rays dominating.
@@ -151,14 +151,14 @@
 //! square roots and divisions (one each per pair and pass, 8–14 cycles per 8 lanes), orientation and
 //! visibility bookkeeping per block, and masked-out lanes.
 //!
-//! Memory at the seed's scale (100k vertices / 200k faces, 4096 measurements × 1200 bins;
+//! Memory at Tsai et al. 2019's scale (100k vertices / 200k faces, 4096 measurements × 1200 bins;
 //! `examples/memory.rs`): peak RSS 128 MiB for construction + forward + loss + adjoint without visibility
 //! (transient, measurement, adjoint and its padded copy are 19.7 MB each; per-triangle f64 sums 19 MB); the
 //! visibility cache adds one byte per (triangle, measurement), 0.82 GB, so about 0.95 GB in cached mode:
 //! under the 2 GB budget either way.
 //!
 //! Accuracy of the rule (`examples/accuracy.rs`, 64 measurements against a fine deterministic reference):
-//! `fixed(1)` has a relative bin-level (voxel) error of 1.9 % on the full bunny (10k faces: 4.8 %), the seed's
+//! `fixed(1)` has a relative bin-level (voxel) error of 1.9 % on the full bunny (10k faces: 4.8 %), Tsai et al. 2019's
 //! stratified sampling at 20,000 samples per measurement 11 % (6 %). Gradient checks: a former 1.3–1.7e-3
 //! worst component against central differences was f32 rendering noise of the difference quotient (error
 //! ∝ 1/h below h = 2e-4 m, truncation ∝ h² above 1e-3 m; `fd_step_study` in `tests/gradients.rs`); with

@@ -201,7 +201,7 @@ impl Block<'_> {
 }
 
 /// The triangles of one block that may reflect for some measurement of a group, gathered contiguously (in
-/// slot order) so that the block kernels run over them only. On the bunny at the seed's setup about half of
+/// slot order) so that the block kernels run over them only. On the bunny at Tsai et al. 2019's setup about half of
 /// a block's triangles face away from any given spot although the block as a whole does not
 /// ([`Soa::culled`] fails); the vector loops, the orientation test and the kernel scatter/gather then did
 /// twice the necessary work. A group is a few consecutive measurements (a forward tile, an adjoint flush

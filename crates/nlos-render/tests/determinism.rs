@@ -102,7 +102,7 @@ fn results_do_not_depend_on_the_thread_count() {
         two_sided: true,
     };
     check(adaptive, &ggx, false);
-    // The seed's stratified Monte Carlo mode.
+    // Tsai et al. 2019's stratified Monte Carlo mode.
     let mc = RenderParams {
         sampling: Sampling::Stratified { samples_per_measurement: 3000, seed: 9 },
         visibility: Visibility::Live,

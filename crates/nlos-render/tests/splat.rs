@@ -25,7 +25,7 @@ fn exact() -> Sampling {
     Sampling::Deterministic(DeterministicRule { max_bin_fraction: 0.05, min_level: 1, max_level: 64 })
 }
 
-/// At the seed's bins (1.2 mm) on faces of the optimiser's first stage (8 mm edges, a bumpy surface 0.4 m
+/// At Tsai et al. 2019's bins (1.2 mm) on faces of the optimiser's first stage (8 mm edges, a bumpy surface 0.4 m
 /// from the wall), against the exact quadrature: the splat is 30× closer than a point sample per face and
 /// measurement and closer than the adaptive rule the optimiser ran before (up to 64 samples); at level 2 it
 /// is well below the adaptive rule.

@@ -1,6 +1,6 @@
 //! # nlos-report
 //!
-//! The report of a reconstruction run (issue 8: "PNGs of measured vs rendered time-summed images and x–t
+//! The report of a reconstruction run ("PNGs of measured vs rendered time-summed images and x–t
 //! slices, a loss-curve plot, a one-page HTML report that shows them"). From a run directory written by
 //! `nlos_optim::reconstruct` / `nlos reconstruct` — `mesh.obj` (final), `init.obj` (initial surface, when
 //! present), `run_log.json`, `checkpoint.json` (for the reflectance), `stage_NN.obj` — and the measured
@@ -81,7 +81,7 @@ pub struct ReportOptions {
     /// The rectangle of the wall (`[x0, x1]`, `[y0, y1]`, metres) under the depth maps and the metrics' ray
     /// grid. `None` (default): the bounding rectangle of `measured`'s sensor points. A run fitted on a
     /// subsampled grid passes the whole capture's rectangle, so that the metrics are those of `nlos eval`
-    /// (the seed setup's 64 × 64 grid spans [−0.25, 0.25]² m, its every-other-point subsample only
+    /// (Tsai et al. 2019's setup's 64 × 64 grid spans [−0.25, 0.25]² m, its every-other-point subsample only
     /// [−0.25, 0.242]²).
     pub area: Option<([f32; 2], [f32; 2])>,
     /// Pixels per side of the depth maps (default 256; 1..=4096).

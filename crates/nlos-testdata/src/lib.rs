@@ -13,6 +13,10 @@
 //! line is appended to `target/nlos-data-skips-<pid of cargo>.log` (every test binary of a run is a child
 //! of the same `cargo` process), which `cargo xtask test` counts and prints once at the end of the run. With `NLOS_REQUIRE_DATA=1` (set by
 //! CI) an absent file is a failure instead, so a missing data folder can never pass as green.
+//!
+//! [`mat5`] writes MATLAB level-5 MAT files, so that tests can make the inputs of the MAT readers.
+
+pub mod mat5;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -4,8 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-#[path = "support/mat5_writer.rs"]
-mod mat5_writer;
+use nlos_testdata::mat5;
 
 use glam::Vec3;
 use hdf5_pure::{AttrValue, FileBuilder};
@@ -610,12 +609,12 @@ fn znlos_hdf5_and_netf_mat_agree() {
         }
     }
     let vars = vec![
-        mat5_writer::double("data", &[half as i32, m_rows as i32, n_cols as i32], mat_data),
-        mat5_writer::double("cameraGridPositions", &[3, n as i32], pos),
-        mat5_writer::double("deltaT", &[1, 1], vec![delta]),
-        mat5_writer::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.5, 0.0]),
+        mat5::double("data", &[half as i32, m_rows as i32, n_cols as i32], mat_data),
+        mat5::double("cameraGridPositions", &[3, n as i32], pos),
+        mat5::double("deltaT", &[1, 1], vec![delta]),
+        mat5::double("hiddenVolumePosition", &[3, 1], vec![0.0, -0.5, 0.0]),
     ];
-    let bytes = mat5_writer::write(&vars, mat5_writer::Options::default());
+    let bytes = mat5::write(&vars, mat5::Options::default());
     let netf = formats::read_bytes_as(&bytes, Format::ZNlosMat, Path::new("scene.mat")).unwrap();
     let (ph, pn) = (hdf5.scan().lasers(), netf.scan().lasers());
     assert_eq!(ph.layout, pn.layout);

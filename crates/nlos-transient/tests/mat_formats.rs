@@ -1,13 +1,12 @@
 //! MAT v5 formats: Stanford LCT (real captures), Tsai 2019 and Stanford f-k (generated files), and
 //! malformed inputs.
 
-#[path = "support/mat5_writer.rs"]
-mod mat5_writer;
+use nlos_testdata::mat5;
 
 use std::path::Path;
 use std::time::Instant;
 
-use mat5_writer::{Options, Stored, Var, cell_var, char_var, double, scalar, stored, write};
+use mat5::{Options, Stored, Var, cell_var, char_var, double, scalar, stored, write};
 use nlos_transient::formats::{Format, detect_bytes, read_bytes_as};
 use nlos_transient::{Layout, Transient, TransientError};
 
@@ -85,10 +84,8 @@ fn lct_axis_mapping_and_class() {
         Options { compress: false, big_endian: true },
     ] {
         // Class double, stored as uint16: the MATLAB layout of the real files.
-        let bytes = write(
-            &[stored("rect_data", &dims, mat5_writer::DOUBLE, Stored::U16(v.clone())), scalar("width", 0.25)],
-            opt,
-        );
+        let bytes =
+            write(&[stored("rect_data", &dims, mat5::DOUBLE, Stored::U16(v.clone())), scalar("width", 0.25)], opt);
         let f = Path::new("lct.mat");
         assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::LctMat);
         let t = read_bytes_as(&bytes, Format::LctMat, f).expect("read");
@@ -119,11 +116,11 @@ fn tsai_layout_in_several_storage_classes() {
     // transient(r, k) = r + 10 k, column-major.
     let vals: Vec<f64> = (0..bins).flat_map(|k| (0..m).map(move |r| (r + 10 * k) as f64)).collect();
     let cases = [
-        (Stored::F64(vals.clone()), mat5_writer::DOUBLE),
-        (Stored::F32(vals.iter().map(|&v| v as f32).collect()), mat5_writer::SINGLE),
-        (Stored::U8(vals.iter().map(|&v| v as u8).collect()), mat5_writer::DOUBLE),
-        (Stored::I16(vals.iter().map(|&v| v as i16).collect()), mat5_writer::INT16),
-        (Stored::I32(vals.iter().map(|&v| v as i32).collect()), mat5_writer::INT32),
+        (Stored::F64(vals.clone()), mat5::DOUBLE),
+        (Stored::F32(vals.iter().map(|&v| v as f32).collect()), mat5::SINGLE),
+        (Stored::U8(vals.iter().map(|&v| v as u8).collect()), mat5::DOUBLE),
+        (Stored::I16(vals.iter().map(|&v| v as i16).collect()), mat5::INT16),
+        (Stored::I32(vals.iter().map(|&v| v as i32).collect()), mat5::INT32),
     ];
     for (data, class) in cases {
         for compress in [false, true] {
@@ -149,7 +146,7 @@ fn tsai_layout_in_several_storage_classes() {
 #[test]
 fn tsai_bin_width_gt_transient_and_sensor() {
     let (m, bins) = (3usize, 4usize);
-    let mut vars = tsai_vars(m, bins, Stored::F64(vec![1.0; m * bins]), mat5_writer::DOUBLE);
+    let mut vars = tsai_vars(m, bins, Stored::F64(vec![1.0; m * bins]), mat5::DOUBLE);
     vars[0].name = "gt_transient".into();
     vars.push(scalar("bin_width", 0.003));
     let lighting = vars[1].clone();
@@ -164,7 +161,7 @@ fn tsai_bin_width_gt_transient_and_sensor() {
     // A sensor that differs from the lighting is a non-confocal capture: refused, typed.
     let mut other = lighting;
     other.name = "sensor".into();
-    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut other.body {
+    if let mat5::Body::Numeric { data: Stored::F64(v), .. } = &mut other.body {
         v[0] += 1.0;
     }
     *vars.last_mut().expect("sensor") = other;
@@ -212,7 +209,7 @@ fn tsai_lighting_that_forms_a_grid_is_a_grid() {
     }
     // Five points on a line with one out of step: a list.
     let t = read_bytes_as(
-        &write(&tsai_vars(5, 3, Stored::F64(vec![1.0; 15]), mat5_writer::DOUBLE), Options::default()),
+        &write(&tsai_vars(5, 3, Stored::F64(vec![1.0; 15]), mat5::DOUBLE), Options::default()),
         Format::TsaiMat,
         Path::new("list.mat"),
     )
@@ -297,13 +294,13 @@ fn netf_znlos_bad_input_is_typed() {
     vars[2] = double("deltaT", &[1, 1], vec![-1.0]);
     assert!(matches!(netf(&vars), Err(TransientError::InvalidValue { ref field, .. }) if field == "deltaT"));
     let mut vars = netf_vars(0.0, None, vec![]);
-    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
+    if let mat5::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
         v[4] = f64::NAN;
     }
     assert!(matches!(netf(&vars), Err(TransientError::NonFinite { ref field, .. }) if field == "cameraGridPositions"));
     // A wall that is not a plane of constant y or z.
     let mut vars = netf_vars(0.0, None, vec![]);
-    if let mat5_writer::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
+    if let mat5::Body::Numeric { data: Stored::F64(v), .. } = &mut vars[1].body {
         v[1] = 0.05;
         v[5] = 0.03;
     }
@@ -321,7 +318,7 @@ fn fk_vars(rows: usize, cols: usize, bins: usize, tof: &dyn Fn(usize, usize) -> 
         }
     }
     vec![
-        stored("meas", &[rows as i32, cols as i32, bins as i32], mat5_writer::DOUBLE, Stored::U16(meas)),
+        stored("meas", &[rows as i32, cols as i32, bins as i32], mat5::DOUBLE, Stored::U16(meas)),
         double("tofgrid", &[rows as i32, cols as i32], tofgrid),
     ]
 }
@@ -394,7 +391,7 @@ fn fk_wall_size_and_sibling_tof_file() {
 
 fn lct_vars() -> Vec<Var> {
     let vals: Vec<u16> = (0..4 * 4 * 8).map(|k| (k % 7) as u16).collect();
-    vec![stored("rect_data", &[4, 4, 8], mat5_writer::DOUBLE, Stored::U16(vals)), scalar("width", 0.3)]
+    vec![stored("rect_data", &[4, 4, 8], mat5::DOUBLE, Stored::U16(vals)), scalar("width", 0.3)]
 }
 
 fn read_err(vars: &[Var], format: Format) -> TransientError {
@@ -415,7 +412,7 @@ fn every_prefix_is_an_error() {
     let small_fk = fk_vars(2, 2, 24, &|_, _| 0.0);
     let files: [(&str, Vec<Var>, Format); 3] = [
         ("lct", lct_vars(), Format::LctMat),
-        ("tsai", tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE), Format::TsaiMat),
+        ("tsai", tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5::DOUBLE), Format::TsaiMat),
         ("fk", small_fk, Format::FkMat),
     ];
     let f = Path::new("/nonexistent-nlos-dir/prefix.mat");
@@ -453,12 +450,12 @@ fn wrong_types_are_typed_errors() {
     assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "width"), "{e:?}");
     // Complex data.
     let mut vars = lct_vars();
-    if let mat5_writer::Body::Numeric { complex, .. } = &mut vars[0].body {
+    if let mat5::Body::Numeric { complex, .. } = &mut vars[0].body {
         *complex = true;
     }
     let e = read_err(&vars, Format::LctMat);
     assert!(matches!(e, TransientError::WrongType { .. }), "{e:?}");
-    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5::DOUBLE);
     vars[1] = cell_var("lighting");
     let e = read_err(&vars, Format::TsaiMat);
     assert!(matches!(e, TransientError::WrongType { ref field, .. } if field == "lighting"), "{e:?}");
@@ -477,7 +474,7 @@ fn wrong_shapes_are_typed_errors() {
     vars[1] = double("width", &[1, 2], vec![0.3, 0.3]);
     let e = read_err(&vars, Format::LctMat);
     assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "width"), "{e:?}");
-    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5::DOUBLE);
     vars[1] = double("lighting", &[3, 2], vec![0.0; 6]);
     let e = read_err(&vars, Format::TsaiMat);
     assert!(matches!(e, TransientError::WrongShape { ref field, .. } if field == "lighting"), "{e:?}");
@@ -506,10 +503,10 @@ fn zero_sized_grid_nan_and_bad_width() {
     vars[1] = scalar("width", f64::INFINITY);
     let e = read_err(&vars, Format::LctMat);
     assert!(matches!(e, TransientError::NonFinite { ref field, .. } if field == "width"), "{e:?}");
-    let vars = tsai_vars(3, 4, Stored::F64(vec![f64::INFINITY; 12]), mat5_writer::DOUBLE);
+    let vars = tsai_vars(3, 4, Stored::F64(vec![f64::INFINITY; 12]), mat5::DOUBLE);
     let e = read_err(&vars, Format::TsaiMat);
     assert!(matches!(e, TransientError::NonFinite { ref field, index: 0, .. } if field == "transient"), "{e:?}");
-    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5_writer::DOUBLE);
+    let mut vars = tsai_vars(3, 4, Stored::F64(vec![1.0; 12]), mat5::DOUBLE);
     vars[1] = double("lighting", &[3, 3], vec![0.0, 0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
     let e = read_err(&vars, Format::TsaiMat);
     assert!(matches!(e, TransientError::NonFinite { ref field, .. } if field == "lighting"), "{e:?}");

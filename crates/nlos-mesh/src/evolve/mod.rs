@@ -60,7 +60,7 @@ use crate::surface_mesh::SurfaceMesh;
 
 pub use improve::{ImproveReport, improve};
 
-/// Parameters of [`evolve`] and [`improve()`]. `Default` matches the seed's use of El Topo (Tsai et al. 2019
+/// Parameters of [`evolve`] and [`improve()`]. `Default` matches Tsai et al. 2019's use of El Topo (Tsai et al. 2019
 /// code): edge lengths within `[0.99·L, 1.01·L]` for the mesh's current mean edge length `L`, angles
 /// 30–90°, proximity ε = 10⁻⁴ m, no merging.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -90,9 +90,9 @@ pub struct EvolveParams {
     /// after a few calls (320 → 800 → 680 → 632 → 600 faces, then no topology change; test
     /// `tight_band_settles_for_a_fixed_target`).
     pub edge_length: Option<f32>,
-    /// Edges shorter than this times `L` are collapsed. Default 0.99 (the seed's `min_edge_length`).
+    /// Edges shorter than this times `L` are collapsed. Default 0.99 (Tsai et al. 2019's `min_edge_length`).
     pub min_edge_ratio: f32,
-    /// Edges longer than this times `L` are split. Default 1.01 (the seed's `max_edge_length`).
+    /// Edges longer than this times `L` are split. Default 1.01 (Tsai et al. 2019's `max_edge_length`).
     pub max_edge_ratio: f32,
     /// Triangles with a smaller angle (degrees) have their shortest edge collapsed; no operation may create
     /// an angle below it unless the worst angle it replaces was smaller. Default 30.

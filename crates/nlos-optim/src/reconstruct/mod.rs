@@ -1,7 +1,7 @@
 //! The analysis-by-synthesis loop (Tsai et al. 2019, Sec. 4.2 and 5), its checkpoints and its run log.
 //!
 //! Each stage fits the capture with [`crate::Schedule::rebin`] bins summed (coarse to fine in time as in
-//! space: 4, 2, 1 for the seed's 1.2 mm bins; a sensor fit through the response of the summed bins,
+//! space: 4, 2, 1 for Tsai et al. 2019's 1.2 mm bins; a sensor fit through the response of the summed bins,
 //! [`crate::response`]; the capture's own bins with per-bin weights), made once at its first block; the data term's normaliser is that capture's, so the data terms of
 //! different stages are not comparable.
 //!
@@ -24,7 +24,7 @@
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
-//! **Collision-aware evolution** (El Topo, issue 7; Tsai et al. 2019, Sec. 5): within a shape block every
+//! **Collision-aware evolution** (El Topo; Tsai et al. 2019, Sec. 5): within a shape block every
 //! Adam displacement goes through the [`Evolve`] hook (default [`DirectEvolve`]: applied as is). At the end
 //! of the block, the displacement accumulated over it is replayed from the block's starting positions by
 //! `nlos_mesh::evolve::evolve` (continuous collision detection, impulses, impact zones, fail-safe), so the
@@ -79,7 +79,7 @@ pub const RUN_LOG_FILE: &str = "run_log.json";
 const CHECKPOINT_VERSION: u32 = 2;
 
 /// The collision-handling hook: turns the current positions and an Adam displacement into new positions.
-/// The default [`DirectEvolve`] adds the displacement; El Topo (issue 7) will implement this trait.
+/// The default [`DirectEvolve`] adds the displacement; El Topo will implement this trait.
 pub trait Evolve {
     /// New positions (same length as `positions`).
     ///

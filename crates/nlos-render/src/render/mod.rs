@@ -306,7 +306,7 @@ impl Renderer {
     /// either strategy, is weighted by the balance heuristic `1/(c₁ p₁(x) + c₂ p₂(x))` (Veach 1997, §9.2;
     /// `p₁ = 1/A`, `p₂ = D(m)(n·m)²/|x − l|²` the lobe density on the plane, `c₁ = (1 − φ)c`, `c₂ = φc` the
     /// expected counts), so the estimator stays unbiased; the weights are held fixed when differentiating,
-    /// as the area weights are. Glossy lobes (small α) are then sampled where they peak — the seed's
+    /// as the area weights are. Glossy lobes (small α) are then sampled where they peak — Tsai et al. 2019's
     /// stated weakness: on a specular plane (`tests/mis.rs`, 64 samples per measurement, `lobe_fraction`
     /// 0.9) the single-render error drops to 0.56× at α = 0.1, 0.87× at α = 0.15, and is unchanged (1.03×)
     /// at α = 0.2. No effect for a BRDF without a lobe, for exhaustive scans or for deterministic sampling.

@@ -48,7 +48,7 @@ impl DeterministicRule {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SplatRule {
     /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.09: on the first
-    /// stage's 8 mm faces at the seed's setup this cuts the blocks holding the longest faces in four, which
+    /// stage's 8 mm faces at Tsai et al. 2019's setup this cuts the blocks holding the longest faces in four, which
     /// brings the bin-level error against the exact quadrature below the former adaptive rule's (see
     /// `docs/performance.md`).
     pub max_deviation: f32,
@@ -67,7 +67,7 @@ impl Default for SplatRule {
 pub enum Sampling {
     /// Noise-free quadrature (see [`DeterministicRule`]). The default.
     Deterministic(DeterministicRule),
-    /// The seed's stratified area sampling: per measurement, `samples_per_measurement` samples are spread
+    /// Tsai et al. 2019's stratified area sampling: per measurement, `samples_per_measurement` samples are spread
     /// over the mesh in proportion to triangle area (triangle t gets ⌊c_t⌋ or ⌈c_t⌉ samples, c_t = N A_t/A,
     /// randomised so the expected count is c_t), each sample weighted `A/N`, jittered (stratified along the
     /// area-preserving square-to-triangle map). Unbiased; seeded per (seed, measurement, triangle).

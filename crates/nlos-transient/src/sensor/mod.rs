@@ -54,7 +54,7 @@
 //!   with its adjoint.
 //! - [`correct`]: Coates' pile-up correction and background estimation for real captures.
 //! - [`likelihood`]: the Poisson negative log-likelihood with background and its gradients.
-//! - [`rng`]: the seeded generator and exact Poisson/binomial samplers.
+//! - [`rng`]: a seeded generator and exact Poisson/binomial samplers.
 //!
 //! ## References
 //! - Q. Hernández, D. Gutierrez, A. Jarabo, "A Computational Model of a Single-Photon Avalanche Diode

@@ -3,7 +3,6 @@
 //! or zlib-compressed (`miCOMPRESSED`, as MATLAB v7 writes), little- or big-endian.
 //!
 //! Reference: MathWorks, *MAT-File Format*, "Level 5 MAT-File Format".
-#![allow(dead_code)]
 
 use std::io::Write;
 
