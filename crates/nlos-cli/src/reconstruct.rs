@@ -1,18 +1,18 @@
 //! `nlos reconstruct`: capture → initial surface (LCT, f-k, carving or a mesh file) → optimised mesh.
 //!
 //! The command parses, calls [`nlos_optim::pipeline`] (capture preparation, every `auto` decision, the
-//! initial surface) and [`nlos_optim::reconstruct()`], and prints. Every setting lives in
+//! initial surface, the run directory: [`pipeline::run`]), and prints. Every setting lives in
 //! [`nlos_optim::pipeline::Config`]: `--print-config` writes the defaults as TOML, `--config FILE` reads
 //! them back, `--set KEY=VALUE` changes one; the flags below are shorthands for the settings changed most.
 //!
-//! The run's settings are saved as `DIR/settings.toml`, so that `--resume` and `nlos report DIR --data DATA`
+//! The run directory is the library's ([`pipeline::run`]); its settings are saved as `DIR/settings.toml`, so that `--resume` and `nlos report DIR --data DATA`
 //! use exactly the settings of the run.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::pipeline::{BrdfModel, Config, InitMethod, Prepared, SensorChoice};
+use nlos_optim::pipeline::{self, BrdfModel, Config, InitMethod, Prepared, SensorChoice, Start};
 use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, StopReason};
 use nlos_render::{RenderParams, Sampling};
 use nlos_report::ReportOptions;
@@ -84,8 +84,6 @@ pub(crate) struct Args {
     quiet: bool,
 }
 
-/// The file in the output directory that keeps the run's settings.
-const SETTINGS_FILE: &str = "settings.toml";
 /// The file in the output directory that keeps the command line and the ground truth of the run.
 const COMMAND_FILE: &str = "command.json";
 
@@ -99,10 +97,14 @@ fn bad<E: std::fmt::Display>(e: E) -> CliError {
 
 /// The settings of the run: `--config` (or, resuming, the run's own), then `--set`, then the flags.
 fn config(args: &Args) -> Result<Config, CliError> {
-    let saved = args.out.as_ref().map(|d| d.join(SETTINGS_FILE)).filter(|f| args.resume && f.exists());
-    let mut config = match args.config.as_ref().or(saved.as_ref()) {
-        Some(file) => Config::load(file).map_err(bad)?,
-        None => Config::default(),
+    let saved = match (&args.out, args.resume, &args.config) {
+        (Some(dir), true, None) => pipeline::saved_config(dir).map_err(bad)?,
+        _ => None,
+    };
+    let mut config = match (&args.config, saved) {
+        (Some(file), _) => Config::load(file).map_err(bad)?,
+        (None, Some(saved)) => saved,
+        (None, None) => Config::default(),
     };
     if !args.set.is_empty() {
         config = with_settings(&config, &args.set)?;
@@ -203,14 +205,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         ControlFlow::Continue(())
     };
     let hooks = Hooks { progress: Some(&mut on_progress), evolve: None };
-    let outcome = if args.resume {
-        nlos_optim::resume(&prepared.measured, &params, hooks).map_err(bad)?
-    } else {
-        write_run_files(args, out, &config)?;
-        let init = prepared.initial_surface(&config).map_err(bad)?;
-        save(&init, &out.join("init.obj"))?;
-        nlos_optim::reconstruct_with(&prepared.measured, &init, &params, hooks).map_err(bad)?
-    };
+    let start = if args.resume { Start::Resume } else { Start::New };
+    if start == Start::New {
+        write_command(args, out)?;
+    }
+    let outcome = pipeline::run(&prepared, &config, &params, start, hooks).map_err(bad)?;
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -266,17 +265,14 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Writes `settings.toml` (the run's settings) and `command.json` (its command line and ground truth) in
-/// the output directory.
-fn write_run_files(args: &Args, out: &Path, config: &Config) -> Result<(), CliError> {
-    let write = |name: &str, text: String| {
-        let path = out.join(name);
-        std::fs::write(&path, text).map_err(|e| fail(format!("{}: {e}", path.display())))
-    };
-    write(SETTINGS_FILE, config.to_toml().map_err(bad)?)?;
+/// Writes `command.json` (the run's command line and ground truth) in the output directory; the library
+/// writes the rest ([`pipeline::run`]).
+fn write_command(args: &Args, out: &Path) -> Result<(), CliError> {
+    let path = out.join(COMMAND_FILE);
     let argv: Vec<String> = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect();
     let gt = args.gt.as_ref().map(|p| p.display().to_string());
-    write(COMMAND_FILE, serde_json::json!({ "argv": argv, "gt": gt }).to_string())
+    std::fs::write(&path, serde_json::json!({ "argv": argv, "gt": gt }).to_string())
+        .map_err(|e| fail(format!("{}: {e}", path.display())))
 }
 
 /// The ground truth of `--gt` (non-manifold meshes accepted, as by `nlos eval`).
@@ -311,8 +307,7 @@ fn write_report(
 /// `nlos report DIR --data DATA [--gt GT]`: the report of the run in `dir` with its settings
 /// (`dir/settings.toml`, or the defaults when there is none) and ground truth (`gt`, or the run's own).
 pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Result<(), CliError> {
-    let file = dir.join(SETTINGS_FILE);
-    let config = if file.exists() { Config::load(&file).map_err(bad)? } else { Config::default() };
+    let config = pipeline::saved_config(dir).map_err(bad)?.unwrap_or_default();
     let saved_gt = match std::fs::read(dir.join(COMMAND_FILE)) {
         Ok(bytes) => {
             serde_json::from_slice::<serde_json::Value>(&bytes).ok().and_then(|v| v["gt"].as_str().map(PathBuf::from))

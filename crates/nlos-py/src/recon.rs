@@ -11,7 +11,7 @@ use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nlos_optim::pipeline::{Config, Prepared, Volumetric};
+use nlos_optim::pipeline::{self, Config, Prepared, Start, Volumetric};
 use nlos_optim::{Hooks, Progress};
 
 use crate::capture::Capture;
@@ -20,12 +20,47 @@ use crate::errors::{self, ConfigError};
 /// The settings, from the Python side's JSON (absent fields keep their defaults). They go through the TOML
 /// reader of `nlos reconstruct --config`, whose errors quote the offending line (so name the field).
 fn config(settings: &str) -> PyResult<Config> {
+    config_over(None, settings)
+}
+
+/// The settings over `base` (a run's saved settings; none: the defaults): the given sections replace
+/// `base`'s fields one by one, as `--set` does on the command line.
+fn config_over(base: Option<&Config>, settings: &str) -> PyResult<Config> {
     let json: serde_json::Value =
         serde_json::from_str(settings).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
-    let toml = toml::Value::try_from(json)
-        .and_then(|v| toml::to_string(&v))
-        .map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
+    let given = toml::Value::try_from(json).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
+    let merged = match base {
+        None => given,
+        Some(base) => {
+            let mut table: toml::Value = base
+                .to_toml()
+                .map_err(errors::optim)?
+                .parse::<toml::Table>()
+                .map(toml::Value::Table)
+                .map_err(|e| ConfigError::new_err(format!("the run's settings.toml: {e}")))?;
+            overlay(&mut table, given);
+            table
+        }
+    };
+    let toml = toml::to_string(&merged).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
     Config::from_toml(&toml).map_err(errors::optim)
+}
+
+/// Writes `top`'s fields over `base`'s, section by section.
+fn overlay(base: &mut toml::Value, top: toml::Value) {
+    match (base, top) {
+        (toml::Value::Table(b), toml::Value::Table(t)) => {
+            for (key, value) in t {
+                match b.get_mut(&key) {
+                    Some(slot) => overlay(slot, value),
+                    None => {
+                        b.insert(key, value);
+                    }
+                }
+            }
+        }
+        (slot, value) => *slot = value,
+    }
 }
 
 /// The default settings as JSON (every field; the same values `nlos reconstruct --print-config` prints).
@@ -87,8 +122,9 @@ pub(crate) fn initial_surface(
 
 /// Reconstructs the hidden surface, as `nlos reconstruct` does: returns a dict with `vertices`, `faces`,
 /// `reflectance`, `scale`, `stop`, `notes` and `log` (the run log as JSON text). With `out`, the run
-/// directory gets `mesh.obj`, `init.obj`, `settings.toml`, the run log and checkpoints (`resume=True`
-/// continues from them). `progress(dict)` is called after every iteration; Ctrl-C stops the run after the
+/// directory gets `mesh.obj`, `init.obj`, `settings.toml`, the run log and checkpoints, exactly as `nlos
+/// reconstruct --out` writes them (`resume=True` continues from them, leaving `settings.toml` as the run
+/// was started). `progress(dict)` is called after every iteration; Ctrl-C stops the run after the
 /// current block's checkpoint and raises `KeyboardInterrupt`.
 #[pyfunction]
 #[pyo3(signature = (capture, settings, out = None, resume = false, progress = None))]
@@ -100,20 +136,17 @@ pub(crate) fn reconstruct<'py>(
     resume: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let config = config(settings)?;
+    let saved = match (&out, resume) {
+        (Some(dir), true) => pipeline::saved_config(dir).map_err(errors::optim)?,
+        (None, true) => return Err(ConfigError::new_err("resume: a run directory (out) is needed to resume from")),
+        _ => None,
+    };
+    // Resuming, the run's own settings are the base (as `nlos reconstruct --resume`).
+    let config = config_over(saved.as_ref(), settings)?;
     let t = capture.transient(py)?;
-    if resume && out.is_none() {
-        return Err(ConfigError::new_err("resume: a run directory (out) is needed to resume from"));
-    }
     let prepared = py.detach(|| Prepared::new(t, &config)).map_err(errors::optim)?;
     let params = prepared.params(&config, out.clone()).map_err(errors::optim)?;
-    if let Some(dir) = &out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| errors::optim(nlos_optim::OptimError::Io { path: dir.clone(), source: e }))?;
-        let toml = config.to_toml().map_err(errors::optim)?;
-        std::fs::write(dir.join("settings.toml"), toml)
-            .map_err(|e| errors::optim(nlos_optim::OptimError::Io { path: dir.join("settings.toml"), source: e }))?;
-    }
+    let start = if resume { Start::Resume } else { Start::New };
     let mut interrupt: Option<PyErr> = None;
     let mut callback_error: Option<PyErr> = None;
     let outcome = py.detach(|| {
@@ -146,15 +179,7 @@ pub(crate) fn reconstruct<'py>(
             }
         };
         let hooks = Hooks { progress: Some(&mut on_progress), evolve: None };
-        if resume {
-            nlos_optim::resume(&prepared.measured, &params, hooks)
-        } else {
-            let init = prepared.initial_surface(&config)?;
-            if let Some(dir) = &out {
-                nlos_mesh::io::save(&init, dir.join("init.obj"))?;
-            }
-            nlos_optim::reconstruct_with(&prepared.measured, &init, &params, hooks)
-        }
+        pipeline::run(&prepared, &config, &params, start, hooks)
     });
     if let Some(e) = interrupt.or(callback_error) {
         return Err(e);

@@ -125,3 +125,61 @@ def test_sigint_during_the_run_stops_it_after_the_block_checkpoint(builtin_captu
     p = subprocess.run([sys.executable, "-c", script], timeout=300)
     assert p.returncode == 3
     assert (tmp_path / "checkpoint.json").is_file() and not (tmp_path / "mesh.obj").exists()
+
+
+def _as_set_flags(settings, prefix=""):
+    """``nlos reconstruct --set KEY=VALUE`` flags for a settings dict."""
+    flags = []
+    for key, value in settings.items():
+        if isinstance(value, dict):
+            flags += _as_set_flags(value, f"{prefix}{key}.")
+        else:
+            flags += ["--set", f"{prefix}{key}={value}"]
+    return flags
+
+
+def _without_times(value):
+    """A run's JSON without its wall-clock fields (``time_s``, ``elapsed_s``, ``seconds``: the only
+    non-deterministic ones)."""
+    if isinstance(value, dict):
+        return {k: _without_times(v) for k, v in value.items() if k not in ("time_s", "elapsed_s", "seconds")}
+    if isinstance(value, list):
+        return [_without_times(v) for v in value]
+    return value
+
+
+def _log_without_times(run_dir, name="run_log.json"):
+    import json
+
+    return _without_times(json.loads((run_dir / name).read_text()))
+
+
+def test_the_cli_and_python_write_the_same_run_directory_and_resume_each_others_runs(builtin_capture, tmp_path):
+    cli_dir, py_dir, mixed_dir = tmp_path / "cli", tmp_path / "py", tmp_path / "mixed"
+    flags = ["--quiet", "--no-report", *_as_set_flags(DEMO)]
+    assert nlos.main(["reconstruct", str(builtin_capture), "--out", str(cli_dir), *flags]) == 0
+    nlos.reconstruct(builtin_capture, py_dir, **DEMO)
+    written = sorted(p.name for p in cli_dir.iterdir() if p.name != "command.json")
+    assert sorted(p.name for p in py_dir.iterdir()) == written
+    for name in written:
+        if name.endswith(".json"):
+            assert _log_without_times(cli_dir, name) == _log_without_times(py_dir, name), name
+        else:
+            assert (cli_dir / name).read_bytes() == (py_dir / name).read_bytes(), name
+
+    # Started from Python, stopped after its first block, resumed by the command line with the run's own
+    # settings (no flags): the same run as the uninterrupted ones.
+    def stop(p):
+        if p["iteration"] == 1:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        nlos.reconstruct(builtin_capture, mixed_dir, progress=stop, **DEMO)
+    settings = (mixed_dir / "settings.toml").read_bytes()
+    assert nlos.main(["reconstruct", str(builtin_capture), "--out", str(mixed_dir), "--resume", "--quiet", "--no-report"]) == 0
+    assert (mixed_dir / "mesh.obj").read_bytes() == (cli_dir / "mesh.obj").read_bytes()
+    assert _log_without_times(mixed_dir) == _log_without_times(cli_dir)
+    # And the finished command-line run resumes from Python without settings: its own are used, unchanged.
+    again = nlos.reconstruct(builtin_capture, cli_dir, resume=True)
+    assert len(again["faces"]) > 0 and (mixed_dir / "settings.toml").read_bytes() == settings
+    assert (cli_dir / "settings.toml").read_bytes() == settings

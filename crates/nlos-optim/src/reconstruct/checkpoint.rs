@@ -153,7 +153,7 @@ pub(super) fn first_difference(
 }
 
 /// Writes `bytes` to `path` atomically (temporary file in the same directory + rename).
-pub(super) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
     let io = |source| OptimError::Io { path: path.to_owned(), source };
     std::fs::write(&tmp, bytes).map_err(io)?;

@@ -64,7 +64,7 @@ use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{ResidualRecord, residual_patches};
 use crate::sensor::{SensorModel, SensorRows};
 
-mod checkpoint;
+pub(crate) mod checkpoint;
 mod log;
 mod topology;
 

@@ -162,7 +162,9 @@ def reconstruct(
     out
         Run directory: ``mesh.obj``, ``init.obj``, ``settings.toml``, the run log and checkpoints.
     resume
-        Continue the run in ``out`` from its checkpoint (its settings must be the same).
+        Continue the run in ``out`` from its checkpoint, with the settings it was started with
+        (``out/settings.toml``; settings given here change them, and a change the run cannot take is a
+        ``ConfigError`` naming it).
     progress
         Called after every iteration with a dict (stage, iteration, iterations_planned, loss, faces,
         elapsed_s).

@@ -8,14 +8,16 @@
 //! extracts the start. `nlos reconstruct`, `cargo xtask reconstruct` and the Python package all go through
 //! here, so a Rust caller gets the same run as the command line:
 //!
+//! [`run`] then owns the run directory: it writes the settings and the start surface and starts the
+//! optimisation, or resumes it ([`Start`]).
+//!
 //! ```no_run
 //! # fn demo() -> nlos_optim::Result<()> {
-//! use nlos_optim::pipeline::{Config, Prepared};
+//! use nlos_optim::pipeline::{self, Config, Prepared, Start};
 //! let config = Config::default();
 //! let prepared = Prepared::load("capture.hdf5".as_ref(), &config)?;
 //! let params = prepared.params(&config, Some("run".into()))?;
-//! let init = prepared.initial_surface(&config)?;
-//! let outcome = nlos_optim::reconstruct(&prepared.measured, &init, &params)?;
+//! let outcome = pipeline::run(&prepared, &config, &params, Start::New, nlos_optim::Hooks::default())?;
 //! println!("{} faces", outcome.mesh.n_faces());
 //! # Ok(()) }
 //! ```
@@ -35,8 +37,11 @@ use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{OptimError, Result};
+
+mod run_dir;
 use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
 use crate::{Schedule, SensorBackground, SensorFit};
+pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, run, saved_config};
 
 /// `"auto"` or `"off"` where a setting also takes a number.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -1,0 +1,79 @@
+//! A run directory from start to end: the one place that creates it, writes its settings and start surface,
+//! and starts or resumes the optimisation in it. `nlos reconstruct` and the Python package's `reconstruct`
+//! both call [`run`], so the same settings give the same directory from either, and either resumes it.
+//!
+//! A directory holds (besides what [`crate::reconstruct()`] writes: `checkpoint.json`, `run_log.json`,
+//! `stage_NN.obj`, `mesh.obj`, `mesh.ply`):
+//! - [`SETTINGS_FILE`]: the run's [`Config`] as TOML, written once when the run starts and never on
+//!   resume, so a resumed run keeps the settings it was started with ([`saved_config`] reads them back; a
+//!   setting changed on resume is refused by the checkpoint's settings record, naming it);
+//! - [`INIT_FILE`]: the start surface.
+
+use std::path::Path;
+
+use super::{Config, Prepared};
+use crate::error::{OptimError, Result};
+use crate::{Hooks, Outcome, ReconstructParams};
+
+/// The file of a run directory that keeps the run's settings ([`Config::to_toml`]).
+pub const SETTINGS_FILE: &str = "settings.toml";
+/// The file of a run directory that keeps the start surface.
+pub const INIT_FILE: &str = "init.obj";
+
+/// Whether [`run`] starts a run or continues the one in its directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// A new run: the settings and the start surface are written, then the optimisation starts from it.
+    New,
+    /// Continue from the directory's checkpoint with its settings (nothing of the run is rewritten).
+    Resume,
+}
+
+/// The settings a run directory was started with (its [`SETTINGS_FILE`]), `None` when it has none.
+///
+/// # Errors
+/// [`OptimError::Io`] for an unreadable file, [`OptimError::Config`] for one that does not parse.
+pub fn saved_config(dir: &Path) -> Result<Option<Config>> {
+    let path = dir.join(SETTINGS_FILE);
+    if path.exists() { Config::load(&path).map(Some) } else { Ok(None) }
+}
+
+/// Runs the reconstruction of `prepared` with `config` and `params` (from [`Prepared::params`]) in the run
+/// directory `params.out_dir` (none: nothing is written).
+///
+/// [`Start::New`] creates the directory, writes [`SETTINGS_FILE`] (atomically), extracts the start surface
+/// ([`Prepared::initial_surface`]), writes it as [`INIT_FILE`] and optimises from it
+/// ([`crate::reconstruct_with`]). [`Start::Resume`] continues from the directory's checkpoint
+/// ([`crate::resume`]).
+///
+/// # Errors
+/// [`OptimError::InvalidParameter`] to resume without a directory; I/O in the directory; those of
+/// [`Prepared::initial_surface`], [`crate::reconstruct_with`] and [`crate::resume`].
+pub fn run(
+    prepared: &Prepared,
+    config: &Config,
+    params: &ReconstructParams,
+    start: Start,
+    hooks: Hooks<'_>,
+) -> Result<Outcome> {
+    match start {
+        Start::Resume => crate::resume(&prepared.measured, params, hooks),
+        Start::New => {
+            if let Some(dir) = &params.out_dir {
+                create_dir(dir)?;
+                let settings = config.to_toml()?;
+                crate::reconstruct::checkpoint::write_atomic(&dir.join(SETTINGS_FILE), settings.as_bytes())?;
+            }
+            let init = prepared.initial_surface(config)?;
+            if let Some(dir) = &params.out_dir {
+                nlos_mesh::io::save(&init, dir.join(INIT_FILE))?;
+            }
+            crate::reconstruct_with(&prepared.measured, &init, params, hooks)
+        }
+    }
+}
+
+/// Creates the run directory (and its parents).
+fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.to_owned(), source })
+}
