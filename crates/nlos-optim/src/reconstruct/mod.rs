@@ -41,8 +41,7 @@
 //! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
 
 use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
-use std::sync::RwLock;
+use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -57,17 +56,19 @@ use crate::adam::{VectorAdam, VertexAdam};
 use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
-use crate::params::{ReconstructParams, SamplingSchedule, faces_at};
-use crate::prune::{PruneRecord, RowLoss, prune_boundary};
+use crate::params::{ReconstructParams, SamplingSchedule};
+use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
-use crate::regularizer::{NormalSmoothing, auto_weight};
-use crate::residual::{ResidualRecord, residual_patches};
-use crate::sensor::{SensorModel, SensorRows};
+use crate::regularizer::NormalSmoothing;
+use crate::residual::ResidualRecord;
+use crate::sensor::SensorModel;
 
+mod block;
 pub(crate) mod checkpoint;
 mod log;
 mod topology;
 
+use block::{Block, RunCtx};
 use checkpoint::*;
 pub use log::*;
 use topology::*;
@@ -79,7 +80,8 @@ pub const RUN_LOG_FILE: &str = "run_log.json";
 const CHECKPOINT_VERSION: u32 = 2;
 
 /// The collision-handling hook: turns the current positions and an Adam displacement into new positions.
-/// The default [`DirectEvolve`] adds the displacement; El Topo will implement this trait.
+/// The default [`DirectEvolve`] adds the displacement. (Collision handling itself runs at the end of each
+/// block, [`crate::ReconstructParams::collision`]; this hook is for a caller's own per-step rule.)
 pub trait Evolve {
     /// New positions (same length as `positions`).
     ///
@@ -438,7 +440,8 @@ impl StageData {
     }
 }
 
-#[allow(clippy::too_many_lines)]
+/// The loop over blocks, from `st` (a new run's first state or a checkpoint's) to the end of the schedule;
+/// each block's steps are in [`block`].
 fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
     let data = measured.data();
     if let Some(i) = data.iter().position(|x| !x.is_finite()) {
@@ -451,28 +454,13 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     };
     // An all-zero capture is refused before any work (each stage's own normaliser is taken in the loop).
     data_normaliser(params, data)?;
-    // Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
-    let counts = params.sensor.is_some() || params.data.counts;
-    let sch = params.schedule;
-    st.max_stages_hint = sch.max_stages;
+    st.max_stages_hint = params.schedule.max_stages;
     let mut direct = DirectEvolve;
     let evolve: &mut dyn Evolve = match hooks.evolve.take() {
         Some(e) => e,
         None => &mut direct,
     };
-    let start = Instant::now();
-    let t_base = st.elapsed_s;
-    let elapsed = || t_base + start.elapsed().as_secs_f64();
-    // A Lambertian (or retroreflective) albedo is a pure scale factor: with the scale solved in closed form its
-    // gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ where it is.
-    let scale_only = st.reflectance.is_scale_only() && params.data.solve_scale;
-    let fit_brdf = params.optimise_reflectance && !scale_only && !st.reflectance.theta().is_empty();
-    // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
-    let fit_albedo = params.optimise_reflectance && st.albedo.is_some();
-    let refl_iters = if fit_brdf || fit_albedo { sch.reflectance_iterations } else { 0 };
-    let planned =
-        u64::from(sch.max_stages) * u64::from(sch.max_blocks_per_stage) * u64::from(sch.shape_iterations + refl_iters);
-    let out_dir: Option<PathBuf> = params.out_dir.clone();
+    let ctx = RunCtx::new(&st, params);
 
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
     let mut stage_data: Option<StageData> = None;
@@ -482,307 +470,45 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             Some(d) if d.stage == st.stage => stage_data.insert(d),
             _ => stage_data.insert(StageData::new(measured, params, st.stage, target, background)?),
         };
-        let measured: &Transient = sd.capture.as_ref().unwrap_or(measured);
-        let sensor = sd.sensor.as_ref();
-        let data = measured.data();
-        let norm = data_normaliser(params, data)?;
-        let boundary = prepare_topology(&mut st, target as f32, params, measured)?;
-        let fit = Fit { params, measured: data, sensor, norm };
+        let stage_capture: &Transient = sd.capture.as_ref().unwrap_or(measured);
+        let norm = data_normaliser(params, stage_capture.data())?;
+        // Step 1: topology (remeshing at the stage's edge), then the block's renderer and regularisers.
+        let boundary = prepare_topology(&mut st, target as f32, params, stage_capture)?;
         let mut renderer = Renderer::new(
             &st.positions,
             &st.triangles,
-            measured.scan(),
-            measured.time(),
+            stage_capture.scan(),
+            stage_capture.time(),
             render_params(params, st.stage, &mut st.rng),
         )?;
         // The albedo map's factors, held fixed through the shape block (crate::albedo, "Gradient").
         set_albedo_weights(&st, &mut renderer)?;
-        let reg = NormalSmoothing::new(st.positions.len(), &st.triangles)?;
-        let edge_reg = BoundarySmoothing::new(st.positions.len(), &st.triangles)?;
-        let w_edge = params.boundary_smoothing;
-        let (mut block_first, mut block_last) = (f64::NAN, f64::NAN);
-        let block_start = st.positions.clone();
-
-        // ---- shape block ----
-        let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
-        let mut it = 0;
-        while it < sch.shape_iterations {
-            let attempt = (|| -> Result<Option<Attempt>> {
-                let ev = evaluate(&st, &renderer, &fit, counts)?;
-                let (r_n, mut rg) = reg.evaluate(&st.positions, &st.triangles)?;
-                let mut r = r_n;
-                if w_edge > 0.0 {
-                    let (r_e, eg) = edge_reg.evaluate(&st.positions)?;
-                    r += w_edge * r_e;
-                    for (g, e) in rg.iter_mut().zip(&eg) {
-                        *g += w_edge as f32 * *e;
-                    }
-                }
-                let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
-                Ok(ok.then_some((ev, r, r_n, rg)))
-            })()?;
-            let Some((ev, r, r_n, rg)) = attempt else {
-                rollback(&mut st, &mut good, &mut renderer, params, "loss or gradient")?;
-                continue;
-            };
-            if it == 0 {
-                let area = surface_area(&st.positions, &st.triangles);
-                // With counts, the regulariser is weighed against the part of the data term above its noise
-                // floor (crate::sensor, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
-                // so a fit that has reached the floor keeps some smoothing.
-                let excess = if counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
-                st.reg_weight = params
-                    .regulariser_weight
-                    .unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r_n, area));
-            }
-            let lam = st.reg_weight;
-            let loss = ev.data + lam * r;
-            if it == 0 {
-                block_first = loss;
-            }
-            block_last = loss;
-            st.scale = ev.scale;
-            let step = params.lr_interior * target * st.lr_scale;
-            st.log.iterations.push(IterationRecord {
-                iteration: st.iteration,
-                stage: st.stage,
-                block: st.block_in_stage,
-                kind: StepKind::Shape,
-                loss,
-                data: ev.data,
-                regulariser: r,
-                reg_weight: lam,
-                scale: ev.scale,
-                step_size: step,
-                faces: st.triangles.len(),
-                vertices: st.positions.len(),
-                time_s: elapsed(),
-                noise_floor: counts.then_some(ev.floor),
-            });
-            let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
-            let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
-            good = Some((st.positions.clone(), st.shape_adam.clone()));
-            let (li, lb) = (params.lr_interior * target * st.lr_scale, params.lr_boundary * target * st.lr_scale);
-            let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
-            let new = evolve.evolve(&st.positions, &st.triangles, &disp)?;
-            if new.len() != st.positions.len() || new.iter().any(|p| !p.is_finite()) {
-                rollback(&mut st, &mut good, &mut renderer, params, "positions")?;
-                continue;
-            }
-            st.positions = new;
-            renderer.set_positions(&st.positions)?;
-            st.iteration += 1;
-            it += 1;
+        let mut b = Block {
+            target,
+            measured: stage_capture,
+            fit: Fit { params, measured: stage_capture.data(), sensor: sd.sensor.as_ref(), norm },
+            renderer,
+            reg: NormalSmoothing::new(st.positions.len(), &st.triangles)?,
+            edge_reg: BoundarySmoothing::new(st.positions.len(), &st.triangles)?,
+            boundary,
+            start: st.positions.clone(),
+            first: f64::NAN,
+            last: f64::NAN,
+        };
+        block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve)?;
+        if ctx.refl_iters > 0 {
+            block::reflectance_block(&mut st, &ctx, &mut b, &mut hooks)?;
         }
-
-        // ---- collision-aware evolution of the block's accumulated displacement ----
-        if let Some(ep) = params.collision {
-            let rec = evolve_block(&mut st, &block_start, target as f32, ep)?;
-            st.evolve_log.push(rec);
-            renderer.set_positions(&st.positions)?;
-        }
-
-        // ---- reflectance block ----
-        if refl_iters > 0 {
-            // The map's factors at the faces' current centroids (the shape block moved them), so that the
-            // renderer's dE/dw_t and the map's chain rule see the same w_t.
-            set_albedo_weights(&st, &mut renderer)?;
-            let (mut r, _) = reg.evaluate(&st.positions, &st.triangles)?;
-            if w_edge > 0.0 {
-                r += w_edge * edge_reg.evaluate(&st.positions)?.0;
-            }
-            let mut good_refl: Option<GoodReflectance> = None;
-            let mut it = 0;
-            while it < refl_iters {
-                let ev = evaluate(&st, &renderer, &fit, false);
-                let ev = match ev {
-                    Ok(ev)
-                        if ev.data.is_finite()
-                            && ev.grad_theta.iter().all(|g| g.is_finite())
-                            && ev.grad_faces.iter().all(|g| g.is_finite()) =>
-                    {
-                        ev
-                    }
-                    Ok(_) | Err(OptimError::Brdf(_)) => {
-                        rollback_refl(&mut st, &mut good_refl, &mut renderer, params, "reflectance loss or gradient")?;
-                        continue;
-                    }
-                    Err(e) => return Err(e),
-                };
-                let loss = ev.data + st.reg_weight * r;
-                block_last = loss;
-                st.scale = ev.scale;
-                let lr = params.lr_reflectance * st.lr_scale;
-                st.log.iterations.push(IterationRecord {
-                    iteration: st.iteration,
-                    stage: st.stage,
-                    block: st.block_in_stage,
-                    kind: StepKind::Reflectance,
-                    loss,
-                    data: ev.data,
-                    regulariser: r,
-                    reg_weight: st.reg_weight,
-                    scale: ev.scale,
-                    step_size: lr,
-                    faces: st.triangles.len(),
-                    vertices: st.positions.len(),
-                    time_s: elapsed(),
-                    noise_floor: None,
-                });
-                let _ = report(&mut hooks, &st, ProgressEvent::Iteration, planned, loss, target, elapsed());
-                good_refl = Some((
-                    st.reflectance.clone(),
-                    st.reflectance_adam.clone(),
-                    st.albedo.clone(),
-                    st.albedo_adam.clone(),
-                ));
-                if fit_brdf {
-                    let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
-                    st.reflectance.add_theta(&delta);
-                }
-                if let (Some(map), Some(ap)) = (st.albedo.as_mut(), params.albedo_map.as_ref()) {
-                    let g = map.chain(&st.positions, &st.triangles, &ev.grad_faces);
-                    let delta = st.albedo_adam.step(&params.reflectance_adam, &g, ap.lr * st.lr_scale);
-                    map.add(&delta, ap.max_log);
-                    map.recentre(&st.positions, &st.triangles);
-                    set_albedo_weights(&st, &mut renderer)?;
-                }
-                st.iteration += 1;
-                it += 1;
-            }
-        }
-
-        let rel = (block_first - block_last) / block_first.abs().max(f64::MIN_POSITIVE);
-        // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
-        let converged = !(rel >= sch.rel_tol);
-        // The time budget (predicted from face counts, so deterministic): the next block of this stage, and
-        // the first of the next stage at its estimated face count, must fit.
-        let done = face_steps(&st);
-        let fits = |faces: f64| sch.block_fits(done, faces, measured.measurements(), params.sensor.is_some());
-        let over_budget = !fits(st.triangles.len() as f64);
-        let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
-        let next_edge = planned_edge(&st, params, measured, st.stage + 1, target);
-        let next_faces = faces_at(surface_area(&st.positions, &st.triangles), next_edge);
-        let next_over_budget = stage_ends && !fits(next_faces);
-        let last_block = stage_ends && (st.stage + 1 >= sch.max_stages || next_over_budget);
-
-        // ---- boundary pruning,
-        // residual back-projection at the end of a stage but the last ----
-        let residual =
-            params.residual.as_ref().filter(|r| stage_ends && !last_block && r.stages.is_none_or(|n| st.stage < n));
-        // The stage's mesh as fitted (before residual patches join it).
-        let mut stage_mesh: Option<(Vec<Vec3>, Vec<[u32; 3]>)> = None;
-        if params.prune.is_some() || residual.is_some() {
-            let brdf = st.reflectance.brdf()?;
-            let mut rendered = brdf.forward(&renderer);
-            let (bins, scale) = (measured.bins(), st.scale);
-            let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
-                params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
-            };
-            // The sensor fit's `J I`, kept current through the deletions (SensorRows::response).
-            let response = match sensor {
-                Some(m) => Some(RwLock::new(m.response(&rendered)?)),
-                None => None,
-            };
-            let cached_rows = sensor.map(|m| SensorRows {
-                fit: &m.fit,
-                counts: data,
-                bins,
-                background: m.background,
-                scale,
-                response: response.as_ref(),
-            });
-            let row_loss: &RowLoss<'_> = match &cached_rows {
-                Some(rows) => rows,
-                None => &data_rows,
-            };
-            if let Some(pp) = &params.prune {
-                let p = prune_boundary(&st.triangles, &renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
-                if p.removed > 0 {
-                    drop_faces(&mut st, &p.keep);
-                }
-                st.prune_log.push(PruneRecord {
-                    stage: st.stage,
-                    block: st.block_in_stage,
-                    tested: p.tested,
-                    removed: p.removed,
-                    data_change: p.data_change / norm,
-                });
-            }
-            if let Some(rp) = residual {
-                let model: Vec<f64> = match (sensor, &response) {
-                    (Some(m), Some(lock)) => {
-                        let a = lock.read().map_err(|_| crate::sensor::poisoned())?;
-                        a.iter().map(|a| scale * a + m.background).collect()
-                    }
-                    (Some(m), None) => m.expected(&rendered, scale)?,
-                    (None, _) => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
-                };
-                let res: Vec<f32> = data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect();
-                let p = residual_patches(
-                    &st.positions,
-                    &st.triangles,
-                    measured,
-                    res,
-                    *renderer.params(),
-                    &brdf,
-                    &mut rendered,
-                    row_loss,
-                    rp,
-                )?;
-                if !p.triangles.is_empty() {
-                    stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
-                }
-                append(&mut st, &p.positions, &p.triangles);
-                st.residual_log.push(ResidualRecord {
-                    stage: st.stage,
-                    columns: p.columns,
-                    regions: p.regions,
-                    accepted: p.accepted,
-                    faces: p.triangles.len(),
-                    data_change: p.data_change / norm,
-                });
-            }
-        }
-
-        // ---- bookkeeping: self-intersections, relative decrease, stage advance, checkpoint ----
-        untangle(&mut st, IntersectionCheck::BlockEnd)?;
-        st.blocks_done += 1;
-        if stage_ends {
-            if let Some(dir) = &out_dir {
-                let m = match &stage_mesh {
-                    Some((p, t)) => SurfaceMesh::from_triangles(p, t)?,
-                    None => mesh_of(&st)?,
-                };
-                nlos_mesh::io::save(&m, dir.join(format!("stage_{:02}.obj", st.stage)))?;
-            }
-            st.stage += 1;
-            st.block_in_stage = 0;
-            if st.stage >= sch.max_stages {
-                st.finished = Some(StopReason::MaxStages);
-            } else {
-                let l = planned_edge(&st, params, measured, st.stage, target);
-                let est = faces_at(surface_area(&st.positions, &st.triangles), l);
-                if est > sch.max_faces as f64 {
-                    st.finished = Some(StopReason::FaceLimit);
-                } else if next_over_budget {
-                    st.finished = Some(StopReason::TimeBudget);
-                }
-            }
-        } else {
-            st.block_in_stage += 1;
-        }
-        st.elapsed_s = elapsed();
-        if let Some(dir) = &out_dir {
-            write_outputs(dir, &st)?;
-        }
-        let flow = report(&mut hooks, &st, ProgressEvent::BlockEnd, planned, block_last, target, st.elapsed_s);
+        let end = block::block_end(&st, &ctx, &b);
+        let stage_mesh = block::prune_and_patch(&mut st, &ctx, &b, &end)?;
+        block::bookkeeping(&mut st, &ctx, &b, &end, stage_mesh)?;
+        let flow = report(&mut hooks, &st, ProgressEvent::BlockEnd, ctx.planned, b.last, target, st.elapsed_s);
         if flow.is_break() && st.finished.is_none() {
             return Ok(outcome(&st, mesh_of(&st)?, StopReason::Interrupted));
         }
     }
     let mesh = mesh_of(&st)?;
-    if let Some(dir) = &out_dir {
+    if let Some(dir) = &params.out_dir {
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
         nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
     }

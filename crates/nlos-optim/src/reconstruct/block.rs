@@ -1,0 +1,421 @@
+//! The steps of one block of the loop ([`super::run`]), as the module doc names them: the shape block
+//! (with the collision-aware evolution of its displacement), the reflectance block, the block's end
+//! (relative decrease, time budget), pruning and residual patches, and the bookkeeping.
+
+use std::sync::RwLock;
+use std::time::Instant;
+
+use glam::Vec3;
+use nlos_mesh::SurfaceMesh;
+use nlos_render::Renderer;
+use nlos_transient::Transient;
+
+use super::checkpoint::{State, write_outputs};
+use super::topology::{append, drop_faces, evolve_block, mesh_of, surface_area, untangle};
+use super::{
+    Attempt, Evolve, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, StepKind,
+    StopReason, evaluate, face_steps, planned_edge, report, rollback, rollback_refl, set_albedo_weights,
+};
+use crate::adam::VertexAdam;
+use crate::boundary_smoothing::BoundarySmoothing;
+use crate::error::{OptimError, Result};
+use crate::params::{ReconstructParams, faces_at};
+use crate::prune::{PruneRecord, RowLoss, prune_boundary};
+use crate::regularizer::{NormalSmoothing, auto_weight};
+use crate::residual::{ResidualRecord, residual_patches};
+use crate::sensor::SensorRows;
+
+/// What every block of a run shares: its settings and what was decided from them once.
+pub(super) struct RunCtx<'a> {
+    pub(super) params: &'a ReconstructParams,
+    /// Photon counts (a sensor fit, or a data term told so): the regulariser weight discounts the noise floor.
+    pub(super) counts: bool,
+    /// θ of the BRDF is fitted in the reflectance blocks.
+    pub(super) fit_brdf: bool,
+    /// Steps of a reflectance block (0: none).
+    pub(super) refl_iters: u32,
+    /// Iterations the schedule allows (the progress bar's length).
+    pub(super) planned: u64,
+    start: Instant,
+    /// Run time before this process's part of the run (a resumed run's earlier time).
+    t_base: f64,
+}
+
+impl<'a> RunCtx<'a> {
+    pub(super) fn new(st: &State, params: &'a ReconstructParams) -> Self {
+        let sch = params.schedule;
+        // A Lambertian (or retroreflective) albedo is a pure scale factor: with the scale solved in closed form
+        // its gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ
+        // where it is.
+        let scale_only = st.reflectance.is_scale_only() && params.data.solve_scale;
+        let fit_brdf = params.optimise_reflectance && !scale_only && !st.reflectance.theta().is_empty();
+        // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
+        let fit_albedo = params.optimise_reflectance && st.albedo.is_some();
+        let refl_iters = if fit_brdf || fit_albedo { sch.reflectance_iterations } else { 0 };
+        let planned = u64::from(sch.max_stages)
+            * u64::from(sch.max_blocks_per_stage)
+            * u64::from(sch.shape_iterations + refl_iters);
+        Self {
+            params,
+            counts: params.sensor.is_some() || params.data.counts,
+            fit_brdf,
+            refl_iters,
+            planned,
+            start: Instant::now(),
+            t_base: st.elapsed_s,
+        }
+    }
+
+    /// Seconds the run has taken, resumed parts included.
+    pub(super) fn elapsed(&self) -> f64 {
+        self.t_base + self.start.elapsed().as_secs_f64()
+    }
+}
+
+/// A block's working set: the stage's capture and data term, and the renderer and regularisers of the
+/// block's topology.
+pub(super) struct Block<'a> {
+    /// The stage's target edge length, metres.
+    pub(super) target: f64,
+    /// The stage's capture (its bins summed, [`crate::Schedule::rebin`]).
+    pub(super) measured: &'a Transient,
+    pub(super) fit: Fit<'a>,
+    pub(super) renderer: Renderer,
+    pub(super) reg: NormalSmoothing,
+    pub(super) edge_reg: BoundarySmoothing,
+    /// Boundary flags per vertex (their own learning rate).
+    pub(super) boundary: Vec<bool>,
+    /// The positions at the block's start (collision-aware evolution replays the block's motion from them).
+    pub(super) start: Vec<Vec3>,
+    /// The loss at the block's first step and at its last.
+    pub(super) first: f64,
+    pub(super) last: f64,
+}
+
+/// Step 2: the shape block — `schedule.shape_iterations` Adam steps on the vertices through the `evolve`
+/// hook, rolled back on a non-finite loss, gradient or position.
+pub(super) fn shape_block(
+    st: &mut State,
+    ctx: &RunCtx<'_>,
+    b: &mut Block<'_>,
+    hooks: &mut Hooks<'_>,
+    evolve: &mut dyn Evolve,
+) -> Result<()> {
+    let params = ctx.params;
+    let w_edge = params.boundary_smoothing;
+    let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
+    let mut it = 0;
+    while it < params.schedule.shape_iterations {
+        let attempt = (|| -> Result<Option<Attempt>> {
+            let ev = evaluate(st, &b.renderer, &b.fit, ctx.counts)?;
+            let (r_n, mut rg) = b.reg.evaluate(&st.positions, &st.triangles)?;
+            let mut r = r_n;
+            if w_edge > 0.0 {
+                let (r_e, eg) = b.edge_reg.evaluate(&st.positions)?;
+                r += w_edge * r_e;
+                for (g, e) in rg.iter_mut().zip(&eg) {
+                    *g += w_edge as f32 * *e;
+                }
+            }
+            let ok = ev.data.is_finite() && r.is_finite() && ev.grad_vertices.iter().all(|g| g.is_finite());
+            Ok(ok.then_some((ev, r, r_n, rg)))
+        })()?;
+        let Some((ev, r, r_n, rg)) = attempt else {
+            rollback(st, &mut good, &mut b.renderer, params, "loss or gradient")?;
+            continue;
+        };
+        if it == 0 {
+            let area = surface_area(&st.positions, &st.triangles);
+            // With counts, the regulariser is weighed against the part of the data term above its noise
+            // floor (crate::sensor, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
+            // so a fit that has reached the floor keeps some smoothing.
+            let excess = if ctx.counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
+            st.reg_weight =
+                params.regulariser_weight.unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r_n, area));
+        }
+        let lam = st.reg_weight;
+        let loss = ev.data + lam * r;
+        if it == 0 {
+            b.first = loss;
+        }
+        b.last = loss;
+        st.scale = ev.scale;
+        let step = params.lr_interior * b.target * st.lr_scale;
+        st.log.iterations.push(IterationRecord {
+            iteration: st.iteration,
+            stage: st.stage,
+            block: st.block_in_stage,
+            kind: StepKind::Shape,
+            loss,
+            data: ev.data,
+            regulariser: r,
+            reg_weight: lam,
+            scale: ev.scale,
+            step_size: step,
+            faces: st.triangles.len(),
+            vertices: st.positions.len(),
+            time_s: ctx.elapsed(),
+            noise_floor: ctx.counts.then_some(ev.floor),
+        });
+        let _ = report(hooks, st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed());
+        let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
+        good = Some((st.positions.clone(), st.shape_adam.clone()));
+        let (li, lb) = (params.lr_interior * b.target * st.lr_scale, params.lr_boundary * b.target * st.lr_scale);
+        let boundary = &b.boundary;
+        let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
+        let new = evolve.evolve(&st.positions, &st.triangles, &disp)?;
+        if new.len() != st.positions.len() || new.iter().any(|p| !p.is_finite()) {
+            rollback(st, &mut good, &mut b.renderer, params, "positions")?;
+            continue;
+        }
+        st.positions = new;
+        b.renderer.set_positions(&st.positions)?;
+        st.iteration += 1;
+        it += 1;
+    }
+    // Collision-aware evolution of the block's accumulated displacement, from its starting positions.
+    if let Some(ep) = params.collision {
+        let rec = evolve_block(st, &b.start, b.target as f32, ep)?;
+        st.evolve_log.push(rec);
+        b.renderer.set_positions(&st.positions)?;
+    }
+    Ok(())
+}
+
+/// Step 3: the reflectance block — Adam steps on θ (and on the albedo map's log-albedo) with the shape
+/// fixed, rolled back on a non-finite loss or gradient.
+pub(super) fn reflectance_block(
+    st: &mut State,
+    ctx: &RunCtx<'_>,
+    b: &mut Block<'_>,
+    hooks: &mut Hooks<'_>,
+) -> Result<()> {
+    let params = ctx.params;
+    let w_edge = params.boundary_smoothing;
+    // The map's factors at the faces' current centroids (the shape block moved them), so that the
+    // renderer's dE/dw_t and the map's chain rule see the same w_t.
+    set_albedo_weights(st, &mut b.renderer)?;
+    let (mut r, _) = b.reg.evaluate(&st.positions, &st.triangles)?;
+    if w_edge > 0.0 {
+        r += w_edge * b.edge_reg.evaluate(&st.positions)?.0;
+    }
+    let mut good_refl: Option<GoodReflectance> = None;
+    let mut it = 0;
+    while it < ctx.refl_iters {
+        let ev = evaluate(st, &b.renderer, &b.fit, false);
+        let ev = match ev {
+            Ok(ev)
+                if ev.data.is_finite()
+                    && ev.grad_theta.iter().all(|g| g.is_finite())
+                    && ev.grad_faces.iter().all(|g| g.is_finite()) =>
+            {
+                ev
+            }
+            Ok(_) | Err(OptimError::Brdf(_)) => {
+                rollback_refl(st, &mut good_refl, &mut b.renderer, params, "reflectance loss or gradient")?;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let loss = ev.data + st.reg_weight * r;
+        b.last = loss;
+        st.scale = ev.scale;
+        let lr = params.lr_reflectance * st.lr_scale;
+        st.log.iterations.push(IterationRecord {
+            iteration: st.iteration,
+            stage: st.stage,
+            block: st.block_in_stage,
+            kind: StepKind::Reflectance,
+            loss,
+            data: ev.data,
+            regulariser: r,
+            reg_weight: st.reg_weight,
+            scale: ev.scale,
+            step_size: lr,
+            faces: st.triangles.len(),
+            vertices: st.positions.len(),
+            time_s: ctx.elapsed(),
+            noise_floor: None,
+        });
+        let _ = report(hooks, st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed());
+        good_refl =
+            Some((st.reflectance.clone(), st.reflectance_adam.clone(), st.albedo.clone(), st.albedo_adam.clone()));
+        if ctx.fit_brdf {
+            let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
+            st.reflectance.add_theta(&delta);
+        }
+        if let (Some(map), Some(ap)) = (st.albedo.as_mut(), params.albedo_map.as_ref()) {
+            let g = map.chain(&st.positions, &st.triangles, &ev.grad_faces);
+            let delta = st.albedo_adam.step(&params.reflectance_adam, &g, ap.lr * st.lr_scale);
+            map.add(&delta, ap.max_log);
+            map.recentre(&st.positions, &st.triangles);
+            set_albedo_weights(st, &mut b.renderer)?;
+        }
+        st.iteration += 1;
+        it += 1;
+    }
+    Ok(())
+}
+
+/// What the end of a block decides.
+pub(super) struct BlockEnd {
+    /// The stage ends with this block (converged, its last block, or the next block would not fit the budget).
+    pub(super) stage_ends: bool,
+    /// The next stage's first block would not fit the time budget.
+    pub(super) next_over_budget: bool,
+    /// No block follows this one.
+    pub(super) last_block: bool,
+}
+
+/// Step 5a: the relative-decrease test and the time budget (predicted from face counts, so deterministic):
+/// the next block of this stage, and the first of the next stage at its estimated face count, must fit.
+pub(super) fn block_end(st: &State, ctx: &RunCtx<'_>, b: &Block<'_>) -> BlockEnd {
+    let (params, sch) = (ctx.params, ctx.params.schedule);
+    let rel = (b.first - b.last) / b.first.abs().max(f64::MIN_POSITIVE);
+    // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
+    let converged = !(rel >= sch.rel_tol);
+    let done = face_steps(st);
+    let fits = |faces: f64| sch.block_fits(done, faces, b.measured.measurements(), params.sensor.is_some());
+    let over_budget = !fits(st.triangles.len() as f64);
+    let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
+    let next_edge = planned_edge(st, params, b.measured, st.stage + 1, b.target);
+    let next_faces = faces_at(surface_area(&st.positions, &st.triangles), next_edge);
+    let next_over_budget = stage_ends && !fits(next_faces);
+    let last_block = stage_ends && (st.stage + 1 >= sch.max_stages || next_over_budget);
+    BlockEnd { stage_ends, next_over_budget, last_block }
+}
+
+/// The mesh of a stage as fitted, before residual patches joined it.
+type StageMesh = (Vec<Vec3>, Vec<[u32; 3]>);
+
+/// Step 4: boundary pruning ([`crate::prune`]) and, at the end of a stage but the last, the residual
+/// patches ([`crate::residual`]). Returns the stage's mesh as fitted when patches joined it.
+pub(super) fn prune_and_patch(
+    st: &mut State,
+    ctx: &RunCtx<'_>,
+    b: &Block<'_>,
+    end: &BlockEnd,
+) -> Result<Option<StageMesh>> {
+    let params = ctx.params;
+    let residual =
+        params.residual.as_ref().filter(|r| end.stage_ends && !end.last_block && r.stages.is_none_or(|n| st.stage < n));
+    let mut stage_mesh: Option<StageMesh> = None;
+    if params.prune.is_none() && residual.is_none() {
+        return Ok(stage_mesh);
+    }
+    let (data, sensor, norm) = (b.fit.measured, b.fit.sensor, b.fit.norm);
+    let brdf = st.reflectance.brdf()?;
+    let mut rendered = brdf.forward(&b.renderer);
+    let (bins, scale) = (b.measured.bins(), st.scale);
+    let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
+        params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
+    };
+    // The sensor fit's `J I`, kept current through the deletions (SensorRows::response).
+    let response = match sensor {
+        Some(m) => Some(RwLock::new(m.response(&rendered)?)),
+        None => None,
+    };
+    let cached_rows = sensor.map(|m| SensorRows {
+        fit: &m.fit,
+        counts: data,
+        bins,
+        background: m.background,
+        scale,
+        response: response.as_ref(),
+    });
+    let row_loss: &RowLoss<'_> = match &cached_rows {
+        Some(rows) => rows,
+        None => &data_rows,
+    };
+    if let Some(pp) = &params.prune {
+        let p = prune_boundary(&st.triangles, &b.renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
+        if p.removed > 0 {
+            drop_faces(st, &p.keep);
+        }
+        st.prune_log.push(PruneRecord {
+            stage: st.stage,
+            block: st.block_in_stage,
+            tested: p.tested,
+            removed: p.removed,
+            data_change: p.data_change / norm,
+        });
+    }
+    if let Some(rp) = residual {
+        let model: Vec<f64> = match (sensor, &response) {
+            (Some(m), Some(lock)) => {
+                let a = lock.read().map_err(|_| crate::sensor::poisoned())?;
+                a.iter().map(|a| scale * a + m.background).collect()
+            }
+            (Some(m), None) => m.expected(&rendered, scale)?,
+            (None, _) => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
+        };
+        let res: Vec<f32> = data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect();
+        let p = residual_patches(
+            &st.positions,
+            &st.triangles,
+            b.measured,
+            res,
+            *b.renderer.params(),
+            &brdf,
+            &mut rendered,
+            row_loss,
+            rp,
+        )?;
+        if !p.triangles.is_empty() {
+            stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
+        }
+        append(st, &p.positions, &p.triangles);
+        st.residual_log.push(ResidualRecord {
+            stage: st.stage,
+            columns: p.columns,
+            regions: p.regions,
+            accepted: p.accepted,
+            faces: p.triangles.len(),
+            data_change: p.data_change / norm,
+        });
+    }
+    Ok(stage_mesh)
+}
+
+/// Step 5b: the bookkeeping — self-intersections removed, the stage advanced (its mesh saved as
+/// `stage_NN.obj`) or the next block counted, and the checkpoint and run log written.
+pub(super) fn bookkeeping(
+    st: &mut State,
+    ctx: &RunCtx<'_>,
+    b: &Block<'_>,
+    end: &BlockEnd,
+    stage_mesh: Option<StageMesh>,
+) -> Result<()> {
+    let (params, sch) = (ctx.params, ctx.params.schedule);
+    untangle(st, IntersectionCheck::BlockEnd)?;
+    st.blocks_done += 1;
+    if end.stage_ends {
+        if let Some(dir) = &params.out_dir {
+            let m = match &stage_mesh {
+                Some((p, t)) => SurfaceMesh::from_triangles(p, t)?,
+                None => mesh_of(st)?,
+            };
+            nlos_mesh::io::save(&m, dir.join(format!("stage_{:02}.obj", st.stage)))?;
+        }
+        st.stage += 1;
+        st.block_in_stage = 0;
+        if st.stage >= sch.max_stages {
+            st.finished = Some(StopReason::MaxStages);
+        } else {
+            let l = planned_edge(st, params, b.measured, st.stage, b.target);
+            let est = faces_at(surface_area(&st.positions, &st.triangles), l);
+            if est > sch.max_faces as f64 {
+                st.finished = Some(StopReason::FaceLimit);
+            } else if end.next_over_budget {
+                st.finished = Some(StopReason::TimeBudget);
+            }
+        }
+    } else {
+        st.block_in_stage += 1;
+    }
+    st.elapsed_s = ctx.elapsed();
+    if let Some(dir) = &params.out_dir {
+        write_outputs(dir, st)?;
+    }
+    Ok(())
+}
