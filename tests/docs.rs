@@ -190,3 +190,96 @@ fn the_architecture_crate_table_matches_the_manifests() {
     wrong.extend(rows.keys().map(|name| format!("{name}: a row for a crate that is not in the workspace")));
     assert!(wrong.is_empty(), "docs/ARCHITECTURE.md's crate table against the manifests:\n{}", wrong.join("\n"));
 }
+
+/// The code (comments aside) of every top-level module of a crate's `src/`: `foo.rs` and `foo/**.rs` are
+/// module `foo`.
+fn modules_of(src: &Path) -> std::collections::BTreeMap<String, String> {
+    let mut modules = std::collections::BTreeMap::new();
+    let mut stack = vec![src.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+                continue;
+            }
+            let Ok(rel) = path.strip_prefix(src) else { continue };
+            let top =
+                rel.components().next().map(|c| c.as_os_str().to_string_lossy().trim_end_matches(".rs").to_string());
+            let (Some(top), Some("rs")) = (top, path.extension().and_then(|e| e.to_str())) else { continue };
+            let text = std::fs::read_to_string(&path).unwrap_or_default();
+            let code: String =
+                text.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n");
+            modules.entry(top).or_insert_with(String::new).push_str(&code);
+        }
+    }
+    modules
+}
+
+/// The identifiers after each `crate::` in `code`, and inside `crate::{…}` the first segment of each path.
+fn crate_paths(code: &str) -> Vec<String> {
+    let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
+    let mut found = Vec::new();
+    for (i, _) in code.match_indices("crate::") {
+        let rest = &code[i + "crate::".len()..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let group = &group[..group.find('}').unwrap_or(group.len())];
+            found.extend(group.split(',').map(|p| ident(p.trim())));
+        } else {
+            found.push(ident(rest));
+        }
+    }
+    found
+}
+
+/// Within each crate the top-level modules form no cycle (a module `a` that uses `b` while `b` uses `a`
+/// cannot be read, tested or moved alone). Items re-exported at the crate root count as their module's.
+#[test]
+fn no_crate_has_a_module_cycle() {
+    let mut cycles = Vec::new();
+    let crates = std::fs::read_dir(root().join("crates")).expect("crates/").flatten().map(|e| e.path().join("src"));
+    for src in crates.chain([root().join("xtask/src")]).filter(|p| p.is_dir()) {
+        let mut modules = modules_of(&src);
+        let root_code = modules.remove("lib").or_else(|| modules.remove("main")).unwrap_or_default();
+        // `pub use module::{A, B};` at the crate root: `crate::A` is `module`'s.
+        let mut exported = std::collections::BTreeMap::new();
+        for line in root_code.lines().filter_map(|l| l.trim().strip_prefix("pub use ")) {
+            let Some((module, items)) = line.split_once("::") else { continue };
+            for item in items.trim_end_matches(';').trim_matches(|c| c == '{' || c == '}').split(',') {
+                exported.insert(item.trim().to_string(), module.to_string());
+            }
+        }
+        let edges: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> = modules
+            .iter()
+            .map(|(name, code)| {
+                let used = crate_paths(code)
+                    .into_iter()
+                    .map(|p| exported.get(&p).cloned().unwrap_or(p))
+                    .filter(|p| p != name && modules.contains_key(p))
+                    .collect();
+                (name.clone(), used)
+            })
+            .collect();
+        for start in edges.keys() {
+            // Depth-first from `start`: a path back to it is a cycle.
+            let mut stack = vec![vec![start.clone()]];
+            let mut seen = std::collections::BTreeSet::new();
+            while let Some(path) = stack.pop() {
+                let last = path.last().expect("non-empty");
+                for next in &edges[last] {
+                    if next == start {
+                        cycles.push(format!(
+                            "{}: {} → {start}",
+                            src.strip_prefix(root()).unwrap_or(&src).display(),
+                            path.join(" → ")
+                        ));
+                    } else if seen.insert(next.clone()) {
+                        stack.push([path.clone(), vec![next.clone()]].concat());
+                    }
+                }
+            }
+        }
+    }
+    assert!(cycles.is_empty(), "module cycles:\n{}", cycles.join("\n"));
+}

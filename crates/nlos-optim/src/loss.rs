@@ -211,7 +211,7 @@ impl DataTerm {
     /// L2:       E[½ Σ w (μ − n)²]            = ½ Σ w μ                     (Var n = μ)
     /// Poisson:  E[Σ w (μ − n ln μ)] − (E − D) = Σ w (d(μ) + n − n ln n)
     /// ```
-    /// with `D` the half-deviance and `d` its expectation ([`crate::sensor::expected_half_deviance`]): for
+    /// with `D` the half-deviance and `d` its expectation ([`expected_half_deviance`]): for
     /// the Poisson loss, whose value is not zero at a perfect fit, `E − floor = D − Σ w d(μ)` is the misfit
     /// above the noise.
     ///
@@ -231,7 +231,7 @@ impl DataTerm {
                     let mu = (scale * f64::from(rendered[i])).max(0.0);
                     let c = f64::from(measured[i]).max(0.0);
                     let c_ln_c = if c > 0.0 { c * c.ln() } else { 0.0 };
-                    w(i) * (crate::sensor::expected_half_deviance(mu) + c - c_ln_c)
+                    w(i) * (expected_half_deviance(mu) + c - c_ln_c)
                 })
                 .sum(),
         })
@@ -249,6 +249,38 @@ impl DataTerm {
         };
         (n > 0.0 && n.is_finite()).then_some(n)
     }
+}
+
+/// Above this mean the expected half-deviance uses its asymptotic expansion (the series and the expansion
+/// agree to 1e-5 there).
+pub(crate) const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
+
+/// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
+/// ([`crate::sensor`]'s module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
+/// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
+pub fn expected_half_deviance(mu: f64) -> f64 {
+    if !(mu.is_finite() && mu > 0.0) {
+        return 0.0;
+    }
+    if mu > DEVIANCE_SERIES_MAX_MU {
+        return 0.5 + 1.0 / (12.0 * mu) + 1.0 / (12.0 * mu * mu);
+    }
+    // E[n ln n] = Σ_{n≥2} p(n)·n ln n with p(n) = p(n−1)·μ/n; the terms n = 0, 1 vanish. Summed until
+    // past the mode and the terms are negligible (at most μ + 12√μ + 30 terms for μ ≤ 50).
+    let mut p = (-mu).exp() * mu; // p(1)
+    let mut sum = 0.0;
+    let n_max = (mu + 12.0 * mu.sqrt() + 30.0) as u32;
+    for n in 2..=n_max {
+        let nf = f64::from(n);
+        p *= mu / nf;
+        let term = p * nf * nf.ln();
+        sum += term;
+        if nf > mu && term < 1e-17 * sum.max(1e-300) {
+            break;
+        }
+    }
+    // Guard: the difference of two nearly equal terms can round below zero for tiny μ.
+    (sum - mu * mu.ln()).max(0.0)
 }
 
 #[cfg(test)]

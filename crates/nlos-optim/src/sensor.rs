@@ -52,7 +52,10 @@ use std::sync::RwLock;
 use rayon::prelude::*;
 
 use crate::error::{OptimError, Result};
+#[cfg(test)]
+use crate::loss::DEVIANCE_SERIES_MAX_MU;
 use crate::loss::DataEval;
+pub use crate::loss::expected_half_deviance;
 use crate::response::ResponseOp;
 
 /// Floor on expected counts (value and gradient), as in `nlos_transient::sensor::likelihood`.
@@ -63,10 +66,6 @@ const MU_FLOOR: f64 = 1e-12;
 /// clamped, with a gradient `n/1e-12`); every real SPAD has some background, and a floor this small changes
 /// the fit of bins with signal negligibly.
 pub const MIN_BACKGROUND_FRACTION: f64 = 1e-3;
-
-/// Above this mean the expected half-deviance uses its asymptotic expansion (the series and the expansion
-/// agree to 1e-5 there).
-const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
 
 /// The Poisson half-deviance of one bin, `μ − n + n ln(n/μ)` (`0 · ln 0 = 0`): the data term of the
 /// sensor fit per bin (module docs), zero exactly at `μ = n`.
@@ -108,34 +107,6 @@ fn deviance_changes(mu: &[f64], moved: &[f64], counts: &[f64], c: f64) -> f64 {
         }
     }
     total
-}
-
-/// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
-/// (module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
-/// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
-pub fn expected_half_deviance(mu: f64) -> f64 {
-    if !(mu.is_finite() && mu > 0.0) {
-        return 0.0;
-    }
-    if mu > DEVIANCE_SERIES_MAX_MU {
-        return 0.5 + 1.0 / (12.0 * mu) + 1.0 / (12.0 * mu * mu);
-    }
-    // E[n ln n] = Σ_{n≥2} p(n)·n ln n with p(n) = p(n−1)·μ/n; the terms n = 0, 1 vanish. Summed until
-    // past the mode and the terms are negligible (at most μ + 12√μ + 30 terms for μ ≤ 50).
-    let mut p = (-mu).exp() * mu; // p(1)
-    let mut sum = 0.0;
-    let n_max = (mu + 12.0 * mu.sqrt() + 30.0) as u32;
-    for n in 2..=n_max {
-        let nf = f64::from(n);
-        p *= mu / nf;
-        let term = p * nf * nf.ln();
-        sum += term;
-        if nf > mu && term < 1e-17 * sum.max(1e-300) {
-            break;
-        }
-    }
-    // Guard: the difference of two nearly equal terms can round below zero for tiny μ.
-    (sum - mu * mu.ln()).max(0.0)
 }
 
 /// Where the background level `b` (expected counts per bin) comes from.

@@ -26,6 +26,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+#[cfg(feature = "formats")]
 pub mod formats;
 mod ops;
 mod ops_views;
@@ -35,6 +36,7 @@ pub mod time_axis;
 pub mod transient;
 
 pub use error::{Result, TransientError};
+#[cfg(feature = "formats")]
 pub use formats::{Format, detect, read, write};
 pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
 pub use time_axis::{SPEED_OF_LIGHT, TimeAxis};

@@ -2,7 +2,6 @@
 
 use crate::error::{Result, TransientError};
 use crate::scan::{Scan, ScanPattern};
-use crate::sensor::jitter::median;
 use crate::time_axis::TimeAxis;
 use crate::transient::Transient;
 
@@ -359,4 +358,16 @@ fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {
             (cum[hi] - cum[lo]) / (hi - lo) as f64
         })
         .collect()
+}
+
+/// Median of a non-empty slice of finite values (upper median for even lengths is not used: the mean of
+/// the two middle values).
+pub(crate) fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
 }

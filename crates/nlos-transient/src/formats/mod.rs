@@ -17,6 +17,7 @@ use crate::transient::Transient;
 
 pub mod exr;
 pub mod hdf5;
+mod jitter_file;
 pub mod mat;
 mod mat5;
 pub mod npy;

@@ -16,7 +16,7 @@
 //! the per-measurement means is also reported, robust to hot or stray-light pixels.
 
 use crate::error::{Result, TransientError};
-use crate::sensor::jitter::median;
+use crate::ops::median;
 use crate::transient::Transient;
 
 fn bad(name: &'static str, reason: String) -> TransientError {

@@ -28,11 +28,9 @@
 //! leave the histogram window, as they do in a real TCSPC window; away from the edges `Σ_k (A x)[k] =
 //! Σ_k x[k]`.
 
-use std::path::Path;
-
 use crate::SPEED_OF_LIGHT;
 use crate::error::{MEMORY, Result, TransientError};
-use crate::formats::hdf5::read_dataset_f64;
+use crate::ops::median;
 use crate::transient::Transient;
 
 /// A timing response `h(τ)` as a fine, normalised histogram of delays (metres of path). See the
@@ -50,18 +48,6 @@ fn invalid(field: &str, reason: String) -> TransientError {
 
 fn arg(name: &'static str, reason: String) -> TransientError {
     TransientError::InvalidArgument { name, reason }
-}
-
-/// Median of a non-empty slice of finite values (upper median for even lengths is not used: the mean of
-/// the two middle values).
-pub(crate) fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
 }
 
 impl JitterResponse {
@@ -136,86 +122,6 @@ impl JitterResponse {
             .collect();
         let total: f64 = w.iter().sum();
         Ok(Self { origin, spacing, weights: w.into_iter().map(|v| v / total).collect() })
-    }
-
-    /// Loads a measured timing response from a MATLAB v7.3 or HDF5 file, recognising the two layouts of
-    /// the shared data (`../shared/data/sensor/`):
-    ///
-    /// - **`t_1` + `counts_1`** (`spad_jitter.mat`, 1×901 each): `t_1` are the sample **centres** in
-    ///   **seconds** — the file's own values run from −8.387e-11 to 6.490e-10 with a uniform spacing of
-    ///   8.14e-13 s (0.814 ps), although the data README says picoseconds. Units are decided from the
-    ///   spacing: below 1e-6 the values are seconds, otherwise picoseconds (no SPAD response is sampled
-    ///   coarser than a microsecond, and none finer than 1e-6 ps). Zero delay is where the file puts it
-    ///   (`t_1 = 0` at the peak of `counts_1`).
-    /// - **`counts` + `timebin_width_ps`** (`spad_impulse_response.hdf5`, 1201×1 `uint16`, 0.75 ps):
-    ///   no time origin is stored, so zero delay is put at the centre of the maximum sample.
-    ///
-    /// Either way, times become path lengths `c·t` (c = 299 792 458 m/s), and the constant floor is
-    /// subtracted as in [`JitterResponse::from_histogram`].
-    ///
-    /// # Errors
-    /// The reading errors of [`read_dataset_f64`]; [`TransientError::MissingField`] when neither layout is
-    /// present; [`TransientError::WrongShape`] when times and counts differ in length;
-    /// [`TransientError::InvalidValue`] for non-uniform or non-increasing times and the errors of
-    /// [`JitterResponse::from_histogram`].
-    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
-        let file = |field: &str, reason: String| TransientError::InvalidValue {
-            file: path.into(),
-            field: field.into(),
-            reason,
-        };
-        match read_dataset_f64(path, "t_1") {
-            Ok((t, _)) => {
-                let (counts, _) = read_dataset_f64(path, "counts_1")?;
-                if counts.len() != t.len() {
-                    return Err(TransientError::WrongShape {
-                        file: path.into(),
-                        field: "counts_1".into(),
-                        expected: format!("{} samples, as `t_1`", t.len()),
-                        found: format!("{} samples", counts.len()),
-                    });
-                }
-                if t.len() < 2 {
-                    return Err(file("t_1", "needs at least two samples to define a spacing".into()));
-                }
-                let n = t.len();
-                let step = (t[n - 1] - t[0]) / (n - 1) as f64;
-                if !(step.is_finite() && step > 0.0) {
-                    return Err(file("t_1", "times must be finite and increasing".into()));
-                }
-                // Uniform sampling: every step within 5 % of the mean step.
-                if let Some(i) = t.windows(2).position(|w| ((w[1] - w[0]) - step).abs() > 0.05 * step) {
-                    return Err(file("t_1", format!("non-uniform spacing at sample {i}; resample first")));
-                }
-                let to_seconds = if step < 1e-6 { 1.0 } else { 1e-12 };
-                let spacing = step * to_seconds * SPEED_OF_LIGHT;
-                let origin = t[0] * to_seconds * SPEED_OF_LIGHT - 0.5 * spacing;
-                Self::from_histogram(origin, spacing, &counts, true).map_err(|e| with_file(e, path))
-            }
-            Err(TransientError::MissingField { .. }) => {
-                let (counts, _) = read_dataset_f64(path, "counts").map_err(|e| match e {
-                    TransientError::MissingField { file, .. } => TransientError::MissingField {
-                        file,
-                        field: "t_1/counts_1 or counts/timebin_width_ps".into(),
-                        hint: "a timing response needs either times `t_1` with `counts_1`, or `counts` with \
-                               `timebin_width_ps`"
-                            .into(),
-                    },
-                    e => e,
-                })?;
-                let (w, _) = read_dataset_f64(path, "timebin_width_ps")?;
-                let width_ps = w.first().copied().unwrap_or(f64::NAN);
-                if !(width_ps.is_finite() && width_ps > 0.0) {
-                    return Err(file("timebin_width_ps", format!("{width_ps} must be finite and > 0")));
-                }
-                let spacing = width_ps * 1e-12 * SPEED_OF_LIGHT;
-                let peak = counts.iter().enumerate().fold(0, |b, (i, &c)| if c > counts[b] { i } else { b });
-                let origin = -(peak as f64 + 0.5) * spacing;
-                Self::from_histogram(origin, spacing, &counts, true).map_err(|e| with_file(e, path))
-            }
-            Err(e) => Err(e),
-        }
     }
 
     /// The capture's own timing response, from its direct reflection off the wall.
@@ -421,17 +327,6 @@ pub(crate) fn complete_rising_side(counts: Vec<f64>, peak: usize) -> (Vec<f64>, 
     let mut out: Vec<f64> = (0..before).map(|j| gaussian(j as f64 - before as f64 - peak as f64)).collect();
     out.extend(whole.0);
     (out, before as f64 + peak as f64 + 0.5 + mu)
-}
-
-/// Re-labels an in-memory error with the file it came from.
-fn with_file(e: TransientError, path: &Path) -> TransientError {
-    match e {
-        TransientError::InvalidValue { field, reason, .. } => {
-            TransientError::InvalidValue { file: path.into(), field, reason }
-        }
-        TransientError::NonFinite { field, index, .. } => TransientError::NonFinite { file: path.into(), field, index },
-        e => e,
-    }
 }
 
 /// Antiderivative of `tent(x) = max(0, 1 − |x|)`: 0 below −1, `(x+1)²/2` on [−1, 0), `1 − (1−x)²/2` on
