@@ -451,23 +451,22 @@ impl Config {
     /// # Errors
     /// [`OptimError::Config`] when a value has no TOML form (a non-finite number).
     pub fn to_toml(&self) -> Result<String> {
+        // Serialised by `toml` (its number formats: an f32 setting prints as written), then commented through
+        // the document model of `toml_edit`.
         let plain = toml::to_string(self).map_err(|e| config_error("config", e.to_string()))?;
-        let mut out =
-            String::from("# nlos reconstruct settings (`--config FILE`); absent fields keep their defaults.\n");
-        let mut section = String::new();
-        for line in plain.lines() {
-            if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
-                section = format!("{name}.");
-            } else if let Some((key, _)) = line.split_once(" = ") {
-                let path = format!("{section}{key}");
-                if let Some((_, doc)) = FIELD_DOCS.iter().find(|(k, _)| *k == path) {
-                    out.push_str(&format!("# {doc}\n"));
-                }
+        let mut doc: toml_edit::DocumentMut = plain.parse().map_err(|e| config_error("config", format!("{e}")))?;
+        doc.decor_mut()
+            .set_prefix("# nlos reconstruct settings (`--config FILE`); absent fields keep their defaults.\n");
+        for (path, text) in FIELD_DOCS {
+            let (table, key) = match path.split_once('.') {
+                Some((section, key)) => (doc.get_mut(section).and_then(toml_edit::Item::as_table_like_mut), key),
+                None => (Some(doc.as_table_mut() as &mut dyn toml_edit::TableLike), *path),
+            };
+            if let Some(mut key) = table.and_then(|t| t.key_mut(key)) {
+                key.leaf_decor_mut().set_prefix(format!("# {text}\n"));
             }
-            out.push_str(line);
-            out.push('\n');
         }
-        Ok(out)
+        Ok(doc.to_string())
     }
 }
 
