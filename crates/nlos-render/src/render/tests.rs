@@ -1,0 +1,167 @@
+//! Unit tests of the renderer's internals (kernel instantiations, the visibility cache, block culling).
+
+use super::*;
+use crate::soa::Packed;
+use nlos_brdf::{Fresnel, Ggx};
+use nlos_transient::PointSet;
+
+/// The AVX2 + FMA instantiations of the block kernels compute the same bits as the baseline ones (no
+/// fused multiply-adds are requested, and every lane is independent), on a CPU that has AVX2 (else the
+/// test compares the baseline with itself).
+#[test]
+fn avx2_and_baseline_kernels_agree_bitwise() {
+    let mut p = Vec::new();
+    let mut f = Vec::new();
+    for i in 0..300u32 {
+        let (x, y) = ((i % 20) as f32 * 0.02 - 0.2, (i / 20) as f32 * 0.02 - 0.15);
+        let z = 0.4 + 0.05 * (9.0 * x).sin();
+        p.extend([Vec3::new(x, y, z), Vec3::new(x, y + 0.02, z + 0.01), Vec3::new(x + 0.02, y, z - 0.01)]);
+        f.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let time = TimeAxis::new(0.6, 0.004, 150).expect("axis");
+    let brdf = Ggx::new(0.2f32, 0.8, 0.3, Fresnel::Schlick { f0: 0.5 }).expect("valid");
+    for scan in [
+        Scan::confocal(PointSet::wall_grid(3, 3, 0.2, 0.2).expect("grid")),
+        Scan::exhaustive(
+            PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid"),
+            PointSet::wall_grid(2, 1, 0.1, 0.1).expect("grid"),
+        ),
+    ] {
+        for kernel in [Kernel::Tent, Kernel::Gaussian { fwhm_bins: 2.0 }] {
+            let params = RenderParams {
+                kernel,
+                sampling: Sampling::Deterministic(DeterministicRule::fixed(2)),
+                visibility: Visibility::Off,
+                two_sided: true,
+            };
+            let mut r = Renderer::new(&p, &f, &scan, &time, params).expect("valid");
+            let fast = r.forward(&brdf);
+            let adj: Vec<f32> = (0..fast.len()).map(|i| (i as f32 * 0.37).sin()).collect();
+            let g_fast = r.adjoint(&brdf, &adj).expect("ok");
+            r.isa = Isa::baseline();
+            assert_eq!(fast, r.forward(&brdf), "forward ({kernel:?})");
+            assert_eq!(g_fast, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({kernel:?})");
+            assert!(fast.iter().any(|v| *v > 0.0));
+        }
+    }
+}
+
+/// A sphere of `2 nu nv` triangles around (0, 0, 0.4), radius 0.1, normals outward, vertices jittered
+/// radially by up to `jitter`.
+fn sphere(nu: u32, nv: u32, jitter: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = Vec::new();
+    for j in 0..=nv {
+        for i in 0..nu {
+            let (th, ph) = (std::f32::consts::PI * j as f32 / nv as f32, std::f32::consts::TAU * i as f32 / nu as f32);
+            let r = 0.1 + jitter * ((i * 7 + j * 13) as f32 * 1.7).sin();
+            p.push(Vec3::new(r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), 0.4 + r * th.cos()));
+        }
+    }
+    let id = |i: u32, j: u32| j * nu + i % nu;
+    let mut f = Vec::new();
+    for j in 0..nv {
+        for i in 0..nu {
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
+            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
+        }
+    }
+    (p, f)
+}
+
+/// The visibility cache follows its triangles through `set_positions` (it is stored in the block order,
+/// which `set_positions` keeps while a cache exists, though the moved normals would regroup them): on a
+/// convex sphere (everything front-facing is visible), a cache computed before a jitter of the vertices
+/// gives the render of a cache computed after it, up to grazing pairs that changed orientation.
+#[test]
+fn cache_survives_set_positions() {
+    let (p0, f) = sphere(96, 48, 0.0);
+    let (p1, _) = sphere(96, 48, 0.0005);
+    let time = TimeAxis::new(0.0, 0.004, 300).expect("axis");
+    let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.3, 0.3).expect("grid"));
+    let params = RenderParams {
+        sampling: Sampling::Deterministic(DeterministicRule::fixed(1)),
+        visibility: Visibility::Cached { level: 1 },
+        ..Default::default()
+    };
+    let brdf = Ggx::new(0.5f32, 0.5, 0.3, Fresnel::One).expect("valid");
+    let mut moved = Renderer::new(&p0, &f, &scan, &time, params).expect("valid");
+    moved.set_positions(&p1).expect("finite");
+    let fresh = Renderer::new(&p1, &f, &scan, &time, params).expect("valid");
+    assert_ne!(moved.tris.soa.order, fresh.tris.soa.order, "the jitter must regroup some triangles");
+    let (a, b) = (moved.forward(&brdf), fresh.forward(&brdf));
+    let num: f64 = a.iter().zip(&b).map(|(x, y)| f64::from(x - y).powi(2)).sum();
+    let den: f64 = b.iter().map(|y| f64::from(*y).powi(2)).sum();
+    assert!(den > 0.0 && (num / den).sqrt() < 1e-3, "rel-L2 {}", (num / den).sqrt());
+}
+
+/// Culling whole blocks that face away, and packing a block's front-facing triangles (fixed rule), change
+/// no bit: a closed, bumpy sphere (every orientation) seen from spots all around it, one-sided faces,
+/// fixed and adaptive rules, with and without the cache.
+#[test]
+fn block_culling_is_exact() {
+    let (nu, nv) = (96u32, 48u32);
+    let mut p = Vec::new();
+    for j in 0..=nv {
+        for i in 0..nu {
+            let (th, ph) = (std::f32::consts::PI * j as f32 / nv as f32, std::f32::consts::TAU * i as f32 / nu as f32);
+            let r = 0.1 * (1.0 + 0.1 * (5.0 * ph).sin() * th.sin());
+            p.push(Vec3::new(r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), 0.4 + r * th.cos()));
+        }
+    }
+    let id = |i: u32, j: u32| j * nu + i % nu;
+    let mut f = Vec::new();
+    for j in 0..nv {
+        for i in 0..nu {
+            f.push([id(i, j), id(i + 1, j), id(i, j + 1)]);
+            f.push([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    assert!(f.len() > 8 * BLOCK);
+    let time = TimeAxis::new(0.0, 0.004, 300).expect("axis");
+    let brdf = Ggx::new(0.2f32, 0.8, 0.3, Fresnel::One).expect("valid");
+    // Wall spots around the sphere (a confocal list; the "wall" normals face the sphere).
+    let spots: Vec<Vec3> = (0..12)
+        .map(|k| {
+            let a = k as f32 * 0.55;
+            Vec3::new(0.3 * a.cos(), 0.3 * a.sin(), 0.4 + 0.25 * (1.3 * a).sin())
+        })
+        .collect();
+    let mut set = PointSet::list(spots.clone());
+    set.normals = spots.iter().map(|s| (Vec3::new(0.0, 0.0, 0.4) - *s).normalize()).collect();
+    let scan = Scan::confocal(set);
+    for sampling in [
+        Sampling::Deterministic(DeterministicRule::fixed(1)),
+        Sampling::Deterministic(DeterministicRule { max_bin_fraction: 1.0, min_level: 1, max_level: 3 }),
+    ] {
+        for visibility in [Visibility::Off, Visibility::Cached { level: 1 }] {
+            let params = RenderParams { kernel: Kernel::Tent, sampling, visibility, two_sided: false };
+            let mut r = Renderer::new(&p, &f, &scan, &time, params).expect("valid");
+            let culled = r.forward(&brdf);
+            let adj: Vec<f32> = (0..culled.len()).map(|i| (i as f32 * 0.37).sin()).collect();
+            let g = r.adjoint(&brdf, &adj).expect("ok");
+            let active = (0..scan.measurements())
+                .flat_map(|m| (0..f.len()).step_by(BLOCK).map(move |t0| (m, t0)))
+                .filter(|(m, t0)| !r.tris.soa.culled(*t0, &r.frame(*m)))
+                .count();
+            let total = scan.measurements() * f.len().div_ceil(BLOCK);
+            assert!(active < total && active > 0, "some blocks culled, not all: {active} of {total}");
+            // Packing leaves out part of the blocks that culling keeps.
+            let mut pk = Packed::new();
+            let (mut packed, mut kept) = (0, 0);
+            for m in 0..scan.measurements() {
+                for t0 in (0..f.len()).step_by(BLOCK) {
+                    let t1 = (t0 + BLOCK).min(f.len());
+                    if r.pack(&[m], t0, t1, &mut pk) {
+                        packed += pk.len;
+                        kept += t1 - t0;
+                    }
+                }
+            }
+            assert!(packed > 0 && packed < kept, "packing must leave some triangles out: {packed} of {kept}");
+            r.tris.soa.disable_culling();
+            assert_eq!(culled, r.forward(&brdf), "forward ({sampling:?}, {visibility:?})");
+            assert_eq!(g, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({sampling:?}, {visibility:?})");
+            assert!(culled.iter().any(|v| *v > 0.0));
+        }
+    }
+}
