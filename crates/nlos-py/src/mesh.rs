@@ -56,21 +56,33 @@ pub(crate) fn write_mesh(path: PathBuf, vertices: &Bound<'_, PyAny>, faces: &Bou
     nlos_mesh::io::save(&mesh, &path).map_err(errors::mesh)
 }
 
-/// The metrics of `nlos eval` as a JSON string (the Python side turns it into a dict): coverage and
-/// depth errors on a `grid` × `grid` +z ray grid over [−0.25, 0.25]² m, Chamfer, Hausdorff, normal error.
+/// The metrics of `nlos eval` as a JSON string (the Python side makes them a `Metrics`): coverage and
+/// depth errors on a `grid` × `grid` +z ray grid over `x_range` × `y_range` of the wall (default
+/// [−0.25, 0.25]² m), Chamfer, Hausdorff, normal error.
 #[pyfunction]
-#[pyo3(signature = (mesh, gt, grid = 128))]
+#[pyo3(signature = (mesh, gt, grid = 128, x_range = None, y_range = None))]
 pub(crate) fn evaluate(
     py: Python<'_>,
     mesh: &Bound<'_, PyAny>,
     gt: &Bound<'_, PyAny>,
     grid: usize,
+    x_range: Option<(f32, f32)>,
+    y_range: Option<(f32, f32)>,
 ) -> PyResult<String> {
     if grid == 0 || grid > MAX_GRID {
         return Err(pyo3::exceptions::PyValueError::new_err(format!("grid: {grid} is not in 1..={MAX_GRID}")));
     }
+    let range = |name: &str, r: Option<(f32, f32)>, default: [f32; 2]| match r {
+        None => Ok(default),
+        Some((a, b)) if a.is_finite() && b.is_finite() && a < b => Ok([a, b]),
+        Some((a, b)) => Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "{name}: ({a}, {b}) must be finite with min < max (metres on the wall)"
+        ))),
+    };
+    let defaults = EvalParams::default();
+    let (x_range, y_range) = (range("x_range", x_range, defaults.x_range)?, range("y_range", y_range, defaults.y_range)?);
     let (reconstruction, truth) = (mesh_arg("mesh", mesh)?, mesh_arg("gt", gt)?);
-    let params = EvalParams { grid, ..EvalParams::default() };
+    let params = EvalParams { grid, x_range, y_range, ..defaults };
     let metrics = py.detach(|| eval_meshes(&reconstruction, &truth, &params)).map_err(errors::mesh)?;
     serde_json::to_string(&metrics).map_err(errors::mesh)
 }

@@ -100,9 +100,8 @@ pub(crate) fn volume<'py>(
     for (name, axis) in [("x", vol.x), ("y", vol.y), ("z", vol.z)] {
         axes.set_item(name, (axis.start, axis.step))?;
     }
-    // `data[(ix + nx·iy)·nz + iz]` is C order for the shape (ny, nx, nz); swap to (nx, ny, nz) as a view.
+    // `data[(ix + nx·iy)·nz + iz]` is C order for the shape (ny, nx, nz).
     let array = Array3::from_shape_vec((vol.ny, vol.nx, vol.nz), vol.data).map_err(errors::init)?;
-    let array = array.permuted_axes([1, 0, 2]);
     Ok((PyArray3::from_owned_array(py, array).unbind(), axes))
 }
 

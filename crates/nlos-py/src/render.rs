@@ -59,6 +59,19 @@ impl Brdf {
     fn param_names(&self) -> &'static [&'static str] {
         with_brdf!(self, b => param_names_of(b))
     }
+
+    fn params(&self) -> Vec<f32> {
+        with_brdf!(self, b => b.params())
+    }
+
+    /// The same model with parameters `p` (in [`Self::param_names`] order).
+    fn with_params(&self, p: &[f32]) -> nlos_render::Result<Self> {
+        Ok(match self {
+            Brdf::Lambertian(b) => Brdf::Lambertian(b.with_params(p)?),
+            Brdf::Ggx(b) => Brdf::Ggx(b.with_params(p)?),
+            Brdf::Retroreflective(b) => Brdf::Retroreflective(b.with_params(p)?),
+        })
+    }
 }
 
 fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {
@@ -145,10 +158,43 @@ impl Renderer {
         Ok(Self { inner, brdf, vertices: positions.len(), measurements: scan.measurements(), bins: time.bins })
     }
 
-    /// Moves the vertices (same count, same faces); the visibility cache is kept, as in the loop.
+    /// Moves the vertices (same count, same faces); the visibility cache is kept, as in the loop (call
+    /// [`Self::refresh_visibility`] after large moves).
     fn set_vertices(&mut self, vertices: &Bound<'_, PyAny>) -> PyResult<()> {
         let positions = arrays::points("vertices", vertices, Some(self.vertices))?;
         self.inner.set_positions(&positions).map_err(errors::render)
+    }
+
+    /// Recomputes the cached visibility at the current vertices (no effect for `visibility="live"` or
+    /// `"off"`).
+    fn refresh_visibility(&mut self, py: Python<'_>) {
+        py.detach(|| self.inner.refresh_visibility());
+    }
+
+    /// The BRDF's parameters by name, the keys of the adjoint's gradient dictionary.
+    #[getter]
+    fn reflectance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, value) in self.brdf.param_names().iter().zip(self.brdf.params()) {
+            dict.set_item(*name, value)?;
+        }
+        Ok(dict)
+    }
+
+    /// Sets BRDF parameters by name (as the `reflectance` getter and the gradients name them; the others
+    /// keep their values), so that a reflectance can be fitted with the adjoint's gradients.
+    fn set_reflectance(&mut self, values: &Bound<'_, PyDict>) -> PyResult<()> {
+        let names = self.brdf.param_names();
+        let mut p = self.brdf.params();
+        for (key, value) in values.iter() {
+            let key: String = key.extract()?;
+            let Some(i) = names.iter().position(|n| *n == key) else {
+                return Err(PyValueError::new_err(format!("reflectance: {key:?} is not one of {names:?}")));
+            };
+            p[i] = value.extract().map_err(|_| PyValueError::new_err(format!("reflectance: {key} must be a number")))?;
+        }
+        self.brdf = self.brdf.with_params(&p).map_err(|e| PyValueError::new_err(format!("reflectance: {e}")))?;
+        Ok(())
     }
 
     /// The rendered transient, measurements × bins, float32 (a new array each call, no further copy).

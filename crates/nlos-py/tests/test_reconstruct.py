@@ -13,12 +13,40 @@ DEMO = {"schedule": {"max_stages": 2, "initial_resolution": 20, "max_blocks_per_
 
 @pytest.mark.parametrize("method", ["lct", "fk", "fbp"])
 def test_volumes_peak_at_the_patch_depth(builtin_capture, method):
-    volume, axes = getattr(nlos, method)(nlos.load(builtin_capture))
-    assert volume.ndim == 3 and volume.dtype == np.float32 and volume.shape[:2] == (24, 24)
-    z0, dz = axes["z"]
-    iz = np.unravel_index(np.argmax(np.abs(volume)), volume.shape)[2]
+    volume = getattr(nlos, method)(nlos.load(builtin_capture))
+    assert volume.data.ndim == 3 and volume.data.dtype == np.float32 and volume.data.shape[:2] == (24, 24)
+    assert volume.data.flags["C_CONTIGUOUS"]
+    iz = np.unravel_index(np.argmax(np.abs(volume.data)), volume.data.shape)[2]
     # The built-in patch lies at 0.36-0.40 m.
-    assert 0.33 < z0 + iz * dz < 0.43
+    assert 0.33 < volume.centres("z")[iz] < 0.43
+
+
+def _cropped(capture, rows):
+    """The capture's scan grid cut to the rows ``rows`` of y: a grid of nx = 24 by ny = len(rows)."""
+    nx, ny = capture.grid
+    data = capture.data.reshape(ny, nx, -1)[rows].reshape(-1, capture.bins)
+    points = capture.scan_points.reshape(ny, nx, 3)[rows].reshape(-1, 3)
+    return nlos.Capture.from_arrays(data, points, dt=capture.dt, t0=capture.t0, grid=(nx, len(rows)))
+
+
+def test_a_non_square_grid_keeps_its_axes(builtin_capture, builtin_truth):
+    full = nlos.load(builtin_capture)
+    rows = range(2, 18)  # y rows 2..17 of 24: a 24 (x) by 16 (y) grid, off-centre in y
+    cut = _cropped(full, rows)
+    assert cut.grid == (24, 16) and cut.data.shape == (24 * 16, full.bins)
+    whole, part = nlos.lct(full), nlos.lct(cut)
+    assert part.data.shape[:2] == (16, 24), "volumes are [iy, ix, iz]"
+    assert np.allclose(part.centres("x"), whole.centres("x")) and np.allclose(part.centres("y"), whole.centres("y")[2:18])
+    # The same voxels see the same light: the cut volume's brightest voxel per column draws the full
+    # volume's rows 2..17 (up to the smaller aperture's blur), not the rows and columns the other way round.
+    image, image_full = part.data.max(axis=2).ravel(), whole.data[2:18].max(axis=2)
+    assert np.corrcoef(image, image_full.ravel())[0, 1] > 0.85
+    assert np.corrcoef(image, image_full[::-1, ::-1].ravel())[0, 1] < 0.8
+    # The start surface from the cut capture lies where the truth is, scored on the cut capture's wall.
+    m = nlos.evaluate(nlos.initial_surface(cut), builtin_truth, 64, capture=cut)
+    ys = cut.scan_points[:, 1]
+    assert m.y_range == pytest.approx((ys.min(), ys.max())) and m.y_range[1] - m.y_range[0] < m.x_range[1] - m.x_range[0]
+    assert m.coverage_within > 0.5
 
 
 def test_reconstruct_improves_on_its_start(builtin_capture, builtin_truth, tmp_path):
@@ -26,14 +54,16 @@ def test_reconstruct_improves_on_its_start(builtin_capture, builtin_truth, tmp_p
     start = nlos.initial_surface(capture)
     seen = []
     result = nlos.reconstruct(capture, tmp_path / "run", progress=seen.append, seed=1, **DEMO)
-    assert result["stop"] and result["faces"].shape[1] == 3 and result["vertices"].dtype == np.float32
+    assert isinstance(result, nlos.Reconstruction) and result.stop == "max_stages"
+    assert result.faces.shape[1] == 3 and result.vertices.dtype == np.float32 and result.notes is not None
     assert seen and seen[-1]["iteration"] >= 1 and "loss" in seen[-1]
     for name in ["mesh.obj", "init.obj", "settings.toml", "run_log.json", "checkpoint.json"]:
         assert (tmp_path / "run" / name).is_file(), name
-    before, after = nlos.eval(start, builtin_truth), nlos.eval((result["vertices"], result["faces"]), builtin_truth)
-    assert after["depth_error_mean"] < 0.5 * before["depth_error_mean"]
-    assert after["chamfer"] < 0.5 * before["chamfer"]
-    assert after["coverage"] > 0.9
+    before, after = nlos.evaluate(start, builtin_truth, capture=capture), nlos.evaluate(result, builtin_truth, capture=capture)
+    assert after.x_range == tuple(float(x) for x in (capture.scan_points[:, 0].min(), capture.scan_points[:, 0].max()))
+    assert after.depth_error_mean < 0.5 * before.depth_error_mean
+    assert after.chamfer < 0.5 * before.chamfer
+    assert after.coverage > 0.9
     # The same settings through the command line give the same mesh.
     cli_run = tmp_path / "cli"
     args = ["reconstruct", str(builtin_capture), "--out", str(cli_run), "--quiet", "--no-report", "--seed", "1"]
@@ -41,13 +71,13 @@ def test_reconstruct_improves_on_its_start(builtin_capture, builtin_truth, tmp_p
         args += ["--set", f"schedule.{key}={value}"]
     assert nlos.main(args) == 0
     v, f = nlos.read_mesh(cli_run / "mesh.obj")
-    assert np.array_equal(v, result["vertices"]) and np.array_equal(f, result["faces"])
+    assert np.array_equal(v, result.vertices) and np.array_equal(f, result.faces)
 
 
 def test_a_finished_run_resumes_to_the_same_mesh(builtin_capture, tmp_path):
     first = nlos.reconstruct(builtin_capture, tmp_path, **FAST)
     again = nlos.reconstruct(builtin_capture, tmp_path, resume=True, **FAST)
-    assert np.array_equal(first["vertices"], again["vertices"])
+    assert np.array_equal(first.vertices, again.vertices) and again.log == first.log
     with pytest.raises(nlos.ConfigError, match="shape_iterations"):
         nlos.reconstruct(builtin_capture, tmp_path, resume=True, schedule={**FAST["schedule"], "shape_iterations": 4})
 
@@ -70,19 +100,22 @@ def test_a_progress_callback_that_raises_stops_the_run(builtin_capture):
         nlos.reconstruct(builtin_capture, progress=boom, **FAST)
 
 
-def test_eval_and_mesh_files(builtin_truth, tmp_path):
+def test_evaluate_and_mesh_files(builtin_truth, tmp_path):
     v, f = nlos.read_mesh(builtin_truth)
-    m = nlos.eval((v, f), builtin_truth)
-    assert m["coverage"] == 1.0 and m["depth_error_max"] == 0.0
+    m = nlos.evaluate((v, f), builtin_truth)
+    assert isinstance(m, nlos.Metrics) and m.coverage == 1.0 and m.depth_error_max == 0.0
+    assert m.x_range == (-0.25, 0.25) and nlos.evaluate((v, f), builtin_truth, x_range=(-0.1, 0.2)).x_range == pytest.approx((-0.1, 0.2))
+    with pytest.raises(ValueError, match="x_range"):
+        nlos.evaluate((v, f), builtin_truth, x_range=(0.2, -0.1))
     nlos.write_mesh(tmp_path / "t.ply", v, f)
     v2, f2 = nlos.read_mesh(tmp_path / "t.ply")
     assert np.array_equal(v, v2) and np.array_equal(f, f2)
     with pytest.raises(nlos.MeshError, match="nope.obj"):
         nlos.read_mesh(tmp_path / "nope.obj")
     with pytest.raises(TypeError, match="mesh"):
-        nlos.eval(3.0, builtin_truth)
+        nlos.evaluate(3.0, builtin_truth)
     with pytest.raises(ValueError, match="grid"):
-        nlos.eval((v, f), builtin_truth, grid=0)
+        nlos.evaluate((v, f), builtin_truth, grid=0)
 
 
 def test_an_interrupt_stops_after_the_block_checkpoint_and_the_run_resumes(builtin_capture, tmp_path):
@@ -97,7 +130,7 @@ def test_an_interrupt_stops_after_the_block_checkpoint_and_the_run_resumes(built
     assert (tmp_path / "checkpoint.json").is_file(), "the block's checkpoint is written before stopping"
     assert not (tmp_path / "mesh.obj").exists(), "the run stopped before its end"
     done = nlos.reconstruct(builtin_capture, tmp_path, resume=True, **DEMO)
-    assert done["stop"] != "interrupted" and len(done["faces"]) > 0
+    assert done.stop != "interrupted" and len(done.faces) > 0
 
 
 def test_sigint_during_the_run_stops_it_after_the_block_checkpoint(builtin_capture, tmp_path):
@@ -181,5 +214,5 @@ def test_the_cli_and_python_write_the_same_run_directory_and_resume_each_others_
     assert _log_without_times(mixed_dir) == _log_without_times(cli_dir)
     # And the finished command-line run resumes from Python without settings: its own are used, unchanged.
     again = nlos.reconstruct(builtin_capture, cli_dir, resume=True)
-    assert len(again["faces"]) > 0 and (mixed_dir / "settings.toml").read_bytes() == settings
+    assert len(again.faces) > 0 and (mixed_dir / "settings.toml").read_bytes() == settings
     assert (cli_dir / "settings.toml").read_bytes() == settings

@@ -133,3 +133,49 @@ def test_no_panic_reaches_python_on_degenerate_input():
         nlos.confocal_setup(n=0)
     with pytest.raises(ValueError):
         nlos.confocal_setup(bins=0)
+
+
+def test_reflectance_is_settable_and_fits_by_its_gradients():
+    v, f = random_triangles(5)
+    setup = small_setup()
+    truth = nlos.Renderer(v, f, setup, brdf="ggx", albedo=0.4, alpha=0.25, specular=0.6)
+    measured = truth.forward()
+    r = nlos.Renderer(v, f, setup, brdf="ggx", albedo=0.7, alpha=0.25, specular=0.6)
+    assert r.reflectance["albedo_diffuse"] == pytest.approx(0.7) and set(r.reflectance) == set(r.brdf_params)
+    # Sign descent on the diffuse albedo alone (the step halves whenever the gradient turns), through
+    # set_reflectance and the gradients' own parameter names.
+    losses, step, previous = [], 0.1, 0.0
+    for _ in range(30):
+        loss, _, grads = r.loss_and_grad(measured)
+        losses.append(loss)
+        g = grads["albedo_diffuse"]
+        if g * previous < 0:
+            step *= 0.5
+        previous = g
+        r.set_reflectance({"albedo_diffuse": r.reflectance["albedo_diffuse"] - step * np.sign(g)})
+    assert losses[-1] < 0.05 * losses[0]
+    assert r.reflectance["albedo_diffuse"] == pytest.approx(0.4, abs=0.02)
+    assert r.reflectance["alpha"] == pytest.approx(0.25), "the parameters not set keep their values"
+    with pytest.raises(ValueError, match='reflectance: "roughness"'):
+        r.set_reflectance({"roughness": 0.1})
+    with pytest.raises(ValueError, match="reflectance"):
+        r.set_reflectance({"alpha": -1.0})
+
+
+def test_refresh_visibility_follows_the_vertices():
+    # Two triangles, one behind the other: moving the front one aside uncovers the back one only once
+    # the cached visibility is recomputed.
+    front = np.array([[-0.3, -0.3, 0.3], [0.3, -0.3, 0.3], [0.0, 0.3, 0.3]], dtype=np.float32)
+    back = front + np.array([0.0, 0.0, 0.2], dtype=np.float32)
+    v = np.concatenate([front, back])
+    f = np.array([[0, 2, 1], [3, 5, 4]])
+    setup = nlos.confocal_setup(n=3, half_width=0.05, bins=200, dt=0.01, t0=0.0)
+    r = nlos.Renderer(v, f, setup)
+    moved = v.copy()
+    moved[:3, 0] += 5.0  # the front triangle far to the side
+    r.set_vertices(moved)
+    stale = r.forward()
+    r.refresh_visibility()
+    fresh = r.forward()
+    exact = nlos.Renderer(moved, f, setup).forward()
+    assert np.array_equal(fresh, exact) and fresh.sum() > 1.5 * stale.sum()

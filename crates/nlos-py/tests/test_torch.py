@@ -58,3 +58,22 @@ def test_the_example_lowers_its_loss_on_a_shared_capture(tmp_path):
     example = runpy.run_path(str(WORKSPACE / "examples" / "python" / "fit_mesh_torch.py"))
     _, _, losses = example["fit"](path, steps=10)
     assert losses[-1] < losses[0], losses
+
+
+def test_the_layer_refreshes_visibility_after_large_moves():
+    # The front triangle of two moves aside: with `refresh` the layer renders what a new renderer does;
+    # with refresh=None it keeps the visibility of its first vertices.
+    front = np.array([[-0.3, -0.3, 0.3], [0.3, -0.3, 0.3], [0.0, 0.3, 0.3]], dtype=np.float32)
+    v = np.concatenate([front, front + np.array([0.0, 0.0, 0.2], dtype=np.float32)])
+    f = np.array([[0, 2, 1], [3, 5, 4]])
+    setup = nlos.confocal_setup(n=3, half_width=0.05, bins=200, dt=0.01, t0=0.0)
+    moved = v.copy()
+    moved[:3, 0] += 5.0
+    exact = nlos.Renderer(moved, f, setup).forward()
+    layer, frozen = nlos.torch.RenderLayer(f, setup), nlos.torch.RenderLayer(f, setup, refresh=None)
+    for lay in (layer, frozen):
+        lay(torch.tensor(v))
+    assert np.array_equal(layer(torch.tensor(moved)).numpy(), exact)
+    assert frozen(torch.tensor(moved)).numpy().sum() < 0.7 * exact.sum()
+    with pytest.raises(ValueError, match="refresh"):
+        nlos.torch.RenderLayer(f, setup, refresh=0.0)

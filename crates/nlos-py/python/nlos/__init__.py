@@ -6,13 +6,18 @@ pipeline as ``nlos reconstruct`` on the command line. Every heavy step is Rust, 
 
 Units: metres; time is path length (laser spot -> hidden point -> sensor spot); the relay wall is the
 plane z = 0 with the hidden scene at z > 0.
+
+Axis orders, the same everywhere: a capture's ``data`` is ``[measurement, bin]`` with measurement
+``ix + nx * iy`` on a grid (so ``data.reshape(ny, nx, bins)`` is ``[iy, ix, bin]``); a volume is
+``[iy, ix, iz]``; vertices are ``(n, 3)`` float32 ``(x, y, z)`` rows and faces ``(m, 3)`` vertex indices.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
-from typing import Any, Callable, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -47,8 +52,11 @@ __all__ = [
     "Renderer",
     "__version__",
     "confocal_setup",
+    "Metrics",
+    "Reconstruction",
+    "Volume",
     "default_settings",
-    "eval",
+    "evaluate",
     "fbp",
     "fk",
     "initial_surface",
@@ -114,23 +122,43 @@ def _settings_json(settings: Dict[str, Any]) -> str:
     return json.dumps(settings)
 
 
-def lct(capture: Capture, snr: Optional[float] = None) -> Tuple[np.ndarray, Dict[str, Tuple[float, float]]]:
-    """Light-cone transform (O'Toole et al. 2018) of a confocal capture.
+@dataclasses.dataclass(frozen=True)
+class Volume:
+    """A volumetric reconstruction: ``data[iy, ix, iz]`` (float32, C-contiguous; the ``(y, x)`` order of a
+    grid capture's ``data.reshape(ny, nx, bins)``), and per axis the first voxel centre and the spacing,
+    metres."""
 
-    Returns ``(volume, axes)``: ``volume[ix, iy, iz]`` (float32) and, for ``"x"``, ``"y"``, ``"z"``, the
-    first voxel centre and the spacing in metres.
-    """
-    return _nlos.volume(capture, "lct", snr)
+    data: np.ndarray
+    x: Tuple[float, float]
+    y: Tuple[float, float]
+    z: Tuple[float, float]
+
+    def centres(self, axis: str) -> np.ndarray:
+        """Voxel centres along ``"x"``, ``"y"`` or ``"z"``, metres."""
+        first, step = {"x": self.x, "y": self.y, "z": self.z}[axis]
+        n = self.data.shape[{"y": 0, "x": 1, "z": 2}[axis]]
+        return first + step * np.arange(n)
 
 
-def fk(capture: Capture) -> Tuple[np.ndarray, Dict[str, Tuple[float, float]]]:
-    """f-k migration (Lindell et al. 2019) of a confocal capture; see :func:`lct` for the result."""
-    return _nlos.volume(capture, "fk")
+def _volume(capture: Capture, method: str, snr: Optional[float] = None) -> Volume:
+    data, axes = _nlos.volume(capture, method, snr)
+    return Volume(data, x=tuple(axes["x"]), y=tuple(axes["y"]), z=tuple(axes["z"]))
 
 
-def fbp(capture: Capture) -> Tuple[np.ndarray, Dict[str, Tuple[float, float]]]:
-    """Filtered back-projection of a capture; see :func:`lct` for the result."""
-    return _nlos.volume(capture, "fbp")
+def lct(capture: Capture, snr: Optional[float] = None) -> Volume:
+    """Light-cone transform (O'Toole et al. 2018) of a confocal capture, prepared as ``nlos reconstruct``
+    prepares it (direct light gated)."""
+    return _volume(capture, "lct", snr)
+
+
+def fk(capture: Capture) -> Volume:
+    """f-k migration (Lindell et al. 2019) of a confocal capture; see :func:`lct`."""
+    return _volume(capture, "fk")
+
+
+def fbp(capture: Capture) -> Volume:
+    """Filtered back-projection of a capture; see :func:`lct`."""
+    return _volume(capture, "fbp")
 
 
 def _capture(capture: Union[Capture, PathLike]) -> Capture:
@@ -152,7 +180,7 @@ def reconstruct(
     resume: bool = False,
     progress: Optional[Callable[[Dict[str, Any]], None]] = None,
     **settings: Any,
-) -> Dict[str, Any]:
+) -> "Reconstruction":
     """Reconstructs the hidden surface with the pipeline of ``nlos reconstruct``.
 
     Parameters
@@ -174,9 +202,7 @@ def reconstruct(
 
     Returns
     -------
-    dict
-        ``vertices`` (n, 3) float32, ``faces`` (m, 3) uint32, ``reflectance`` and ``log`` (dicts),
-        ``stop`` (why it ended), ``scale`` and ``notes`` (what the pipeline decided).
+    Reconstruction
 
     Raises
     ------
@@ -192,20 +218,100 @@ def reconstruct(
         resume,
         progress,
     )
-    for key in ("reflectance", "log", "stop"):
-        result[key] = json.loads(result[key])
-    return result
+    return Reconstruction(
+        vertices=result["vertices"],
+        faces=result["faces"],
+        reflectance=json.loads(result["reflectance"]),
+        scale=float(result["scale"]),
+        stop=json.loads(result["stop"]),
+        notes=list(result["notes"]),
+        log=json.loads(result["log"]),
+    )
 
 
-def eval(  # noqa: A001 - the name of the command it mirrors
-    mesh: Union[Mesh, PathLike], gt: Union[Mesh, PathLike], grid: int = 128
-) -> Dict[str, Any]:
-    """The metrics of ``nlos eval``: coverage and depth errors on a ``grid`` x ``grid`` +z ray grid over
-    [-0.25, 0.25]^2 m, Chamfer and Hausdorff distances, normal error (lengths in metres).
+@dataclasses.dataclass(frozen=True)
+class Reconstruction:
+    """The outcome of :func:`reconstruct`."""
 
-    ``mesh`` and ``gt`` are paths or ``(vertices, faces)`` pairs.
+    #: (n, 3) float32 vertex positions, metres.
+    vertices: np.ndarray
+    #: (m, 3) uint32 vertex indices, each face facing the wall.
+    faces: np.ndarray
+    #: The fitted reflectance (model and parameters).
+    reflectance: Dict[str, Any]
+    #: The measurement's scale against the rendering (solved in closed form).
+    scale: float
+    #: Why the run ended: ``"max_stages"``, ``"face_limit"``, ``"time_budget"`` or ``"interrupted"``.
+    stop: str
+    #: What the pipeline decided from the capture (gate, last return, sensor fit).
+    notes: List[str]
+    #: The run log (every iteration's loss, the stages' edge lengths, pruning and residual records).
+    log: Dict[str, Any]
+
+    @property
+    def mesh(self) -> Mesh:
+        """``(vertices, faces)``, as :func:`evaluate` and :func:`write_mesh` take it."""
+        return self.vertices, self.faces
+
+
+@dataclasses.dataclass(frozen=True)
+class Metrics:
+    """The metrics of ``nlos eval`` (lengths in metres, angles in degrees): on a ``grid`` x ``grid`` +z ray
+    grid over ``x_range`` x ``y_range`` of the wall, the coverage (share of the truth's pixels the
+    reconstruction hits), the coverage within ``coverage_threshold`` of the truth's depth, depth errors
+    (``_interior``: pixels at least 3 px inside the truth's silhouette); Chamfer and Hausdorff distances;
+    the normal error."""
+
+    grid: int
+    x_range: Tuple[float, float]
+    y_range: Tuple[float, float]
+    gt_pixels: int
+    reconstruction_pixels: int
+    both_pixels: int
+    coverage: float
+    coverage_within: float
+    coverage_threshold: float
+    depth_error_mean: float
+    depth_error_median: float
+    depth_error_rms: float
+    depth_error_max: float
+    interior_pixels: int
+    depth_error_mean_interior: float
+    depth_error_mean_silhouette: float
+    chamfer: float
+    mean_reconstruction_to_gt: float
+    mean_gt_to_reconstruction: float
+    hausdorff: float
+    normal_error_mean_deg: float
+    normal_error_rms_deg: float
+
+
+def evaluate(
+    mesh: Union[Mesh, PathLike, Reconstruction],
+    gt: Union[Mesh, PathLike],
+    grid: int = 128,
+    *,
+    capture: Optional[Capture] = None,
+    x_range: Optional[Tuple[float, float]] = None,
+    y_range: Optional[Tuple[float, float]] = None,
+) -> Metrics:
+    """The metrics of ``nlos eval`` for ``mesh`` against the ground truth ``gt`` (paths, ``(vertices,
+    faces)`` pairs, or a :class:`Reconstruction`).
+
+    The ray grid covers the wall rectangle of ``capture``'s scan points (from one outermost point to the
+    other), or ``x_range`` x ``y_range`` (metres), or by default [-0.25, 0.25]^2 m.
     """
-    return json.loads(_nlos.evaluate(mesh, gt, grid))
+    if isinstance(mesh, Reconstruction):
+        mesh = mesh.mesh
+    if capture is not None:
+        if x_range is not None or y_range is not None:
+            raise ValueError("capture: give the capture or x_range/y_range, not both")
+        points = capture.scan_points
+        x_range = (float(points[:, 0].min()), float(points[:, 0].max()))
+        y_range = (float(points[:, 1].min()), float(points[:, 1].max()))
+    values = json.loads(_nlos.evaluate(mesh, gt, grid, x_range, y_range))
+    values["x_range"], values["y_range"] = tuple(values["x_range"]), tuple(values["y_range"])
+    return Metrics(**values)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

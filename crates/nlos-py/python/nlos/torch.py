@@ -2,7 +2,8 @@
 adjoint (Proposition 1 of Tsai et al. 2019), so a mesh's vertices can be fitted inside any PyTorch
 optimisation.
 
-Gradients flow to the vertices; the faces, the setup and the reflectance are fixed per layer. Tensors are
+Gradients flow to the vertices; the faces and the setup are fixed per layer, the reflectance is set on
+its renderer. Tensors are
 float32 on the CPU (others are converted); the rendering shares its memory with NumPy (no copy).
 
 Example
@@ -52,22 +53,40 @@ class RenderLayer(torch.nn.Module):
     """A rendering layer for one mesh connectivity and one setup: ``layer(vertices)`` is the transient
     (measurements x bins), differentiable with respect to ``vertices`` (n, 3).
 
-    The renderer (and its visibility cache) is built once, from the first vertices seen; keyword
-    arguments are those of :class:`nlos.Renderer` (``brdf``, ``albedo``, ``alpha``, ``kernel``,
-    ``sampling``, ``visibility``, ...).
+    The renderer is built once, from the first vertices seen; keyword arguments are those of
+    :class:`nlos.Renderer` (``brdf``, ``albedo``, ``alpha``, ``kernel``, ``sampling``, ``visibility``, ...).
+    Its visibility cache (which triangle sees which wall spot) is recomputed whenever a vertex has moved
+    more than ``refresh`` times the mesh's mean edge length since it was last computed (``None``: never,
+    as the reconstruction loop keeps it within a block). The reflectance is ``layer.renderer.reflectance``;
+    set it with ``layer.renderer.set_reflectance`` (the adjoint's gradients name the same parameters).
     """
 
-    def __init__(self, faces: Any, setup: Capture, **renderer_options: Any) -> None:
+    def __init__(self, faces: Any, setup: Capture, *, refresh: float | None = 0.5, **renderer_options: Any) -> None:
         super().__init__()
+        if refresh is not None and not refresh > 0:
+            raise ValueError(f"refresh: {refresh!r} must be a positive fraction of an edge, or None")
         self.faces = np.ascontiguousarray(np.asarray(faces, dtype=np.int64))
         self.setup = setup
         self.options = renderer_options
+        self.refresh = refresh
         self.renderer: Renderer | None = None
+        #: The vertices at which the visibility cache was last computed.
+        self.visibility_at: np.ndarray | None = None
+        self._edge = 0.0
 
     def forward(self, vertices: torch.Tensor) -> torch.Tensor:
+        v = vertices.detach().to(dtype=torch.float32, device="cpu").contiguous().numpy()
         if self.renderer is None:
-            v = vertices.detach().to(dtype=torch.float32, device="cpu").numpy()
             self.renderer = Renderer(v, self.faces, self.setup, **self.options)
+            self.visibility_at = v.copy()
+            corners = v[self.faces]
+            self._edge = float(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean())
+        elif self.refresh is not None and self.visibility_at is not None:
+            moved = float(np.sqrt(((v - self.visibility_at) ** 2).sum(axis=1).max(initial=0.0)))
+            if moved > self.refresh * self._edge:
+                self.renderer.set_vertices(v)
+                self.renderer.refresh_visibility()
+                self.visibility_at = v.copy()
         return _Render.apply(vertices, self.renderer)
 
 
