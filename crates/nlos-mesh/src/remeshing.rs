@@ -11,6 +11,11 @@
 //!
 //! Preconditions: a valid, non-empty mesh with finite positions. The input surface is copied as the
 //! projection reference, so the result stays within a fraction of `L` of it.
+//!
+//! **Why one file of ~1,100 lines.** It is one algorithm (Botsch & Kobbelt's isotropic remeshing, as
+//! pmp-library's `uniform_remeshing`): split long edges, collapse short ones, equalise valences by flips,
+//! tangential smoothing, projection, with the boundary and feature rules they share; the steps are methods
+//! of one remesher state (the sizing field and the projection reference) and read as the paper's loop.
 
 use glam::Vec3;
 

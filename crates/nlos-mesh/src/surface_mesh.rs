@@ -8,6 +8,12 @@
 //!
 //! Deletion marks elements and keeps the arrays; [`SurfaceMesh::garbage_collect`] compacts them and
 //! returns the remap. Iterators skip deleted elements.
+//!
+//! **Why one file of ~1,100 lines.** It is one data structure: the half-edge connectivity and its
+//! invariants (opposite pairs, next/previous cycles, vertex and face handles, boundary links). Every
+//! operation here keeps them and reads the same private arrays; split, checking one invariant would mean
+//! reading every module that touches the arrays. The algorithms on top (remeshing, queries, metrics) live
+//! in their own files.
 
 use glam::Vec3;
 

@@ -43,6 +43,11 @@
 //! ```
 //! ([`expected_half_deviance`]: the series for μ ≤ 50, `½ + 1/(12μ) + 1/(12μ²)` above; McCullagh &
 //! Nelder 1989, §6.2), and the optimiser weighs the regulariser against `E − E_floor` instead of `E`.
+//!
+//! **Why one file of ~850 lines.** It is one data term: its value and gradient, its noise floor and the
+//! per-row forms the boundary tests use all read the same per-measurement constants and the same response
+//! operator, and must stay the same function of them; split, a change to one form could not be checked
+//! against the others in one reading. The tests at the bottom check them against each other.
 
 use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse, SpadModel, estimate_background};

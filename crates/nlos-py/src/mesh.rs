@@ -80,7 +80,8 @@ pub(crate) fn evaluate(
         ))),
     };
     let defaults = EvalParams::default();
-    let (x_range, y_range) = (range("x_range", x_range, defaults.x_range)?, range("y_range", y_range, defaults.y_range)?);
+    let (x_range, y_range) =
+        (range("x_range", x_range, defaults.x_range)?, range("y_range", y_range, defaults.y_range)?);
     let (reconstruction, truth) = (mesh_arg("mesh", mesh)?, mesh_arg("gt", gt)?);
     let params = EvalParams { grid, x_range, y_range, ..defaults };
     let metrics = py.detach(|| eval_meshes(&reconstruction, &truth, &params)).map_err(errors::mesh)?;

@@ -191,7 +191,8 @@ impl Renderer {
             let Some(i) = names.iter().position(|n| *n == key) else {
                 return Err(PyValueError::new_err(format!("reflectance: {key:?} is not one of {names:?}")));
             };
-            p[i] = value.extract().map_err(|_| PyValueError::new_err(format!("reflectance: {key} must be a number")))?;
+            p[i] =
+                value.extract().map_err(|_| PyValueError::new_err(format!("reflectance: {key} must be a number")))?;
         }
         self.brdf = self.brdf.with_params(&p).map_err(|e| PyValueError::new_err(format!("reflectance: {e}")))?;
         Ok(())

@@ -1,0 +1,487 @@
+//! The settings users give a reconstruction ([`Config`]): every field with its default, read and written as
+//! TOML with a comment above each field ([`FIELD_DOCS`]).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use nlos_init::Material;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{OptimError, Result};
+use nlos_render::SplatRule;
+
+use crate::{PruneParams, ReconstructParams, ResidualParams, Schedule};
+
+/// `"auto"` or `"off"` where a setting also takes a number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Word {
+    /// Decided from the capture.
+    Auto,
+    /// Not applied.
+    Off,
+}
+
+/// A setting that is `"auto"`, `"off"` or a number (its unit is the field's).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Setting {
+    /// `"auto"` or `"off"`.
+    Word(Word),
+    /// A number.
+    Value(f64),
+}
+
+impl Setting {
+    /// `"auto"`.
+    pub const AUTO: Self = Self::Word(Word::Auto);
+    /// `"off"`.
+    pub const OFF: Self = Self::Word(Word::Off);
+}
+
+impl fmt::Display for Setting {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Word(Word::Auto) => f.write_str("auto"),
+            Self::Word(Word::Off) => f.write_str("off"),
+            Self::Value(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+/// Where the optimisation starts.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(from = "String", into = "String")]
+pub enum InitMethod {
+    /// The light-cone transform's volume, extracted with the settings for compact objects
+    /// ([`nlos_init::SurfaceParams::object`]).
+    Lct,
+    /// The f-k migration's volume.
+    Fk,
+    /// Space carving from first returns.
+    Carve,
+    /// A mesh file (OBJ, PLY, GLB) whose faces face the wall.
+    Mesh(PathBuf),
+}
+
+impl FromStr for InitMethod {
+    type Err = std::convert::Infallible;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Ok(match s {
+            "lct" => Self::Lct,
+            "fk" => Self::Fk,
+            "carve" => Self::Carve,
+            path => Self::Mesh(path.into()),
+        })
+    }
+}
+
+impl From<String> for InitMethod {
+    fn from(s: String) -> Self {
+        match s.parse() {
+            Ok(m) => m,
+            Err(e) => match e {},
+        }
+    }
+}
+
+impl From<InitMethod> for String {
+    fn from(m: InitMethod) -> Self {
+        m.to_string()
+    }
+}
+
+impl fmt::Display for InitMethod {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Lct => f.write_str("lct"),
+            Self::Fk => f.write_str("fk"),
+            Self::Carve => f.write_str("carve"),
+            Self::Mesh(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+/// The sensor's timing response the counts are fitted through ([`crate::SensorFit`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(from = "String", into = "String")]
+pub enum SensorChoice {
+    /// `direct` for photon counts that hold a direct reflection (real captures), `off` otherwise.
+    Auto,
+    /// An L2 fit of intensities.
+    Off,
+    /// A sensor without jitter.
+    Ideal,
+    /// The capture's own response, taken from its direct reflection off the wall
+    /// ([`nlos_transient::sensor::JitterResponse::from_direct_return`]).
+    Direct,
+    /// A jitter file ([`nlos_transient::sensor::JitterResponse::load`]).
+    File(PathBuf),
+}
+
+impl FromStr for SensorChoice {
+    type Err = std::convert::Infallible;
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        Ok(match s {
+            "auto" => Self::Auto,
+            "off" => Self::Off,
+            "ideal" => Self::Ideal,
+            "direct" => Self::Direct,
+            path => Self::File(path.into()),
+        })
+    }
+}
+
+impl From<String> for SensorChoice {
+    fn from(s: String) -> Self {
+        match s.parse() {
+            Ok(m) => m,
+            Err(e) => match e {},
+        }
+    }
+}
+
+impl From<SensorChoice> for String {
+    fn from(m: SensorChoice) -> Self {
+        m.to_string()
+    }
+}
+
+impl fmt::Display for SensorChoice {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Auto => f.write_str("auto"),
+            Self::Off => f.write_str("off"),
+            Self::Ideal => f.write_str("ideal"),
+            Self::Direct => f.write_str("direct"),
+            Self::File(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+/// The reflectance model fitted alongside the shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BrdfModel {
+    /// One albedo.
+    #[default]
+    Lambert,
+    /// GGX microfacet lobe (albedo, specular weight, roughness α), α starting at [`ReflectanceConfig::alpha`].
+    Ggx,
+    /// A retroreflector (`nlos_brdf::Retroreflective`): the confocal return falls as `1/r²`; the LCT start
+    /// is weighted for it.
+    Retroreflective,
+}
+
+impl BrdfModel {
+    /// The LCT weighting of the model's start: retroreflective for `retroreflective`, else diffuse.
+    pub fn material(self) -> Material {
+        if self == BrdfModel::Retroreflective { Material::Retroreflective } else { Material::Diffuse }
+    }
+}
+
+/// The noise model of the smoothing weight ([`crate::DataTerm::counts`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Noise {
+    /// `counts` when every value is a non-negative integer.
+    #[default]
+    Auto,
+    /// Poisson photon counts: λ is set against the misfit above the noise floor.
+    Counts,
+    /// λ against the whole data term (Tsai et al. 2019's rule).
+    None,
+}
+
+/// How the surface's visibility from the wall is computed ([`nlos_render::Visibility`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VisibilityChoice {
+    /// One shadow ray per face and measurement, recomputed after every remeshing.
+    #[default]
+    Cached,
+    /// Per sample: exact, slow.
+    Live,
+    /// No occlusion: right for height fields only.
+    Off,
+}
+
+/// How the capture is prepared before anything else.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CaptureConfig {
+    /// Sum this many consecutive bins (1: as captured).
+    pub rebin: usize,
+    /// Keep every k-th scan row and column of the fitted data (1: all; the initial surface always sees all).
+    pub subsample: usize,
+    /// Zero the bins before this path length (metres): the direct reflection off the wall is in no
+    /// three-bounce rendering. `"auto"`: where the direct light ends in the summed histogram (a capture
+    /// without direct light is left as it is); `"off"`: keep every bin.
+    pub gate: Setting,
+    /// Fit no bin whose path exceeds twice this depth (metres). `"auto"`: not the bins after the last
+    /// return, where the summed histogram holds only background (plus 5 %), and the initial surface takes no
+    /// voxel beyond that depth; `"off"`: the whole axis.
+    pub max_depth: Setting,
+}
+
+impl Default for CaptureConfig {
+    fn default() -> Self {
+        Self { rebin: 1, subsample: 1, gate: Setting::AUTO, max_depth: Setting::AUTO }
+    }
+}
+
+/// The reflectance model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReflectanceConfig {
+    /// `"lambert"`, `"ggx"` or `"retroreflective"` ([`BrdfModel`]).
+    pub model: BrdfModel,
+    /// Initial GGX roughness α, in [0.001, 1] (with `"ggx"`).
+    pub alpha: f32,
+}
+
+impl Default for ReflectanceConfig {
+    fn default() -> Self {
+        Self { model: BrdfModel::Lambert, alpha: 0.3 }
+    }
+}
+
+/// The data term's noise model and sensor fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorConfig {
+    /// `"auto"`, `"off"`, `"ideal"`, `"direct"` or a jitter file ([`SensorChoice`]).
+    pub response: SensorChoice,
+    /// Background of the sensor fit in counts per bin, or `"auto"`: estimated from the bins before the first
+    /// return of the capture as read.
+    pub background: Setting,
+    /// `"auto"`, `"counts"` or `"none"` ([`Noise`]).
+    pub noise: Noise,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        Self { response: SensorChoice::Auto, background: Setting::AUTO, noise: Noise::Auto }
+    }
+}
+
+/// The optimiser's steps and regularisers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OptimiserConfig {
+    /// Learning rate of interior vertices, as a fraction of the stage's target edge length per Adam step.
+    pub lr_interior: f64,
+    /// Learning rate of boundary vertices, same unit.
+    pub lr_boundary: f64,
+    /// Learning rate of the reflectance parameters.
+    pub lr_reflectance: f64,
+    /// β of the automatic normal-smoothing weight λ = β·E_data/R at the start of each block.
+    pub smoothing: f64,
+    /// Weight of boundary smoothing relative to normal smoothing (0: off).
+    pub boundary_smoothing: f64,
+}
+
+impl Default for OptimiserConfig {
+    fn default() -> Self {
+        let p = ReconstructParams::default();
+        Self {
+            lr_interior: p.lr_interior,
+            lr_boundary: p.lr_boundary,
+            lr_reflectance: p.lr_reflectance,
+            smoothing: p.regulariser_ratio,
+            boundary_smoothing: p.boundary_smoothing,
+        }
+    }
+}
+
+/// The renderer.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderConfig {
+    /// `"cached"`, `"live"` or `"off"` ([`VisibilityChoice`]).
+    pub visibility: VisibilityChoice,
+    /// Largest subdivision level of the closed-form time integration ([`SplatRule::max_level`], 1 to 64).
+    pub max_level: u32,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        Self { visibility: VisibilityChoice::Cached, max_level: SplatRule::default().max_level }
+    }
+}
+
+/// The boundary steps after every block: pruning, and the residual's new patches.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BoundaryConfig {
+    /// Rounds of boundary pruning ([`crate::prune`]; 0: none).
+    pub prune_rounds: u32,
+    /// Margin κ of the pruning test (a face goes when ΔE < −κ·½c).
+    pub prune_margin: f64,
+    /// Residual back-projection after the first `residual_stages` stages ([`crate::residual`]; 0: none;
+    /// confocal grid scans only).
+    pub residual_stages: u32,
+    /// Residual columns closer than this to the mesh are left to the shape steps (metres).
+    pub residual_separation: f64,
+    /// Margin κ of the residual patches' test.
+    pub residual_margin: f64,
+    /// Tilts (degrees) of the residual patches' normals away from the wall normal.
+    pub residual_tilts: Vec<f64>,
+}
+
+impl Default for BoundaryConfig {
+    fn default() -> Self {
+        let (prune, residual) = (PruneParams::default(), ResidualParams::default());
+        Self {
+            prune_rounds: prune.rounds,
+            prune_margin: prune.margin,
+            residual_stages: residual.stages.unwrap_or(u32::MAX),
+            residual_separation: residual.separation,
+            residual_margin: residual.margin,
+            residual_tilts: residual.tilts,
+        }
+    }
+}
+
+/// Every setting of a reconstruction, as `nlos reconstruct --config` reads it (TOML; every field optional,
+/// defaults as [`Config::default`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// Seed of the run (a run is a deterministic function of its inputs and seed).
+    pub seed: u64,
+    /// Where the optimisation starts: `"lct"`, `"fk"`, `"carve"` or a mesh file ([`InitMethod`]).
+    pub init: InitMethod,
+    /// Spatially varying albedo ([`crate::albedo`]): cells of this size (metres) over the wall plane, or
+    /// `"off"` (one albedo). For objects with printed patterns.
+    pub albedo_map: Setting,
+    /// Capture preparation.
+    pub capture: CaptureConfig,
+    /// Reflectance model.
+    pub reflectance: ReflectanceConfig,
+    /// Noise model and sensor fit.
+    pub sensor: SensorConfig,
+    /// The coarse-to-fine schedule ([`Schedule`]).
+    pub schedule: Schedule,
+    /// Learning rates and regularisers.
+    pub optimiser: OptimiserConfig,
+    /// Renderer.
+    pub render: RenderConfig,
+    /// Boundary steps.
+    pub boundary: BoundaryConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            init: InitMethod::Lct,
+            albedo_map: Setting::OFF,
+            capture: CaptureConfig::default(),
+            reflectance: ReflectanceConfig::default(),
+            sensor: SensorConfig::default(),
+            schedule: Schedule::default(),
+            optimiser: OptimiserConfig::default(),
+            render: RenderConfig::default(),
+            boundary: BoundaryConfig::default(),
+        }
+    }
+}
+
+pub(super) fn config_error(field: &str, reason: impl Into<String>) -> OptimError {
+    OptimError::Config { field: field.to_owned(), reason: reason.into() }
+}
+
+impl Config {
+    /// Reads a configuration from TOML text; absent fields keep their defaults.
+    ///
+    /// # Errors
+    /// [`OptimError::Config`] for malformed TOML, an unknown field or a value of the wrong type (the
+    /// message names the line and the field).
+    pub fn from_toml(text: &str) -> Result<Self> {
+        toml::from_str(text).map_err(|e| config_error("config", e.to_string().trim_end().to_owned()))
+    }
+
+    /// Reads a configuration file ([`Config::from_toml`]).
+    ///
+    /// # Errors
+    /// [`OptimError::Io`] when the file cannot be read, and those of [`Config::from_toml`] (naming the file).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|source| OptimError::Io { path: path.to_owned(), source })?;
+        Self::from_toml(&text).map_err(|e| match e {
+            OptimError::Config { reason, .. } => config_error(&path.display().to_string(), reason),
+            e => e,
+        })
+    }
+
+    /// The configuration as TOML: every field, each under a comment that says what it is ([`FIELD_DOCS`]),
+    /// so that `--print-config` documents the defaults.
+    ///
+    /// # Errors
+    /// [`OptimError::Config`] when a value has no TOML form (a non-finite number).
+    pub fn to_toml(&self) -> Result<String> {
+        // Serialised by `toml` (its number formats: an f32 setting prints as written), then commented through
+        // the document model of `toml_edit`.
+        let plain = toml::to_string(self).map_err(|e| config_error("config", e.to_string()))?;
+        let mut doc: toml_edit::DocumentMut = plain.parse().map_err(|e| config_error("config", format!("{e}")))?;
+        doc.decor_mut()
+            .set_prefix("# nlos reconstruct settings (`--config FILE`); absent fields keep their defaults.\n");
+        for (path, text) in FIELD_DOCS {
+            let (table, key) = match path.split_once('.') {
+                Some((section, key)) => (doc.get_mut(section).and_then(toml_edit::Item::as_table_like_mut), key),
+                None => (Some(doc.as_table_mut() as &mut dyn toml_edit::TableLike), *path),
+            };
+            if let Some(mut key) = table.and_then(|t| t.key_mut(key)) {
+                key.leaf_decor_mut().set_prefix(format!("# {text}\n"));
+            }
+        }
+        Ok(doc.to_string())
+    }
+}
+
+/// One line per setting, for the comments of [`Config::to_toml`] (the fields' rustdoc says more).
+pub const FIELD_DOCS: &[(&str, &str)] = &[
+    ("seed", "seed of the run: a run is a deterministic function of its inputs and seed"),
+    ("init", "initial surface: \"lct\", \"fk\", \"carve\" or a mesh file (OBJ/PLY/GLB) facing the wall"),
+    ("albedo_map", "albedo map over the wall plane: cell size in metres, or \"off\" (one albedo)"),
+    ("capture.rebin", "sum this many consecutive bins first (1: as captured)"),
+    ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
+    ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),
+    ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
+    (
+        "reflectance.model",
+        "\"lambert\", \"ggx\" or \"retroreflective\" (1/r² confocal return; LCT start weighted for it)",
+    ),
+    ("reflectance.alpha", "initial GGX roughness, in [0.001, 1]"),
+    ("sensor.response", "\"auto\", \"off\" (L2), \"ideal\", \"direct\" (the capture's own) or a jitter file"),
+    ("sensor.background", "background counts per bin of the sensor fit, or \"auto\""),
+    ("sensor.noise", "noise model of the smoothing weight: \"auto\", \"counts\" or \"none\""),
+    ("schedule.initial_resolution", "first stage: target edge length extent / resolution"),
+    ("schedule.growth", "resolution factor between stages"),
+    ("schedule.extent", "numerator of the target edge length (m)"),
+    ("schedule.max_stages", "coarse-to-fine stages at most"),
+    ("schedule.max_faces", "a stage that would exceed this many faces is not started"),
+    ("schedule.max_blocks_per_stage", "blocks per stage at most"),
+    ("schedule.shape_iterations", "Adam steps on the vertices per block"),
+    ("schedule.reflectance_iterations", "Adam steps on the reflectance per block (0: none)"),
+    ("schedule.rel_tol", "a stage ends when a block lowers the loss by less than this fraction"),
+    ("schedule.time_budget", "seconds of a 2-core machine the blocks may take, predicted from faces (0: none)"),
+    (
+        "schedule.rebin_fraction",
+        "a stage sums bins up to this fraction of its edge length (0: all at the capture's bins)",
+    ),
+    ("optimiser.lr_interior", "step of interior vertices, as a fraction of the stage's edge length"),
+    ("optimiser.lr_boundary", "step of boundary vertices, same unit"),
+    ("optimiser.lr_reflectance", "step of the reflectance parameters"),
+    ("optimiser.smoothing", "β of the normal-smoothing weight λ = β·E_data/R"),
+    ("optimiser.boundary_smoothing", "weight of boundary smoothing relative to normal smoothing (0: off)"),
+    ("render.visibility", "\"cached\" (per face and measurement), \"live\" (exact, slow) or \"off\" (height fields)"),
+    ("render.max_level", "largest subdivision level of the closed-form time integration (1 to 64)"),
+    ("boundary.prune_rounds", "rounds of boundary pruning after every block (0: none)"),
+    ("boundary.prune_margin", "margin κ of the pruning test"),
+    ("boundary.residual_stages", "residual patches after the first N stages (0: none; confocal grids only)"),
+    ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
+    ("boundary.residual_margin", "margin κ of the residual patches' test"),
+    ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),
+];
