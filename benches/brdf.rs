@@ -9,14 +9,11 @@ use nlos_brdf::{Brdf, Fresnel, Ggx, Lambertian, Masking};
 
 const BATCH: usize = 4096;
 
-/// xorshift32 for reproducible inputs.
-struct XorShift(u32);
-impl XorShift {
+/// Reproducible inputs from the workspace's SplitMix64 (`nlos_transient::rng`).
+struct Inputs(nlos_transient::rng::SplitMix64);
+impl Inputs {
     fn f32(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 17;
-        self.0 ^= self.0 << 5;
-        (self.0 >> 8) as f32 / (1u32 << 24) as f32
+        self.0.next_f32()
     }
     fn upper(&mut self) -> Vec3 {
         // Random direction with positive z, random length in [0.5, 2].
@@ -26,7 +23,7 @@ impl XorShift {
 }
 
 fn configs() -> Vec<(Vec3, Vec3, Vec3)> {
-    let mut rng = XorShift(0x9e37_79b9);
+    let mut rng = Inputs(nlos_transient::rng::SplitMix64::new(0x9e37_79b9));
     (0..BATCH)
         .map(|_| {
             let n = Vec3::new(0.1 * (rng.f32() - 0.5), 0.1 * (rng.f32() - 0.5), 1.0);

@@ -18,15 +18,9 @@ fn input() -> (SurfaceMesh, Vec<Vec3>, f32) {
     let m = shapes::height_field(1.0, 1.0, 160, 160, |x, y| 0.05 * (6.0 * x).sin() * (5.0 * y).cos())
         .expect("height field");
     let l = m.mean_edge_length();
-    // SplitMix64: deterministic displacements
-    let mut s = 0x2545_F491_4F6C_DD1Du64;
-    let mut next = || {
-        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = s;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-    };
+    // Deterministic displacements (the workspace's SplitMix64, the same draws as before).
+    let mut rng = nlos_transient::rng::SplitMix64::new(0x2545_F491_4F6C_DD1D);
+    let mut next = || rng.next_f32() * 2.0 - 1.0;
     let d = (0..m.vertices_size()).map(|_| Vec3::new(next(), next(), next()) * (0.1 * l)).collect();
     (m, d, l)
 }

@@ -46,11 +46,8 @@ fn closest_point(c: &mut Criterion) {
     let (lo, hi) = mesh.bounds().expect("non-empty");
     // 10k deterministic query points in the bounding box grown by 10%
     let pad = (hi - lo) * 0.1;
-    let mut s = 0x1234_5678u64;
-    let mut next = || {
-        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (s >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = nlos_transient::rng::SplitMix64::new(0x1234_5678);
+    let mut next = || rng.next_f32();
     let queries: Vec<Vec3> =
         (0..10_000).map(|_| lo - pad + (hi - lo + 2.0 * pad) * Vec3::new(next(), next(), next())).collect();
     // and 10k points within 1 mm of the surface (the remesher's projection queries)

@@ -215,11 +215,10 @@ fn object_growth_stops_at_the_background_noise_floor() {
     let rim = |x: usize, y: usize| (7..17).contains(&x) && (7..17).contains(&y) && !square(x, y);
     let with_background = |background: bool| {
         let mut vol = flat_volume(nx, ny, nz, square, 30);
-        let mut state = 12345u64;
+        let mut rng = nlos_transient::rng::SplitMix64::new(12345);
         for iy in 0..ny {
             for ix in 0..nx {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                let r = (state >> 33) as f32 / (1u64 << 31) as f32;
+                let r = rng.next_f32();
                 if rim(ix, iy) {
                     vol.data[(ix + nx * iy) * nz + 30] = 0.3;
                 } else if background && !square(ix, iy) {

@@ -9,21 +9,17 @@ use nlos_mesh::evolve::{EvolveParams, evolve};
 use nlos_mesh::intersect::self_intersections;
 use nlos_mesh::{MeshError, SurfaceMesh, shapes};
 
-/// SplitMix64: deterministic, dependency-free.
-struct Rng(u64);
+/// The workspace's SplitMix64 (`nlos_transient::rng`), with the draws these tests use.
+struct Rng(nlos_transient::rng::SplitMix64);
 impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+    fn new(seed: u64) -> Self {
+        Self(nlos_transient::rng::SplitMix64::new(seed))
     }
     fn uniform(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.uniform()
+        self.0.range_f32(lo, hi)
     }
     fn vec(&mut self, s: f32) -> Vec3 {
         Vec3::new(self.range(-s, s), self.range(-s, s), self.range(-s, s))
@@ -173,7 +169,7 @@ fn brute(ms: &[Moving; 4], edge: bool, n: usize) -> (Option<f64>, f64) {
 
 #[test]
 fn ccd_matches_brute_force_sampling() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let (mut hits, mut misses, mut skipped) = (0, 0, 0);
     for case in 0..3000 {
         let edge = case % 2 == 1;
@@ -241,7 +237,7 @@ fn two_sheets(n: usize, gap: f32) -> SurfaceMesh {
 
 #[test]
 fn collision_free_motion_is_applied_exactly() {
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 3);
     let before: Vec<Vec3> = m.positions().to_vec();
     // small random displacements (far below the edge length) and a rigid translation: nothing collides
@@ -344,7 +340,7 @@ fn stress(
 /// The bulk of the stress calls: small meshes, so that thousands of large random fields stay cheap. The
 /// mesh goes back to its start shape every `reset` calls (a crumpled mesh mostly jams, which tests less).
 fn stress_bulk(start: &SurfaceMesh, calls: usize, reset: usize, seed: u64, scale: f32, what: &str) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut m = start.clone();
     let mut k = 0;
     while k < calls {
@@ -367,7 +363,7 @@ fn stress_bulk_small_icospheres() {
 fn stress_bulk_small_folded_grids() {
     // a 5×5 open grid (50 faces) folded onto itself, plus random jitter of about an edge length
     let start = shapes::plane_grid(1.0, 1.0, 5, 5);
-    let mut rng = Rng(103);
+    let mut rng = Rng::new(103);
     let mut m = start.clone();
     for block in 0..40 {
         m = if block % 2 == 0 { start.clone() } else { m };
@@ -399,7 +395,7 @@ fn stress_bulk_small_folded_grids() {
 #[test]
 fn stress_icosphere_random_large_displacements() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 2);
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     // per-vertex displacements up to ~3 edge lengths (edges ≈ 0.3): folds everywhere without resolution
     stress(&mut m, 100, &stress_params(), |m, _| (0..m.vertices_size()).map(|_| rng.vec(0.15)).collect(), "icosphere");
 }
@@ -407,7 +403,7 @@ fn stress_icosphere_random_large_displacements() {
 #[test]
 fn stress_open_grid_folded_onto_itself() {
     let mut m = shapes::plane_grid(1.0, 1.0, 8, 8);
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     // fold the right half over the left (x → −x, lifted a little and jittered), in random fractions
     stress(
         &mut m,
@@ -444,7 +440,7 @@ fn remeshed_bunny() -> Option<(SurfaceMesh, f32)> {
 #[test]
 fn stress_remeshed_bunny() {
     let Some((mut m, l)) = remeshed_bunny() else { return };
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let f = |m: &SurfaceMesh, _| (0..m.vertices_size()).map(|_| rng.vec(0.5 * l)).collect();
     stress(&mut m, 12, &stress_params(), f, "bunny");
 }
@@ -456,7 +452,7 @@ fn stress_remeshed_bunny() {
 #[ignore]
 fn stress_remeshed_bunny_long() {
     let Some((mut m, l)) = remeshed_bunny() else { return };
-    let mut rng = Rng(19);
+    let mut rng = Rng::new(19);
     let f = |m: &SurfaceMesh, _| (0..m.vertices_size()).map(|_| rng.vec(0.5 * l)).collect();
     stress(&mut m, 200, &stress_params(), f, "bunny (long)");
 }
@@ -485,7 +481,7 @@ fn thin_fin_survives_an_inward_motion() {
 fn evolve_then_improve_stays_clean_and_valid() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 3);
     let l = m.mean_edge_length();
-    let mut rng = Rng(23);
+    let mut rng = Rng::new(23);
     let params = EvolveParams::with_edge_length(l);
     let mut total = nlos_mesh::evolve::ImproveReport::default();
     for k in 0..20 {
@@ -509,7 +505,7 @@ fn evolve_then_improve_stays_clean_and_valid() {
 fn timing_50k_faces() {
     let mut m = shapes::height_field(1.0, 1.0, 160, 160, |x, y| 0.05 * (6.0 * x).sin() * (5.0 * y).cos()).expect("ok");
     let l = m.mean_edge_length();
-    let mut rng = Rng(29);
+    let mut rng = Rng::new(29);
     let d: Vec<Vec3> = (0..m.vertices_size()).map(|_| rng.vec(0.1 * l)).collect();
     let r = evolve(&mut m, &d, &EvolveParams::with_edge_length(l)).expect("evolves");
     let t = r.timings;
@@ -559,7 +555,7 @@ fn evolve_then_improve_open_surface() {
     let mut m = shapes::height_field(1.0, 1.0, 12, 12, |x, y| 0.1 * (4.0 * x).sin() * (3.0 * y).cos()).expect("ok");
     let l = m.mean_edge_length();
     let params = EvolveParams::with_edge_length(l);
-    let mut rng = Rng(31);
+    let mut rng = Rng::new(31);
     let (lo0, hi0) = m.bounds().expect("non-empty");
     let mut ops = 0;
     for k in 0..15 {

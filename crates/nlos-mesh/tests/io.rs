@@ -166,13 +166,13 @@ property float z\nend_header\n0 zero 0\n",
     );
     expect_format_error(io::read_ply(b"plyformat", "nohead.ply"), "end_header");
     // deterministic byte flips never panic
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rng = nlos_transient::rng::SplitMix64::new(0x9E37_79B9_7F4A_7C15);
     for _ in 0..2000 {
         let mut b = good.clone();
         for _ in 0..4 {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            let i = (state >> 33) as usize % b.len();
-            b[i] = (state >> 17) as u8;
+            let bits = rng.next_u64();
+            let i = (bits >> 33) as usize % b.len();
+            b[i] = (bits >> 17) as u8;
         }
         let _ = io::read_ply(&b, "fuzz.ply");
     }

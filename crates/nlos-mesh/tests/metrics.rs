@@ -6,11 +6,14 @@ use nlos_mesh::bvh::ray_triangle;
 use nlos_mesh::metrics::{EvalParams, SILHOUETTE_BAND, depth_map, evaluate, interior_mask};
 use nlos_mesh::{MeshError, SurfaceMesh, TriangleBvh, shapes};
 
-struct Rng(u64);
+/// The workspace's SplitMix64 (`nlos_transient::rng`), with the draws these tests use.
+struct Rng(nlos_transient::rng::SplitMix64);
 impl Rng {
+    fn new(seed: u64) -> Self {
+        Self(nlos_transient::rng::SplitMix64::new(seed))
+    }
     fn f(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     fn v(&mut self, s: f32) -> Vec3 {
         Vec3::new(self.f() - 0.5, self.f() - 0.5, self.f() - 0.5) * s
@@ -110,7 +113,7 @@ fn rays_through_shared_edges_and_vertices_do_not_leak() {
 
 #[test]
 fn ray_hits_agree_with_brute_force() {
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     // a jittered height field in front of the wall, and a jittered closed sphere (rays hit both faces)
     let mut field =
         shapes::height_field(0.5, 0.5, 9, 9, |x, y| 0.35 + 0.04 * (11.0 * x + 5.0 * y).sin()).expect("height field");

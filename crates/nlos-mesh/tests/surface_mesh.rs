@@ -3,19 +3,8 @@
 use glam::Vec3;
 use nlos_mesh::{BuildOptions, EdgeId, HalfedgeId, MeshError, SurfaceMesh, VertexId, orient_triangles, shapes};
 
-/// Small deterministic generator (xorshift64*), so the tests need no extra dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
+/// The workspace's SplitMix64 (`nlos_transient::rng`).
+type Rng = nlos_transient::rng::SplitMix64;
 
 fn euler(m: &SurfaceMesh) -> i64 {
     m.n_vertices() as i64 - m.n_edges() as i64 + m.n_faces() as i64
@@ -34,7 +23,7 @@ fn random_live_edge(m: &SurfaceMesh, rng: &mut Rng) -> EdgeId {
 fn random_ops(mut m: SurfaceMesh, steps: usize, seed: u64, min_faces: usize) -> (SurfaceMesh, [usize; 3]) {
     let chi = euler(&m);
     let loops = m.boundary_loops().len();
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut done = [0usize; 3];
     for step in 0..steps {
         let e = random_live_edge(&m, &mut rng);
@@ -144,7 +133,7 @@ fn random_collapses_down_to_minimal_meshes() {
     // Collapse as long as anything is collapsible: the link condition must stop before breaking topology.
     for (m, chi) in [(shapes::icosphere(Vec3::ZERO, 1.0, 1), 2), (shapes::plane_grid(1.0, 1.0, 4, 4), 1)] {
         let mut m = m;
-        let mut rng = Rng(99);
+        let mut rng = Rng::new(99);
         for _ in 0..20_000 {
             let e = random_live_edge(&m, &mut rng);
             let h = e.halfedge(rng.below(2) as u32);
@@ -215,7 +204,7 @@ fn garbage_collection_preserves_geometry_topology_and_properties() {
     for f in m.faces().collect::<Vec<_>>() {
         m.fprop_mut(ftag).expect("live")[f.idx()] = f.0 + 7;
     }
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     for _ in 0..150 {
         let e = random_live_edge(&m, &mut rng);
         if m.is_collapse_ok(e.halfedge(0)) {

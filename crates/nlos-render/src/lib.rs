@@ -173,7 +173,6 @@ pub mod error;
 pub mod kernel;
 pub mod loss;
 pub mod render;
-mod rng;
 mod soa;
 mod splat;
 mod visibility;

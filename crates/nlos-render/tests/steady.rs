@@ -6,18 +6,20 @@ use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
-/// Deterministic pseudo-random numbers in [0, 1).
-struct Lcg(u64);
+/// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).
+struct Lcg(nlos_transient::rng::SplitMix64);
 impl Lcg {
+    fn new(seed: u64) -> Self {
+        Self(nlos_transient::rng::SplitMix64::new(seed))
+    }
     fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
 }
 
 /// A few random triangles around z = 0.4 facing the wall, plus optionally an occluder in front of them.
 fn random_mesh(seed: u64, occluder: bool) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut r = Lcg(seed);
+    let mut r = Lcg::new(seed);
     let (mut p, mut f) = (Vec::new(), Vec::new());
     for t in 0..4u32 {
         let c = Vec3::new(r.next() * 0.3 - 0.15, r.next() * 0.3 - 0.15, 0.35 + 0.1 * r.next());
@@ -90,7 +92,7 @@ fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, scan: &Scan, seed: u
         ..Default::default()
     };
     let mut r = Renderer::new(&p, &f, scan, &time, params).expect("valid");
-    let mut rng = Lcg(seed + 7);
+    let mut rng = Lcg::new(seed + 7);
     let adj: Vec<f32> = (0..scan.measurements()).map(|_| rng.next() - 0.3).collect();
     let g = r.adjoint_steady(brdf, &adj).expect("adjoint");
     assert!(r.adjoint_steady(brdf, &adj[1..]).is_err());

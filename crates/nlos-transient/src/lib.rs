@@ -39,5 +39,6 @@ pub use error::{Result, TransientError};
 #[cfg(feature = "formats")]
 pub use formats::{Format, detect, read, write};
 pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
+pub use sensor::rng;
 pub use time_axis::{SPEED_OF_LIGHT, TimeAxis};
 pub use transient::Transient;

@@ -6,28 +6,17 @@ use glam::DVec3;
 use std::f64::consts::PI;
 
 /// PCG32 (O'Neill 2014, XSH-RR), enough for reproducible tests without a `rand` dependency.
+/// The workspace's PCG32 (`nlos_transient::rng`), with the draws these tests use.
 #[derive(Debug, Clone)]
-pub struct Pcg32 {
-    state: u64,
-    inc: u64,
-}
+pub struct Pcg32(nlos_transient::rng::Pcg32);
 
 impl Pcg32 {
     pub fn new(seed: u64, stream: u64) -> Self {
-        let mut r = Self { state: 0, inc: (stream << 1) | 1 };
-        r.next_u32();
-        r.state = r.state.wrapping_add(seed);
-        r.next_u32();
-        r
+        Self(nlos_transient::rng::Pcg32::new(seed, stream))
     }
     pub fn next_u32(&mut self) -> u32 {
-        let old = self.state;
-        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        let rot = (old >> 59) as u32;
-        xorshifted.rotate_right(rot)
+        self.0.next_u32()
     }
-    /// Uniform in [0, 1) with 53 random bits.
     pub fn f64(&mut self) -> f64 {
         let hi = u64::from(self.next_u32()) << 21;
         let lo = u64::from(self.next_u32()) >> 11;

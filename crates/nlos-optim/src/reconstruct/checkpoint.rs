@@ -65,13 +65,13 @@ mod exact_vec3 {
     }
 }
 
-/// SplitMix64 (Steele, Lea & Flood 2014): the run's RNG, one u64 of state.
+/// The run's random stream ([`nlos_transient::rng::SplitMix64`]), its one `u64` of state kept in the
+/// checkpoint: the next 64 bits.
 pub(super) fn next_u64(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    let mut g = nlos_transient::rng::SplitMix64::new(*state);
+    let bits = g.next_u64();
+    *state = g.state();
+    bits
 }
 
 /// FNV-1a over the measurement's shape and bits: ties a checkpoint to its measurement.

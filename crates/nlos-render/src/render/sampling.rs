@@ -6,8 +6,8 @@ use glam::Vec3;
 
 use super::*;
 use crate::kernel::KernelEval;
-use crate::rng::SplitMix64;
 use crate::soa::{BLOCK, Frame, TentAxis};
+use nlos_transient::rng::SplitMix64;
 
 impl Renderer {
     #[inline(always)]
@@ -105,7 +105,7 @@ impl Renderer {
                 if !(c > 0.0) {
                     return;
                 }
-                let mut rng = SplitMix64::new(seed, m as u64, t as u64);
+                let mut rng = SplitMix64::keyed(seed, m as u64, t as u64);
                 let lobe = match lobe {
                     Some(alpha) if self.lobe_fraction > 0.0 && self.wall.confocal && alpha > 0.0 => {
                         Some(Lobe::new(alpha, sign * self.tris.n[t], fr.l))

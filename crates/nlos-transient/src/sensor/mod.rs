@@ -80,7 +80,7 @@ pub use correct::{
 };
 pub use jitter::{BinKernel, JitterResponse};
 pub use likelihood::{PoissonNll, poisson_nll};
-pub use rng::Pcg32;
+pub use rng::{Pcg32, SplitMix64};
 
 use crate::SPEED_OF_LIGHT;
 use crate::error::{Result, TransientError};

@@ -1,9 +1,14 @@
-//! A small, seedable random number generator and the exact discrete samplers the sensor model needs.
+//! The workspace's random number generators (also `nlos_transient::rng`): one module, so that every
+//! library and test draws from the same two documented generators, and the exact discrete samplers the
+//! sensor model needs.
 //!
 //! The crate adds no `rand` dependency: the sensor model needs one uniform generator and two discrete
 //! distributions, and writing them here keeps the stream of numbers fixed across dependency upgrades (a
 //! seed names the same simulated capture forever).
 //!
+//! - [`SplitMix64`] (Steele, Lea & Flood 2014): one `u64` of state, for seeds derived from seeds (the
+//!   optimiser's per-block sampling seeds, stored in its checkpoints) and, keyed by (seed, measurement,
+//!   triangle), for the renderer's Monte Carlo samples, which then do not depend on thread scheduling.
 //! - [`Pcg32`]: O'Neill's PCG-XSH-RR 64/32 generator (2014), 2⁶⁴ period per stream, 2⁶³ streams. The
 //!   simulator gives every measurement its own stream (`stream = measurement index`), so a histogram does
 //!   not depend on the order in which measurements are processed.
@@ -14,6 +19,64 @@
 //! - [`Pcg32::binomial`]: exact binomial variates. Inversion (Kachitvichyanukul & Schmeiser's BINV, 1988)
 //!   when `n·min(p, 1−p) < 10`, Hörmann's BTRS otherwise (W. Hörmann, "The generation of binomial random
 //!   variates", J. Statist. Comput. Simul. 46, 1993). Used for the multinomial of first-photon detections.
+
+/// SplitMix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014):
+/// `state += φ·2⁶⁴`, output the state through two xor-shift-multiply rounds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SplitMix64(u64);
+
+impl SplitMix64 {
+    /// The generator whose state is `state` (a stored [`Self::state`] continues the stream exactly).
+    pub fn new(state: u64) -> Self {
+        Self(state)
+    }
+
+    /// A generator keyed by `(seed, m, t)` (the renderer's per measurement and triangle streams): the key
+    /// mixed through the generator itself, so neighbouring keys give unrelated streams.
+    #[inline(always)]
+    pub fn keyed(seed: u64, m: u64, t: u64) -> Self {
+        let mut s = Self(seed ^ 0x9E37_79B9_7F4A_7C15);
+        s.0 ^= s.next_u64().wrapping_add(m.wrapping_mul(0xD1B5_4A32_D192_ED03));
+        s.0 ^= s.next_u64().wrapping_add(t.wrapping_mul(0xAEF1_7502_108E_F2D9));
+        Self(s.next_u64())
+    }
+
+    /// The state, to store and continue from ([`Self::new`]).
+    pub fn state(&self) -> u64 {
+        self.0
+    }
+
+    /// The next 64 uniformly distributed bits.
+    #[inline(always)]
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)` with 24 random bits (so never 1.0).
+    #[inline(always)]
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+
+    /// Uniform in `[0, 1)` with 53 random bits.
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn range_f32(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.next_f32()
+    }
+
+    /// Uniform in `0..n` (`n > 0`; the modulo bias, below `n / 2⁶⁴`, is negligible for test sizes).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
+    }
+}
 
 /// PCG-XSH-RR 64/32 (O'Neill 2014): `state ← state·6364136223846793005 + inc`, output
 /// `rotr((state ⊕ state≫18)≫27, state≫59)` of the old state.
