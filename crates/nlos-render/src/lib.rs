@@ -124,32 +124,8 @@
 //! order: forward, adjoint and loss are bit-identical whatever rayon's schedule (`tests/determinism.rs`
 //! compares pools of 1, 2 and 3 threads).
 //!
-//! The fixed rule at Tsai et al. 2019's setup (64 × 64 confocal over [−0.25, 0.25]² m, 1200 bins of 1.2 mm, tent
-//! kernel, `fixed(1)`, which the optimiser does not run; `benches/render.rs`, `examples/profile.rs`) on this
-//! project's machine: 2 cores of an AMD EPYC
-//! (Zen 3, family 25) at 2.45 GHz with AVX2 + FMA, otherwise idle, criterion medians:
-//!
-//! | mesh (faces), visibility | forward | forward + adjoint | pairs / s (f + a) | CPU-s (f + a) |
-//! |---|---|---|---|---|
-//! | 10k bunny (9,948), cached | 70 ms | 213 ms (target 0.3 s) | 191 M | 0.41 |
-//! | full bunny (69,630), off | 385 ms | 970 ms (target 2 s) | 294 M | 1.87 |
-//! | full bunny (69,630), cached | 424 ms | 1.09–1.13 s (target 2 s) | 256 M | 2.14 |
-//!
-//! (the cached full bunny from `examples/profile.rs`, 3 runs; its cache build took 34 s.)
-//!
-//! (pairs = triangles × measurements: 4.07e7 and 2.85e8; forward + adjoint is `loss_and_gradient`, which
-//! renders too). Before packing the same runs took 0.32 s and 1.65 s. The original renderer (C++, Embree,
-//! TBB, one thread, stratified at 20,000 samples per measurement) took 68 s and about 165 s: 320× and 170×
-//! slower, at a larger transient error (below). Tsai et al. 2019's own scheme in this renderer (stratified 20,000
-//! samples per measurement, a live shadow ray per sample; the `bunny10k_stratified20k_live` group) runs at
-//! 4.73 s forward and 9.69 s forward + adjoint on the 10k bunny (17 M samples per second, forward), against
-//! the original's 27 s and 68 s: 5.7× and 7× faster, the shadow rays dominating.
-//! Arithmetic peak of the machine: 2 cores × 2.45 GHz × 2 FMA pipes × 8 lanes × 2 flops = 157 GFLOP/s (78
-//! per core). The forward kernel spends about 65 flops per active pair and forward + adjoint about 190;
-//! at 294 M pairs per second (every pair counted, culled ones included) that is at most 56 GFLOP/s, about
-//! a third of peak: the rest goes to the scalar kernel scatter/gather (random access into the histograms),
-//! square roots and divisions (one each per pair and pass, 8–14 cycles per 8 lanes), orientation and
-//! visibility bookkeeping per block, and masked-out lanes.
+//! What these rules cost on a 2-core machine, against the original renderer, and how close the kernels come
+//! to the machine's arithmetic peak: docs/performance.md ("The point rules' kernels").
 //!
 //! Memory at Tsai et al. 2019's scale (100k vertices / 200k faces, 4096 measurements × 1200 bins;
 //! `examples/memory.rs`): peak RSS 128 MiB for construction + forward + loss + adjoint without visibility
@@ -159,10 +135,10 @@
 //!
 //! Accuracy of the rule (`examples/accuracy.rs`, 64 measurements against a fine deterministic reference):
 //! `fixed(1)` has a relative bin-level (voxel) error of 1.9 % on the full bunny (10k faces: 4.8 %), Tsai et al. 2019's
-//! stratified sampling at 20,000 samples per measurement 11 % (6 %). Gradient checks: a former 1.3–1.7e-3
-//! worst component against central differences was f32 rendering noise of the difference quotient (error
-//! ∝ 1/h below h = 2e-4 m, truncation ∝ h² above 1e-3 m; `fd_step_study` in `tests/gradients.rs`); with
-//! five-point differences at h = 5e-4 m every component agrees to 3e-4.
+//! stratified sampling at 20,000 samples per measurement 11 % (6 %). Gradient checks use five-point
+//! differences at h = 5e-4 m: the f32 rendering noise of a difference quotient grows as 1/h below
+//! h = 2e-4 m and a central difference's truncation as h² above 1e-3 m (`fd_step_study` in
+//! `tests/gradients.rs`).
 #![warn(missing_docs)]
 // `!(x > 0.0)` is deliberate: it is also true for NaN, which is how non-finite values fall into the skip
 // branches.
