@@ -195,7 +195,7 @@ fn resume_with_an_albedo_map_is_bit_identical() {
 fn check_resume(albedo_map: Option<nlos_optim::AlbedoMapParams>) {
     let tag = if albedo_map.is_some() { "-albedo" } else { "" };
     let small_params = |dir: PathBuf| ReconstructParams { albedo_map, ..small_params(dir) };
-    // One rayon thread: the renderer's adjoint reduction order is then fixed (see the crate docs).
+    // One rayon thread, as a user might run it (the result does not depend on the thread count).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     pool.install(|| {
         let measured = measurement(8);
@@ -472,4 +472,33 @@ fn a_start_that_collides_is_repaired_and_every_block_ends_intersection_free() {
     assert!(log.iter().all(|r| r.pairs_left == 0), "{log:?}");
     let (p, t) = out.mesh.to_triangles();
     assert!(nlos_mesh::intersect::triangle_self_intersections(&p, &t).unwrap().is_empty());
+}
+
+/// A run does not depend on the thread count: the same reconstruction in pools of 1 and 3 threads gives
+/// the same mesh, reflectance, scale and log, bit for bit, with the loop's default renderer rule (splat) and
+/// with a point rule.
+#[test]
+fn a_run_does_not_depend_on_the_thread_count() {
+    let measured = measurement(8);
+    let init = facing_wall(6, |_, _| 0.42);
+    for (name, sampling) in [("splat", SamplingSchedule::default()), ("point", small_params(PathBuf::new()).sampling)] {
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let params =
+                ReconstructParams { sampling, out_dir: None, ..small_params(out_dir(&format!("threads-{name}"))) };
+            pool.install(|| reconstruct_with(&measured, &init, &params, Hooks::default()).unwrap())
+        };
+        let (one, three) = (run(1), run(3));
+        let bits = |o: &nlos_optim::Outcome| {
+            let (p, t) = o.mesh.to_triangles();
+            (p.iter().flat_map(|v| v.to_array().map(f32::to_bits)).collect::<Vec<_>>(), t)
+        };
+        assert_eq!(bits(&one), bits(&three), "{name}: meshes differ");
+        assert_eq!(one.reflectance, three.reflectance, "{name}");
+        assert_eq!(one.scale.to_bits(), three.scale.to_bits(), "{name}");
+        let strip = |l: &nlos_optim::RunLog| {
+            l.iterations.iter().map(|r| nlos_optim::IterationRecord { time_s: 0.0, ..r.clone() }).collect::<Vec<_>>()
+        };
+        assert_eq!(strip(&one.log), strip(&three.log), "{name}");
+    }
 }

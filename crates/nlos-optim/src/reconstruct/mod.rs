@@ -34,11 +34,11 @@
 //! **Robustness.** A non-finite loss, gradient, θ or position restores the state before the last step,
 //! halves every learning rate for the rest of the run, and retries ([`crate::ReconstructParams::max_rollbacks`]).
 //!
-//! **Determinism.** Given the same inputs, parameters and seed, a run is a deterministic function of them
-//! *when rayon's reductions are*: the renderer's adjoint sums per-thread partial gradients in f64 in an
-//! order rayon may vary between runs with several threads (differences near 1e-16 relative, rarely
-//! visible after rounding to f32). Run inside a one-thread pool for bit-exact reproducibility. A resumed
-//! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
+//! **Determinism.** Given the same inputs, parameters and seed, a run is a deterministic function of them,
+//! whatever the thread count: the renderer's reductions run over fixed chunks summed in chunk order
+//! (`nlos_render`, its `tests/determinism.rs`), and the loop's own sums are sequential
+//! (`tests/end_to_end.rs`, `a_run_does_not_depend_on_the_thread_count`: pools of 1 and 3 threads). A resumed
+//! //! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
 
 use std::ops::ControlFlow;
 use std::path::Path;
