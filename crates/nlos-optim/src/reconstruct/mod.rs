@@ -38,7 +38,7 @@
 //! whatever the thread count: the renderer's reductions run over fixed chunks summed in chunk order
 //! (`nlos_render`, its `tests/determinism.rs`), and the loop's own sums are sequential
 //! (`tests/end_to_end.rs`, `a_run_does_not_depend_on_the_thread_count`: pools of 1 and 3 threads). A resumed
-//! //! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
+//! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
 
 use std::ops::ControlFlow;
 use std::path::Path;
