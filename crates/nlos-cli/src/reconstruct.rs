@@ -134,11 +134,10 @@ fn config(args: &Args) -> Result<Config, CliError> {
     Ok(config)
 }
 
-/// `config` with `--set KEY=VALUE` applied: VALUE is read as a TOML value (a number, `true`, a list), or
-/// as a string when it is not one.
+/// `config` with `--set KEY=VALUE` applied ([`Config::overridden`]): VALUE is read as a TOML value (a
+/// number, `true`, a list), or as a string when it is not one; KEY's dots name its sections.
 fn with_settings(config: &Config, set: &[String]) -> Result<Config, CliError> {
-    let text = config.to_toml().map_err(bad)?;
-    let mut table: toml::Table = text.parse().map_err(bad)?;
+    let mut overrides = toml::Table::new();
     for kv in set {
         let Some((key, value)) = kv.split_once('=') else {
             return Err(bad(format!("--set {kv}: expected KEY=VALUE (keys as `nlos reconstruct --print-config`)")));
@@ -148,21 +147,21 @@ fn with_settings(config: &Config, set: &[String]) -> Result<Config, CliError> {
             .ok()
             .and_then(|mut t| t.remove("v"))
             .unwrap_or_else(|| toml::Value::String(value.to_owned()));
-        let mut node = &mut table;
+        let mut node = &mut overrides;
         let mut parts = key.trim().split('.').peekable();
         while let Some(part) = parts.next() {
             if parts.peek().is_none() {
                 node.insert(part.to_owned(), value.clone());
             } else {
-                node = match node.get_mut(part) {
-                    Some(toml::Value::Table(t)) => t,
-                    _ => return Err(bad(format!("--set {kv}: `{part}` is not a section of the settings"))),
+                let entry = node.entry(part.to_owned()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                node = match entry {
+                    toml::Value::Table(t) => t,
+                    _ => return Err(bad(format!("--set {kv}: `{part}` is set as a value by another --set"))),
                 };
             }
         }
     }
-    let text = toml::to_string(&table).map_err(bad)?;
-    Config::from_toml(&text).map_err(|e| bad(format!("--set: {e}")))
+    config.overridden(overrides).map_err(|e| bad(format!("--set: {e}")))
 }
 
 /// Runs `nlos reconstruct`.

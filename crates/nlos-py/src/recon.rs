@@ -24,43 +24,16 @@ fn config(settings: &str) -> PyResult<Config> {
 }
 
 /// The settings over `base` (a run's saved settings; none: the defaults): the given sections replace
-/// `base`'s fields one by one, as `--set` does on the command line.
+/// `base`'s fields one by one ([`Config::overridden`]), as `--set` does on the command line.
 fn config_over(base: Option<&Config>, settings: &str) -> PyResult<Config> {
     let json: serde_json::Value =
         serde_json::from_str(settings).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
-    let given = toml::Value::try_from(json).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
-    let merged = match base {
-        None => given,
-        Some(base) => {
-            let mut table: toml::Value = base
-                .to_toml()
-                .map_err(errors::optim)?
-                .parse::<toml::Table>()
-                .map(toml::Value::Table)
-                .map_err(|e| ConfigError::new_err(format!("the run's settings.toml: {e}")))?;
-            overlay(&mut table, given);
-            table
-        }
-    };
-    let toml = toml::to_string(&merged).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
-    Config::from_toml(&toml).map_err(errors::optim)
-}
-
-/// Writes `top`'s fields over `base`'s, section by section.
-fn overlay(base: &mut toml::Value, top: toml::Value) {
-    match (base, top) {
-        (toml::Value::Table(b), toml::Value::Table(t)) => {
-            for (key, value) in t {
-                match b.get_mut(&key) {
-                    Some(slot) => overlay(slot, value),
-                    None => {
-                        b.insert(key, value);
-                    }
-                }
-            }
-        }
-        (slot, value) => *slot = value,
+    let given = toml::Table::try_from(json).map_err(|e| ConfigError::new_err(format!("settings: {e}")))?;
+    match base {
+        None => Config::default().overridden(given),
+        Some(base) => base.overridden(given),
     }
+    .map_err(errors::optim)
 }
 
 /// The default settings as JSON (every field; the same values `nlos reconstruct --print-config` prints).

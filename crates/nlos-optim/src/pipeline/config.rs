@@ -403,6 +403,20 @@ impl Config {
         toml::from_str(text).map_err(|e| config_error("config", e.to_string().trim_end().to_owned()))
     }
 
+    /// These settings with `overrides` written over them field by field: a table in `overrides` changes only
+    /// the fields it names (how `nlos reconstruct --set` and the Python package's keyword settings change a
+    /// configuration, or a run's saved one on resume).
+    ///
+    /// # Errors
+    /// Those of [`Config::from_toml`] for the result (an unknown field, a value of the wrong type, naming it).
+    pub fn overridden(&self, overrides: toml::Table) -> Result<Self> {
+        let mut table: toml::Table =
+            self.to_toml()?.parse().map_err(|e: toml::de::Error| config_error("config", e.to_string()))?;
+        overlay(&mut table, overrides);
+        let text = toml::to_string(&table).map_err(|e| config_error("config", e.to_string()))?;
+        Self::from_toml(&text)
+    }
+
     /// Reads a configuration file ([`Config::from_toml`]).
     ///
     /// # Errors
@@ -485,3 +499,15 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("boundary.residual_margin", "margin κ of the residual patches' test"),
     ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),
 ];
+
+/// Writes `top`'s fields over `base`'s, descending into the tables both have.
+fn overlay(base: &mut toml::Table, top: toml::Table) {
+    for (key, value) in top {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => overlay(b, t),
+            (_, value) => {
+                base.insert(key, value);
+            }
+        }
+    }
+}

@@ -404,6 +404,22 @@ mod tests {
     }
 
     #[test]
+    fn overrides_change_only_the_fields_they_name() {
+        let base = Config { seed: 7, ..Config::default() };
+        let mut schedule = toml::Table::new();
+        schedule.insert("max_stages".into(), toml::Value::Integer(2));
+        let mut overrides = toml::Table::new();
+        overrides.insert("schedule".into(), toml::Value::Table(schedule));
+        let c = base.overridden(overrides).expect("valid");
+        assert_eq!(c.schedule.max_stages, 2);
+        assert_eq!(c.seed, 7, "a field not named keeps the base's value");
+        assert_eq!(c.schedule.shape_iterations, base.schedule.shape_iterations);
+        let mut bad = toml::Table::new();
+        bad.insert("no_such_section".into(), toml::Value::Integer(1));
+        assert!(matches!(base.overridden(bad), Err(OptimError::Config { .. })));
+    }
+
+    #[test]
     fn settings_round_trip_through_toml() {
         assert_eq!(Config::from_toml(&Config::default().to_toml().expect("toml")).expect("parse"), Config::default());
         let mut c = Config { seed: 9, init: InitMethod::Mesh("start.obj".into()), ..Config::default() };

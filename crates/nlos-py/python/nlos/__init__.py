@@ -135,6 +135,8 @@ class Volume:
 
     def centres(self, axis: str) -> np.ndarray:
         """Voxel centres along ``"x"``, ``"y"`` or ``"z"``, metres."""
+        if axis not in ("x", "y", "z"):
+            raise ValueError(f"axis: {axis!r} is not \"x\", \"y\" or \"z\"")
         first, step = {"x": self.x, "y": self.y, "z": self.z}[axis]
         n = self.data.shape[{"y": 0, "x": 1, "z": 2}[axis]]
         return first + step * np.arange(n)
