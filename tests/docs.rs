@@ -65,7 +65,8 @@ fn names_history(line: &str) -> bool {
     let seed = lower.match_indices("the seed").any(|(i, _)| {
         !lower[i + "the seed".len()..].starts_with(|c: char| c.is_alphanumeric() || c == '_' || c == ' ')
             || lower[i + "the seed".len()..].starts_with(" setup")
-    });
+    }) || lower.contains("seed setup")
+        || lower.contains("seed-setup");
     issue || seed
 }
 
@@ -76,6 +77,7 @@ fn the_history_detector_detects() {
     assert!(names_history(&format!("{t}'s schedule")));
     assert!(names_history(&format!("{t}-setup bunny")));
     assert!(names_history(&format!("at {t} setup")));
+    assert!(names_history(&format!("capture: {} setup, 1000 photons", "seed")));
     assert!(!names_history("the same seed as before, a seeded generator, --seed 3"));
     assert!(!names_history("the seed of the generator"));
 }

@@ -197,7 +197,7 @@ fn fixtures() -> Result<(), String> {
     std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
     let capture = tmp.join("bunny_1000ph.hdf5");
     let s = |p: &Path| p.to_string_lossy().into_owned();
-    println!("[2/3] nlos render (the shared bunny, seed setup, 1000 photons, seed 1; a few minutes)");
+    println!("[2/3] nlos render (the shared bunny, Tsai et al. 2019's setup, 1000 photons, seed 1; a few minutes)");
     nlos(&["render", &s(&bunny), "--out", &s(&capture), "--photons", "1000", "--seed", "1"])?;
     let start = dir.join("bunny_lct_start.obj");
     println!("[3/3] nlos init → {}", start.display());

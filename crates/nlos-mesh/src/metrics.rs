@@ -177,6 +177,15 @@ pub struct Metrics {
     pub normal_error_mean_deg: f64,
     /// Root mean square of those angles, degrees.
     pub normal_error_rms_deg: f64,
+    /// The mean angle over the vertices within [`crate::distance::FAR_FROM_REFERENCE`] (1 cm) of the ground
+    /// truth only ([`crate::distance::NormalError::split`]): the surface's normals without the rims that hang
+    /// back along the line of sight. `None` when no vertex is that close, or in a record written before it
+    /// existed.
+    #[serde(default)]
+    pub normal_error_near_deg: Option<f64>,
+    /// Fraction of the reconstruction's vertices farther than that from the ground truth.
+    #[serde(default)]
+    pub far_vertex_fraction: Option<f64>,
     /// Depth map of the reconstruction: z (metres) of the first hit of pixel `ix + grid·iy`, `NaN` where
     /// the ray hits nothing. Not serialised.
     #[serde(skip)]
@@ -321,6 +330,7 @@ pub fn evaluate(
 
     let dist = mesh_distance(reconstruction, ground_truth, params.sampling)?;
     let normals = normal_angular_error(reconstruction, ground_truth)?;
+    let (near_deg, far) = normals.split(crate::distance::FAR_FROM_REFERENCE);
     Ok(Metrics {
         grid: params.grid,
         x_range: params.x_range,
@@ -344,6 +354,8 @@ pub fn evaluate(
         hausdorff: dist.hausdorff,
         normal_error_mean_deg: normals.mean,
         normal_error_rms_deg: normals.rms,
+        normal_error_near_deg: near_deg,
+        far_vertex_fraction: Some(far),
         depth_reconstruction,
         depth_ground_truth,
     })

@@ -318,4 +318,5 @@ fn records_without_the_silhouette_split_still_deserialise() {
     assert_eq!(m.interior_pixels, 0);
     assert_eq!((m.depth_error_mean_interior, m.depth_error_mean_silhouette), (None, None));
     assert_eq!(m.both_pixels, 8);
+    assert_eq!((m.normal_error_near_deg, m.far_vertex_fraction), (None, None));
 }

@@ -150,6 +150,32 @@ fn normal_error_of_identical_and_flipped_meshes() {
 }
 
 #[test]
+fn normal_error_counts_the_far_vertices_apart() {
+    // The reference sphere and, 4 radii away, a flipped copy: half the vertices lie on the reference, half
+    // at least 2 radii off it.
+    let s = shapes::icosphere(Vec3::ZERO, 1.0, 3);
+    let (p, t) = s.to_triangles();
+    let n = p.len() as u32;
+    let mut pos = p.clone();
+    pos.extend(p.iter().map(|&x| x + Vec3::new(4.0, 0.0, 0.0)));
+    let mut tri = t.clone();
+    tri.extend(t.iter().map(|x| [x[0] + n, x[2] + n, x[1] + n]));
+    let both = SurfaceMesh::from_triangles(&pos, &tri).expect("valid");
+    let e = distance::normal_angular_error(&both, &s).expect("ok");
+    assert_eq!(e.distance.len(), e.per_vertex.len());
+    let (near, far) = e.split(distance::FAR_FROM_REFERENCE);
+    assert!((far - 0.5).abs() < 1e-12, "far fraction {far}");
+    let near = near.expect("half the vertices are on the reference");
+    // The far half (normals against the closest face of a sphere 2–6 radii away) averages about 100°.
+    assert!(near < 8.0 && 2.0 * e.mean - near > 80.0, "near {near}°, all {}°", e.mean);
+    // Nothing near: no mean; everything near: the whole mean.
+    let (none, all_far) = e.split(-1.0);
+    assert_eq!((none, all_far), (None, 1.0));
+    let (all, no_far) = e.split(f32::INFINITY);
+    assert!((all.expect("every vertex") - e.mean).abs() < 1e-9 && no_far == 0.0);
+}
+
+#[test]
 fn triangle_triangle_exact_cases() {
     let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
     // crossing

@@ -73,6 +73,9 @@ fn metric_rows(out: &mut String, init: Option<&Metrics>, fin: &Metrics) {
     // Interior pixels are at least SILHOUETTE_BAND + 1 pixels from any pixel the ground truth misses.
     let inside = format!("depth error, mean inside (≥ {} pixels from the silhouette)", SILHOUETTE_BAND + 1);
     let within = format!("coverage within {:.0} mm", 1e3 * fin.coverage_threshold);
+    let far_mm = 1e3 * nlos_mesh::distance::FAR_FROM_REFERENCE;
+    let near = format!("normal error, mean within {far_mm:.0} mm of the truth");
+    let far = format!("vertices farther than {far_mm:.0} mm from the truth");
     let rows: Vec<(&str, Vec<String>)> = vec![
         (&within, cols(&|m| format!("{:.1} %", 100.0 * m.coverage_within))),
         ("coverage (any hit; reported, not judged)", cols(&|m| format!("{:.1} %", 100.0 * m.coverage))),
@@ -86,6 +89,8 @@ fn metric_rows(out: &mut String, init: Option<&Metrics>, fin: &Metrics) {
         ("Hausdorff distance", cols(&|m| mm(Some(f64::from(m.hausdorff))))),
         ("normal error, mean", cols(&|m| format!("{:.2}°", m.normal_error_mean_deg))),
         ("normal error, RMS", cols(&|m| format!("{:.2}°", m.normal_error_rms_deg))),
+        (&near, cols(&|m| m.normal_error_near_deg.map_or_else(|| "–".into(), |d| format!("{d:.2}°")))),
+        (&far, cols(&|m| m.far_vertex_fraction.map_or_else(|| "–".into(), |f| format!("{:.1} %", 100.0 * f)))),
     ];
     for (name, mut v) in rows {
         v.insert(0, name.to_string());

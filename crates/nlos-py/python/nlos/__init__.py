@@ -262,7 +262,8 @@ class Metrics:
     grid over ``x_range`` x ``y_range`` of the wall, the coverage (share of the truth's pixels the
     reconstruction hits), the coverage within ``coverage_threshold`` of the truth's depth, depth errors
     (``_interior``: pixels at least 3 px inside the truth's silhouette); Chamfer and Hausdorff distances;
-    the normal error."""
+    the normal error (``_near``: over the vertices within 1 cm of the truth; ``far_vertex_fraction``: the
+    share farther away, the rims that hang back along the line of sight)."""
 
     grid: int
     x_range: Tuple[float, float]
@@ -286,6 +287,8 @@ class Metrics:
     hausdorff: float
     normal_error_mean_deg: float
     normal_error_rms_deg: float
+    normal_error_near_deg: Optional[float]
+    far_vertex_fraction: Optional[float]
 
 
 def evaluate(
