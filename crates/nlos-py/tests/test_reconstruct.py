@@ -104,6 +104,8 @@ def test_evaluate_and_mesh_files(builtin_truth, tmp_path):
     v, f = nlos.read_mesh(builtin_truth)
     m = nlos.evaluate((v, f), builtin_truth)
     assert isinstance(m, nlos.Metrics) and m.coverage == 1.0 and m.depth_error_max == 0.0
+    # The truth against itself: every vertex on it, so the near normal error is the whole one.
+    assert m.far_vertex_fraction == 0.0 and m.normal_error_near_deg == pytest.approx(m.normal_error_mean_deg)
     assert m.x_range == (-0.25, 0.25) and nlos.evaluate((v, f), builtin_truth, x_range=(-0.1, 0.2)).x_range == pytest.approx((-0.1, 0.2))
     with pytest.raises(ValueError, match="x_range"):
         nlos.evaluate((v, f), builtin_truth, x_range=(0.2, -0.1))
