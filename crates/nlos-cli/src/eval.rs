@@ -3,7 +3,8 @@
 //! Loads both meshes with [`nlos_mesh::metrics::load_for_eval`] ([`nlos_mesh::io`] readers; non-manifold
 //! triangle lists are accepted unwelded) and prints the [`nlos_mesh::metrics::Metrics`] of
 //! [`nlos_mesh::metrics::evaluate`] (coverage and depth error from a +z ray grid over the wall, Chamfer
-//! and Hausdorff distances, normal angular error) serialised by `serde_json`; with `--map`, also the
+//! and Hausdorff distances, normal angular error over all vertices and over those within 1 cm of the truth,
+//! [`nlos_mesh::distance::NormalError::split`]) serialised by `serde_json`; with `--map`, also the
 //! coverage picture of `nlos_report::figures::coverage_figure`.
 //!
 //! With `--gt-depth DEPTH [--gt-normal NORMAL]` instead of `--gt`, the reconstruction is scored against

@@ -55,7 +55,8 @@ enum Command {
     Preview(preview::Args),
     /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage (within 5 mm)
     /// and depth error (mean, median, RMS, inside) from a +z ray grid over the wall, Chamfer distance, normal
-    /// angular error; or against ground-truth depth and normal maps (--gt-depth, --gt-normal).
+    /// angular error (all vertices, and those within 1 cm of the truth); or against ground-truth depth and
+    /// normal maps (--gt-depth, --gt-normal).
     Eval(eval::Args),
     /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
     Init(init::Args),
