@@ -9,8 +9,8 @@ use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderError, RenderPara
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).
-struct Lcg(nlos_transient::rng::SplitMix64);
-impl Lcg {
+struct Draws(nlos_transient::rng::SplitMix64);
+impl Draws {
     fn new(seed: u64) -> Self {
         Self(nlos_transient::rng::SplitMix64::new(seed))
     }
@@ -21,7 +21,7 @@ impl Lcg {
 
 /// Five random triangles around z = 0.4 facing the wall.
 fn mesh(seed: u64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut r = Lcg::new(seed);
+    let mut r = Draws::new(seed);
     let (mut p, mut f) = (Vec::new(), Vec::new());
     for t in 0..5u32 {
         let c = Vec3::new(r.next() * 0.3 - 0.15, r.next() * 0.3 - 0.15, 0.35 + 0.1 * r.next());
@@ -62,7 +62,7 @@ fn check<B: RenderBrdf>(brdf: &B, exhaustive: bool, sampling: Sampling, seed: u6
     let bins = time.bins;
     let adj: Vec<f32> =
         (0..r.len()).map(|i| ((i % bins) as f32 * 0.21 + (i / bins) as f32 * 1.3).cos() + 0.3).collect();
-    let mut rng = Lcg::new(seed + 7);
+    let mut rng = Draws::new(seed + 7);
     let w: Vec<f32> = (0..f.len()).map(|_| 0.5 + rng.next()).collect();
 
     // Analytic special cases: factors all c scale the transient by c; each triangle's share by its own.

@@ -7,8 +7,8 @@ use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Ren
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).
-struct Lcg(nlos_transient::rng::SplitMix64);
-impl Lcg {
+struct Draws(nlos_transient::rng::SplitMix64);
+impl Draws {
     fn new(seed: u64) -> Self {
         Self(nlos_transient::rng::SplitMix64::new(seed))
     }
@@ -19,7 +19,7 @@ impl Lcg {
 
 /// A few random triangles around z = 0.4 facing the wall, plus optionally an occluder in front of them.
 fn random_mesh(seed: u64, occluder: bool) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let mut r = Lcg::new(seed);
+    let mut r = Draws::new(seed);
     let (mut p, mut f) = (Vec::new(), Vec::new());
     for t in 0..4u32 {
         let c = Vec3::new(r.next() * 0.3 - 0.15, r.next() * 0.3 - 0.15, 0.35 + 0.1 * r.next());
@@ -92,7 +92,7 @@ fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, scan: &Scan, seed: u
         ..Default::default()
     };
     let mut r = Renderer::new(&p, &f, scan, &time, params).expect("valid");
-    let mut rng = Lcg::new(seed + 7);
+    let mut rng = Draws::new(seed + 7);
     let adj: Vec<f32> = (0..scan.measurements()).map(|_| rng.next() - 0.3).collect();
     let g = r.adjoint_steady(brdf, &adj).expect("adjoint");
     assert!(r.adjoint_steady(brdf, &adj[1..]).is_err());

@@ -1,11 +1,10 @@
-//! Shared test helpers: a tiny seeded PCG32, random configurations, Gauss–Legendre quadrature, and an f64
+//! Shared test helpers: the workspace's seeded PCG32, random configurations, Gauss–Legendre quadrature, and an f64
 //! textbook reference of the BRDF written independently of the crate (W07 eqs. 20, 33, 34; H14 eq. 99).
 #![allow(dead_code)]
 
 use glam::DVec3;
 use std::f64::consts::PI;
 
-/// PCG32 (O'Neill 2014, XSH-RR), enough for reproducible tests without a `rand` dependency.
 /// The workspace's PCG32 (`nlos_transient::rng`), with the draws these tests use.
 #[derive(Debug, Clone)]
 pub struct Pcg32(nlos_transient::rng::Pcg32);
@@ -17,6 +16,7 @@ impl Pcg32 {
     pub fn next_u32(&mut self) -> u32 {
         self.0.next_u32()
     }
+    /// Uniform in [0, 1) with 53 random bits.
     pub fn f64(&mut self) -> f64 {
         let hi = u64::from(self.next_u32()) << 21;
         let lo = u64::from(self.next_u32()) >> 11;

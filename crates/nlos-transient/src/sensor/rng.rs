@@ -67,7 +67,7 @@ impl SplitMix64 {
         lo + (hi - lo) * self.next_f32()
     }
 
-    /// Uniform in `0..n` (`n > 0`; the modulo bias, below `n / 2⁶⁴`, is negligible for test sizes).
+    /// Uniform in `0..n`, and 0 for `n = 0` (the modulo bias, below `n / 2⁶⁴`, is negligible for test sizes).
     pub fn below(&mut self, n: usize) -> usize {
         (self.next_u64() % n.max(1) as u64) as usize
     }
