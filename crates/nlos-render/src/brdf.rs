@@ -27,6 +27,27 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn lobe_alpha(&self) -> Option<f32> {
         None
     }
+    /// The model as the GPU backend evaluates it, None where it has no GPU version (the default).
+    fn gpu_model(&self) -> Option<GpuModel> {
+        None
+    }
+}
+
+/// A BRDF the GPU backend (feature `gpu`) evaluates: its kind and parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GpuModel {
+    /// [`Lambertian`] of this albedo.
+    Lambertian {
+        /// ρ.
+        albedo: f32,
+    },
+    /// [`Retroreflective`] of this return and lobe width (radians).
+    Retroreflective {
+        /// ρ.
+        albedo: f32,
+        /// σ.
+        lobe_width: f32,
+    },
 }
 
 impl RenderBrdf for Lambertian<f32> {
@@ -40,6 +61,9 @@ impl RenderBrdf for Lambertian<f32> {
     #[inline(always)]
     fn param_grad_array(g: &LambertianGrad<f32>) -> [f32; 4] {
         [g.albedo, 0.0, 0.0, 0.0]
+    }
+    fn gpu_model(&self) -> Option<GpuModel> {
+        Some(GpuModel::Lambertian { albedo: self.albedo() })
     }
 }
 
@@ -81,5 +105,8 @@ impl RenderBrdf for Retroreflective<f32> {
     #[inline(always)]
     fn param_grad_array(g: &RetroreflectiveGrad<f32>) -> [f32; 4] {
         [g.albedo, 0.0, 0.0, 0.0]
+    }
+    fn gpu_model(&self) -> Option<GpuModel> {
+        Some(GpuModel::Retroreflective { albedo: self.albedo(), lobe_width: self.lobe_width() })
     }
 }

@@ -58,6 +58,10 @@ pub enum RenderError {
         /// Vertices supplied.
         got: usize,
     },
+    /// The GPU backend cannot run this request: no adapter, a setting it does not implement, a size beyond the
+    /// device's limits, or a device error.
+    #[error("GPU backend: {0}")]
+    Gpu(String),
     /// A BRDF parameter vector could not be turned into a BRDF.
     #[error("BRDF parameters rejected: {0}; keep them in the model's domain (see nlos_brdf)")]
     Brdf(#[from] nlos_brdf::BrdfError),

@@ -153,10 +153,12 @@ mod soa;
 mod splat;
 mod visibility;
 
-pub use brdf::RenderBrdf;
+pub use brdf::{GpuModel, RenderBrdf};
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;
+#[cfg(feature = "gpu")]
+pub use render::gpu::GpuRenderer;
 pub use render::{
     DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule, Visibility,
 };

@@ -107,6 +107,20 @@ impl Renderer {
                 params
             })
             .collect();
+        let dp = per_task_params.iter().fold([0.0f64; 4], |mut a, b| {
+            for i in 0..4 {
+                a[i] += b[i];
+            }
+            a
+        });
+        Ok(self.distribute::<B>(&per_tri, dp))
+    }
+
+    /// The gradient from the per-slot sums of the adjoint (`Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx, sign·Σ dE/dN`
+    /// per storage slot) and the summed BRDF parameter terms: the edge terms and the vertex distribution, serial in
+    /// slot order (deterministic), and the per-face weights' derivatives.
+    pub(super) fn distribute<B: RenderBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
+        let nt = self.tris.v0.len();
         // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
         // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
         let mut dv = vec![DVec3::ZERO; self.n_vertices];
@@ -129,17 +143,11 @@ impl Renderer {
             dv[i1 as usize] += g1 + d_e1;
             dv[i2 as usize] += g2 + d_e2;
         }
-        let dp = per_task_params.iter().fold([0.0f64; 4], |mut a, b| {
-            for i in 0..4 {
-                a[i] += b[i];
-            }
-            a
-        });
-        Ok(Gradient {
+        Gradient {
             vertices: dv.iter().map(|g| g.as_vec3()).collect(),
             brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
             faces,
-        })
+        }
     }
 
     /// Adjoint pass of measurement m (padded adjoint row `adj`) for sub-triangle `sub` of the splat rule over

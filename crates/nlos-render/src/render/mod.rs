@@ -14,6 +14,8 @@ use crate::visibility::Bvh;
 
 mod adjoint;
 mod forward;
+#[cfg(feature = "gpu")]
+pub(crate) mod gpu;
 mod lobe;
 mod params;
 mod sampling;
@@ -84,6 +86,8 @@ pub struct Renderer {
     /// (its block's level); empty for the other rules.
     block_levels: Vec<u32>,
     tri_levels: Vec<u32>,
+    /// Counts the visibility refreshes (the GPU backend uploads the cache again when it changes).
+    vis_generation: u64,
 }
 
 impl Renderer {
@@ -147,6 +151,7 @@ impl Renderer {
             spots: spot_box(scan),
             block_levels: Vec::new(),
             tri_levels: Vec::new(),
+            vis_generation: 0,
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -279,6 +284,7 @@ impl Renderer {
             }
         });
         self.cache = Some(cache);
+        self.vis_generation += 1;
     }
 
     /// The scan.

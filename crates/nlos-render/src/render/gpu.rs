@@ -1,0 +1,510 @@
+//! The splat rule on a GPU (feature `gpu`): [`GpuRenderer`] runs [`Renderer::forward`] and
+//! [`Renderer::adjoint`] of a [`Renderer`] through wgpu compute shaders (Vulkan, Metal, DX12), term for term the
+//! arithmetic of the CPU's splat kernels (`gpu.wgsl` names the functions it follows).
+//!
+//! What it covers: [`Sampling::Splat`] with the tent kernel (the optimiser's rule), visibility
+//! [`Visibility::Off`] or [`Visibility::Cached`] (the cache is computed on the CPU and uploaded when it changes),
+//! one- or two-sided faces, per-face weights, confocal and general scans, and the BRDFs that report a
+//! [`GpuModel`] (Lambertian, retroreflective). Anything else is a [`RenderError::Gpu`] naming what to change.
+//!
+//! Deterministic: the forward pass sums each bin in 64-bit fixed point (integer atomics, so the order of the
+//! additions does not matter), the adjoint gives every (triangle, range of measurements) its own sums and adds
+//! the ranges in order, and the vertex distribution is the CPU's. The same device gives the same bits on every
+//! run; another GPU (or the CPU) agrees to f32 rounding (`tests/gpu.rs`: 1e-4 of the transient's peak).
+
+use std::sync::{Arc, Mutex};
+
+use bytemuck::{Pod, Zeroable};
+
+use super::*;
+use crate::brdf::GpuModel;
+
+/// Threads of a workgroup (the shader's `WG`).
+const WG: u32 = 256;
+/// Adjoint: about this many threads in flight, as (triangle, range of measurements) pairs.
+const ADJOINT_THREADS: usize = 1 << 18;
+/// Measurements per row of the forward dispatch (the grid's z dimension counts the rows).
+const M_ROW: u32 = 32_768;
+
+/// The shader's `Params` (uniform, 64 bytes).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Params {
+    nt: u32,
+    nm: u32,
+    bins: u32,
+    confocal: u32,
+    two_sided: u32,
+    brdf: u32,
+    has_vis: u32,
+    chunk: u32,
+    albedo: f32,
+    inv_w2: f32,
+    t0: f32,
+    inv_dt: f32,
+    power: f32,
+    max_contrib: f32,
+    pad: [f32; 2],
+}
+
+/// Pipelines compiled for one histogram capacity (bins per forward workgroup).
+#[derive(Debug)]
+struct Pipelines {
+    hb: u32,
+    forward: wgpu::ComputePipeline,
+    adjoint: wgpu::ComputePipeline,
+    reduce: wgpu::ComputePipeline,
+}
+
+/// The device's copy of the visibility cache and which refresh of which renderer it holds.
+#[derive(Debug)]
+struct VisCopy {
+    buffer: wgpu::Buffer,
+    key: (usize, u64, usize),
+}
+
+/// A GPU (wgpu adapter, device and queue) and the splat rule's compute pipelines. One `GpuRenderer` serves any
+/// number of [`Renderer`]s, one call at a time; it uploads the geometry on every call and the visibility cache
+/// when it changed.
+///
+/// ```no_run
+/// # use nlos_render::{GpuRenderer, Renderer, RenderParams, Sampling, SplatRule, Visibility};
+/// # fn demo(r: &Renderer, brdf: &nlos_brdf::Lambertian<f32>) -> nlos_render::Result<()> {
+/// let mut gpu = GpuRenderer::new()?; // RenderError::Gpu when the machine has no adapter
+/// let transient = gpu.forward(r, brdf)?;
+/// let grad = gpu.adjoint(r, brdf, &vec![1.0; transient.len()])?;
+/// # Ok(()) }
+/// ```
+#[derive(Debug)]
+pub struct GpuRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: String,
+    limits: wgpu::Limits,
+    layout: wgpu::BindGroupLayout,
+    pipelines: Option<Pipelines>,
+    vis: Option<VisCopy>,
+}
+
+fn gpu_err(reason: impl Into<String>) -> RenderError {
+    RenderError::Gpu(reason.into())
+}
+
+impl GpuRenderer {
+    /// Opens the first high-performance adapter wgpu finds (Vulkan, Metal or DX12; `WGPU_BACKEND` and
+    /// `WGPU_ADAPTER_NAME` choose among several), with the adapter's own limits.
+    ///
+    /// # Errors
+    /// [`RenderError::Gpu`] when no adapter is found (no GPU, or no Vulkan driver: on Linux install the
+    /// vendor's driver or Mesa's `mesa-vulkan-drivers`) or the device cannot be opened.
+    pub fn new() -> Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(desc);
+        let options = wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        };
+        let adapter = pollster::block_on(instance.request_adapter(&options)).map_err(|e| {
+            gpu_err(format!(
+                "no GPU adapter found ({e}); install a Vulkan driver (the vendor's, or Mesa's mesa-vulkan-drivers \
+                 for a software one) or run on the CPU"
+            ))
+        })?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("nlos-render"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| gpu_err(format!("the adapter {} refused a device: {e}", info.name)))?;
+        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("nlos-render splat"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1, true),
+                storage(2, true),
+                storage(3, true),
+                storage(4, false),
+                storage(5, false),
+                storage(6, false),
+            ],
+        });
+        Ok(Self {
+            device,
+            queue,
+            adapter: format!("{} ({:?}, {})", info.name, info.backend, info.driver),
+            limits,
+            layout,
+            pipelines: None,
+            vis: None,
+        })
+    }
+
+    /// The adapter: name, backend and driver.
+    pub fn adapter(&self) -> &str {
+        &self.adapter
+    }
+
+    /// The forward pass of `r` on the GPU: the transient, measurement-major, as [`Renderer::forward`] gives it
+    /// (to f32 rounding).
+    ///
+    /// # Errors
+    /// [`RenderError::Gpu`] when the renderer's settings or the BRDF have no GPU version, a buffer exceeds the
+    /// device's limits, or the device fails.
+    pub fn forward<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Vec<f32>> {
+        let setup = self.prepare(r, brdf)?;
+        let nm = r.wall.l.len();
+        let bins = r.time.bins;
+        let out_len = nm * bins;
+        let rows = self.storage("transient", (out_len * 4) as u64)?;
+        let hb = setup.params.bins.min(self.pipelines.as_ref().map_or(1, |p| p.hb));
+        let bin_chunks = (bins as u32).div_ceil(hb);
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let bind = self.bind(&setup, &rows, None, None);
+        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            pass.set_pipeline(&self.pipes()?.forward);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((nm as u32).min(M_ROW), bin_chunks, (nm as u32).div_ceil(M_ROW));
+        }
+        let out = self.read(enc, &rows, out_len)?;
+        check_scope(scope)?;
+        Ok(out)
+    }
+
+    /// The adjoint pass of `r` on the GPU: dE/d(vertices), dE/d(BRDF parameters) and dE/d(face weights) for the
+    /// adjoint rows `d_loss` (`dE/dI`, measurement-major), as [`Renderer::adjoint`] gives them (to f32 rounding).
+    ///
+    /// # Errors
+    /// [`RenderError::LengthMismatch`] when `d_loss` is not one value per (measurement, bin); otherwise as
+    /// [`GpuRenderer::forward`].
+    pub fn adjoint<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        let nm = r.wall.l.len();
+        let expected = nm * r.time.bins;
+        if d_loss.len() != expected {
+            return Err(RenderError::LengthMismatch { what: "d_loss", expected, got: d_loss.len() });
+        }
+        let mut setup = self.prepare(r, brdf)?;
+        let nt = r.tris.v0.len();
+        let ranges = ADJOINT_THREADS.div_ceil(nt.max(1)).clamp(1, nm);
+        let chunk = nm.div_ceil(ranges);
+        let ranges = nm.div_ceil(chunk);
+        setup.params.chunk = chunk as u32;
+        let rows = self.storage("adjoint rows", (expected * 4).max(4) as u64)?;
+        self.queue.write_buffer(&rows, 0, bytemuck::cast_slice(d_loss));
+        let partial = self.storage("adjoint partial sums", (ranges * nt * 64).max(4) as u64)?;
+        let sums = self.storage("adjoint sums", (nt * 64).max(4) as u64)?;
+        if nt == 0 {
+            return Ok(r.distribute::<B>(&[], [0.0; 4]));
+        }
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let bind = self.bind(&setup, &rows, Some(&partial), Some(&sums));
+        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let pipes = self.pipes()?;
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(&pipes.adjoint);
+            pass.dispatch_workgroups((nt as u32).div_ceil(WG), ranges as u32, 1);
+            pass.set_pipeline(&pipes.reduce);
+            pass.dispatch_workgroups((16 * nt as u32).div_ceil(WG), 1, 1);
+        }
+        let flat = self.read(enc, &sums, 16 * nt)?;
+        check_scope(scope)?;
+        let mut per_tri = vec![[0.0f64; 12]; nt];
+        let mut dp = [0.0f64; 4];
+        for (o, s) in per_tri.iter_mut().zip(flat.chunks_exact(16)) {
+            for (x, y) in o.iter_mut().zip(s) {
+                *x = f64::from(*y);
+            }
+            for (p, y) in dp.iter_mut().zip(&s[12..]) {
+                *p += f64::from(*y);
+            }
+        }
+        Ok(r.distribute::<B>(&per_tri, dp))
+    }
+
+    fn pipes(&self) -> Result<&Pipelines> {
+        self.pipelines.as_ref().ok_or_else(|| gpu_err("internal: pipelines not built"))
+    }
+
+    /// Checks what `r` asks for, uploads its triangles, wall and visibility, and builds the pipelines.
+    fn prepare<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Setup> {
+        let axis = match (r.params.sampling, r.splat_axis(&r.kernel)) {
+            (Sampling::Splat(_), Some(axis)) => axis,
+            _ => return Err(gpu_err("only the splat rule with the tent kernel runs on the GPU (Sampling::Splat)")),
+        };
+        let has_vis = match r.params.visibility {
+            Visibility::Off => false,
+            Visibility::Cached { .. } => true,
+            Visibility::Live => {
+                return Err(gpu_err("live shadow rays do not run on the GPU: use Visibility::Cached or Off"));
+            }
+        };
+        let (brdf_kind, albedo, inv_w2) = match brdf.gpu_model() {
+            Some(GpuModel::Lambertian { albedo }) => (0, albedo, 0.0),
+            Some(GpuModel::Retroreflective { albedo, lobe_width }) => (1, albedo, 1.0 / (lobe_width * lobe_width)),
+            None => {
+                return Err(gpu_err(format!(
+                    "the BRDF {} has no GPU version (Lambertian and retroreflective have one); render on the CPU",
+                    std::any::type_name::<B>()
+                )));
+            }
+        };
+        let (nt, nm, bins) = (r.tris.v0.len(), r.wall.l.len(), r.time.bins);
+        if has_vis && (nt as u64) * (nm as u64) >= u64::from(u32::MAX) {
+            return Err(gpu_err(format!(
+                "{nt} triangles × {nm} measurements of cached visibility exceed the shader's 32-bit index"
+            )));
+        }
+        let max_level = r.tri_levels.iter().copied().max().unwrap_or(1);
+        let params = Params {
+            nt: nt as u32,
+            nm: nm as u32,
+            bins: bins as u32,
+            confocal: u32::from(r.wall.confocal),
+            two_sided: u32::from(r.params.two_sided),
+            brdf: brdf_kind,
+            has_vis: u32::from(has_vis),
+            chunk: 1,
+            albedo,
+            inv_w2,
+            t0: axis.t0,
+            inv_dt: axis.inv_dt,
+            power: B::DISTANCE_POWER,
+            max_contrib: (nt.max(1) as f32) * (max_level * max_level) as f32,
+            pad: [0.0; 2],
+        };
+        self.build_pipelines(bins as u32)?;
+        // Triangles in storage-slot order (the visibility cache's order): [v0, level], [e1, 1/(2|N|)],
+        // [e2, 1/|N|²], [N, weight] with weight 0 for a degenerate face.
+        let mut tris = Vec::with_capacity(nt * 16);
+        for slot in 0..nt {
+            let t = r.mesh_triangle(slot);
+            let (n, valid) = (r.tris.n[t], r.tris.valid[t]);
+            let len2 = n.length_squared();
+            let level = r.tri_levels.get(t).copied().unwrap_or(1);
+            let w = if valid { r.face_weight(t) } else { 0.0 };
+            let (inv_2n, inv_n2) = if valid { (0.5 / len2.sqrt(), 1.0 / len2) } else { (0.0, 0.0) };
+            let (v0, e1, e2) = (r.tris.v0[t], r.tris.e1[t], r.tris.e2[t]);
+            tris.extend_from_slice(&[v0.x, v0.y, v0.z, f32::from_bits(level)]);
+            tris.extend_from_slice(&[e1.x, e1.y, e1.z, inv_2n, e2.x, e2.y, e2.z, inv_n2, n.x, n.y, n.z, w]);
+        }
+        let mut wall = Vec::with_capacity(nm * 16);
+        for m in 0..nm {
+            for v in [r.wall.l[m], r.wall.n_l[m], r.wall.s[m], r.wall.n_s[m]] {
+                wall.extend_from_slice(&[v.x, v.y, v.z, 0.0]);
+            }
+        }
+        let tris_buf = self.upload("triangles", &tris)?;
+        let wall_buf = self.upload("wall", &wall)?;
+        if has_vis {
+            self.upload_visibility(r)?;
+        }
+        let uniform = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("params"),
+            size: 64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let dummy = self.storage("no visibility", 4)?;
+        Ok(Setup { params, uniform, tris: tris_buf, wall: wall_buf, dummy, has_vis })
+    }
+
+    /// Compiles the pipelines for a histogram capacity of `bins` (capped by the device's workgroup memory).
+    fn build_pipelines(&mut self, bins: u32) -> Result<()> {
+        // Two u32 words per bin, and a few words of the shader's own.
+        let cap = (self.limits.max_compute_workgroup_storage_size.saturating_sub(64) / 8).max(1);
+        let hb = bins.clamp(1, cap);
+        if self.pipelines.as_ref().is_some_and(|p| p.hb == hb) {
+            return Ok(());
+        }
+        let source = include_str!("gpu.wgsl").replacen("const HB: u32 = 1024u;", &format!("const HB: u32 = {hb}u;"), 1);
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("gpu.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: None,
+            bind_group_layouts: &[Some(&self.layout)],
+            immediate_size: 0,
+        });
+        let make = |entry: &str| {
+            self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                cache: None,
+            })
+        };
+        let pipelines = Pipelines { hb, forward: make("forward"), adjoint: make("adjoint"), reduce: make("reduce") };
+        check_scope(scope)?;
+        self.pipelines = Some(pipelines);
+        Ok(())
+    }
+
+    /// Uploads the renderer's visibility cache (as words of four bytes) unless the device holds this refresh.
+    fn upload_visibility(&mut self, r: &Renderer) -> Result<()> {
+        let Some(cache) = &r.cache else {
+            return Err(gpu_err("Visibility::Cached without a cache: call Renderer::refresh_visibility"));
+        };
+        let key = (std::ptr::from_ref(r) as usize, r.vis_generation, cache.len());
+        if self.vis.as_ref().is_some_and(|v| v.key == key) {
+            return Ok(());
+        }
+        let words: Vec<u32> = cache
+            .chunks(4)
+            .map(|c| c.iter().enumerate().fold(0u32, |w, (i, b)| w | (u32::from(*b) << (8 * i))))
+            .collect();
+        let buffer = self.upload("visibility", &words)?;
+        self.vis = Some(VisCopy { buffer, key });
+        Ok(())
+    }
+
+    fn check_size(&self, what: &str, size: u64) -> Result<()> {
+        let max = self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size);
+        if size > max {
+            return Err(gpu_err(format!(
+                "the {what} need {size} bytes, more than the device binds ({max}); use fewer measurements or bins"
+            )));
+        }
+        Ok(())
+    }
+
+    fn storage(&self, what: &str, size: u64) -> Result<wgpu::Buffer> {
+        self.check_size(what, size)?;
+        Ok(self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(what),
+            size: size.next_multiple_of(4),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        }))
+    }
+
+    fn upload<T: Pod>(&self, what: &str, data: &[T]) -> Result<wgpu::Buffer> {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let buf = self.storage(what, (bytes.len() as u64).max(4))?;
+        if !bytes.is_empty() {
+            self.queue.write_buffer(&buf, 0, bytes);
+        }
+        Ok(buf)
+    }
+
+    fn bind(
+        &self,
+        s: &Setup,
+        rows: &wgpu::Buffer,
+        partial: Option<&wgpu::Buffer>,
+        sums: Option<&wgpu::Buffer>,
+    ) -> wgpu::BindGroup {
+        self.queue.write_buffer(&s.uniform, 0, bytemuck::bytes_of(&s.params));
+        let vis = match (&self.vis, s.has_vis) {
+            (Some(v), true) => &v.buffer,
+            _ => &s.dummy,
+        };
+        fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+        }
+        // Bindings a pass does not use get a one-word stand-in (they must be distinct from the writable ones).
+        let spare5 = self.storage("unused", 4).ok();
+        let spare6 = self.storage("unused", 4).ok();
+        let p5 = partial.or(spare5.as_ref()).unwrap_or(&s.dummy);
+        let p6 = sums.or(spare6.as_ref()).unwrap_or(&s.dummy);
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &self.layout,
+            entries: &[
+                entry(0, &s.uniform),
+                entry(1, &s.tris),
+                entry(2, &s.wall),
+                entry(3, vis),
+                entry(4, rows),
+                entry(5, p5),
+                entry(6, p6),
+            ],
+        })
+    }
+
+    /// Submits `enc` with a copy of `len` f32 of `src` into a mapped buffer, waits, and returns them.
+    fn read(&self, mut enc: wgpu::CommandEncoder, src: &wgpu::Buffer, len: usize) -> Result<Vec<f32>> {
+        let size = (len as u64 * 4).max(4);
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        self.queue.submit([enc.finish()]);
+        let status: Arc<Mutex<Option<std::result::Result<(), wgpu::BufferAsyncError>>>> = Arc::default();
+        let done = Arc::clone(&status);
+        staging.map_async(wgpu::MapMode::Read, .., move |res| {
+            if let Ok(mut s) = done.lock() {
+                *s = Some(res);
+            }
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| gpu_err(format!("waiting for the device failed: {e}")))?;
+        match status.lock().map(|s| s.clone()) {
+            Ok(Some(Ok(()))) => {}
+            Ok(Some(Err(e))) => return Err(gpu_err(format!("reading the results back failed: {e}"))),
+            _ => return Err(gpu_err("the device did not finish reading the results back")),
+        }
+        let view = staging.get_mapped_range(..).map_err(|e| gpu_err(format!("mapping the results failed: {e}")))?;
+        let out = bytemuck::cast_slice::<u8, f32>(&view)[..len].to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(out)
+    }
+}
+
+/// What one call binds.
+#[derive(Debug)]
+struct Setup {
+    params: Params,
+    uniform: wgpu::Buffer,
+    tris: wgpu::Buffer,
+    wall: wgpu::Buffer,
+    dummy: wgpu::Buffer,
+    has_vis: bool,
+}
+
+fn check_scope(scope: wgpu::ErrorScopeGuard) -> Result<()> {
+    match pollster::block_on(scope.pop()) {
+        None => Ok(()),
+        Some(e) => Err(gpu_err(format!("the device reported: {e}"))),
+    }
+}

@@ -1,0 +1,174 @@
+//! The GPU backend (feature `gpu`) against the CPU renderer: the same forward pass (to 1e-4 of the transient's
+//! peak), the same adjoint (vertex, BRDF and face-weight gradients), a gradient that matches finite differences
+//! of the GPU's own forward pass, and bit-identical results on repeated calls. Runs wherever wgpu finds an
+//! adapter — in CI Mesa's software Vulkan (lavapipe). Without one the tests say so and pass, unless
+//! `NLOS_REQUIRE_GPU=1` (set by CI) turns that into a failure.
+#![cfg(feature = "gpu")]
+
+mod common;
+
+use glam::Vec3;
+use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
+use nlos_render::{GpuRenderer, RenderBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_transient::{PointSet, Scan, TimeAxis};
+
+/// The device, or None (with the reason printed) where the machine has none and none is required.
+fn gpu() -> Option<GpuRenderer> {
+    match GpuRenderer::new() {
+        Ok(g) => {
+            eprintln!("GPU adapter: {}", g.adapter());
+            Some(g)
+        }
+        Err(e) if std::env::var("NLOS_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("NLOS_REQUIRE_GPU=1 but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
+        }
+    }
+}
+
+fn splat(visibility: Visibility) -> RenderParams {
+    RenderParams { sampling: Sampling::Splat(SplatRule::default()), visibility, ..RenderParams::default() }
+}
+
+fn confocal_scan() -> Scan {
+    Scan::confocal(PointSet::wall_grid(6, 5, 0.3, 0.25).expect("grid"))
+}
+
+fn general_scan() -> Scan {
+    Scan::exhaustive(
+        PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid"),
+        PointSet::wall_grid(3, 2, 0.15, 0.1).expect("grid"),
+    )
+}
+
+/// A smooth adjoint row per measurement (non-trivial, different everywhere).
+fn adjoint_rows(len: usize, bins: usize) -> Vec<f32> {
+    (0..len).map(|i| ((i % bins) as f32 * 0.13 + (i / bins) as f32 * 0.7).cos() + 0.2).collect()
+}
+
+fn max_abs(v: impl IntoIterator<Item = f32>) -> f32 {
+    v.into_iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// Forward and adjoint on both devices; the transients agree to `1e-4` of their peak, the vertex gradients to
+/// `tol` of their largest, the BRDF and face gradients likewise.
+fn compare<B: RenderBrdf + Sync>(g: &mut GpuRenderer, r: &Renderer, brdf: &B, tol: f32, what: &str) {
+    let cpu = r.forward(brdf);
+    let dev = g.forward(r, brdf).expect("GPU forward");
+    assert_eq!(cpu.len(), dev.len());
+    let peak = max_abs(cpu.iter().copied());
+    assert!(peak > 0.0, "{what}: a non-trivial render");
+    let err = max_abs(cpu.iter().zip(&dev).map(|(c, d)| c - d));
+    eprintln!("{what}: forward max |GPU − CPU| = {:.2e} of the peak", err / peak);
+    assert!(err <= 1e-4 * peak, "{what}: forward differs by {err} (peak {peak})");
+    // Repeated calls give the same bits.
+    let again = g.forward(r, brdf).expect("GPU forward");
+    assert!(dev.iter().zip(&again).all(|(a, b)| a.to_bits() == b.to_bits()), "{what}: forward not repeatable");
+
+    let adj = adjoint_rows(cpu.len(), r.time().bins);
+    let gc = r.adjoint(brdf, &adj).expect("CPU adjoint");
+    let gd = g.adjoint(r, brdf, &adj).expect("GPU adjoint");
+    let top = max_abs(gc.vertices.iter().flat_map(|v| v.to_array()));
+    assert!(top > 0.0, "{what}: a non-trivial gradient");
+    let verr = max_abs(gc.vertices.iter().zip(&gd.vertices).flat_map(|(a, b)| (*a - *b).to_array()));
+    eprintln!("{what}: adjoint max |GPU − CPU| = {:.2e} of the largest", verr / top);
+    assert!(verr <= tol * top, "{what}: vertex gradients differ by {verr} (largest {top})");
+    for (a, b) in gc.brdf.iter().zip(&gd.brdf) {
+        assert!((a - b).abs() <= tol * a.abs().max(1e-30), "{what}: BRDF gradient {b} against {a}");
+    }
+    let ftop = max_abs(gc.faces.iter().copied());
+    let ferr = max_abs(gc.faces.iter().zip(&gd.faces).map(|(a, b)| a - b));
+    assert!(ferr <= tol * ftop, "{what}: face gradients differ by {ferr} (largest {ftop})");
+    let again = g.adjoint(r, brdf, &adj).expect("GPU adjoint");
+    assert!(
+        gd.vertices
+            .iter()
+            .zip(&again.vertices)
+            .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)),
+        "{what}: adjoint not repeatable"
+    );
+}
+
+#[test]
+fn gpu_matches_the_cpu_on_a_confocal_scan_with_cached_visibility() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(20);
+    let time = TimeAxis::new(0.6, 0.004, 300).expect("axis");
+    let r = Renderer::new(&p, &f, &confocal_scan(), &time, splat(Visibility::Cached { level: 2 })).expect("valid");
+    compare(&mut g, &r, &Lambertian::new(0.8f32).expect("albedo"), 1e-4, "confocal Lambertian, cached visibility");
+    compare(&mut g, &r, &Retroreflective::new(0.6f32).expect("albedo"), 1e-4, "confocal retroreflective");
+}
+
+#[test]
+fn gpu_matches_the_cpu_on_a_general_scan_two_sided_with_face_weights() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(12);
+    let time = TimeAxis::new(0.6, 0.004, 300).expect("axis");
+    let params = RenderParams { two_sided: true, ..splat(Visibility::Off) };
+    let mut r = Renderer::new(&p, &f, &general_scan(), &time, params).expect("valid");
+    let weights: Vec<f32> = (0..f.len()).map(|i| 0.5 + 0.5 * ((i as f32) * 0.37).sin().abs()).collect();
+    r.set_face_weights(Some(&weights)).expect("weights");
+    compare(&mut g, &r, &Lambertian::new(1.0f32).expect("albedo"), 1e-4, "general Lambertian, two-sided, weights");
+    let wide = Retroreflective::with_lobe_width(0.7f32, 0.2).expect("lobe");
+    compare(&mut g, &r, &wide, 1e-4, "general retroreflective, 0.2 rad lobe");
+}
+
+#[test]
+fn gpu_gradient_matches_finite_differences_of_the_gpu_forward() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(8);
+    let time = TimeAxis::new(0.6, 0.004, 300).expect("axis");
+    let scan = confocal_scan();
+    let brdf = Lambertian::new(1.0f32).expect("albedo");
+    let r = Renderer::new(&p, &f, &scan, &time, splat(Visibility::Off)).expect("valid");
+    let base = g.forward(&r, &brdf).expect("forward");
+    // E = Σ c_k I_k with fixed weights: dE/dI = c.
+    let c = adjoint_rows(base.len(), time.bins);
+    let grad = g.adjoint(&r, &brdf, &c).expect("adjoint");
+    let energy = |q: &[Vec3], g: &mut GpuRenderer| -> f64 {
+        let r = Renderer::new(q, &f, &scan, &time, splat(Visibility::Off)).expect("valid");
+        g.forward(&r, &brdf).expect("forward").iter().zip(&c).map(|(i, c)| f64::from(*i) * f64::from(*c)).sum()
+    };
+    let h = 5e-4f32;
+    let top = max_abs(grad.vertices.iter().flat_map(|v| v.to_array()));
+    let mut checked = 0;
+    for vi in [10usize, 30, 40, 55] {
+        for axis in 0..3 {
+            let at = |d: f32, g: &mut GpuRenderer| {
+                let mut q = p.clone();
+                q[vi][axis] += d;
+                energy(&q, g)
+            };
+            // Five-point difference (as tests/gradients.rs).
+            let fd = (-at(2.0 * h, &mut g) + 8.0 * at(h, &mut g) - 8.0 * at(-h, &mut g) + at(-2.0 * h, &mut g))
+                / (12.0 * f64::from(h));
+            let an = f64::from(grad.vertices[vi][axis]);
+            assert!(
+                (fd - an).abs() <= 0.02 * f64::from(top) + 0.02 * an.abs(),
+                "vertex {vi} axis {axis}: adjoint {an}, finite difference {fd} (largest {top})"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 12);
+}
+
+#[test]
+fn unsupported_requests_are_typed_errors() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(4);
+    let time = TimeAxis::new(0.6, 0.004, 100).expect("axis");
+    let scan = confocal_scan();
+    let lamb = Lambertian::new(1.0f32).expect("albedo");
+    let live = Renderer::new(&p, &f, &scan, &time, splat(Visibility::Live)).expect("valid");
+    assert!(matches!(g.forward(&live, &lamb), Err(RenderError::Gpu(m)) if m.contains("Cached")));
+    let point = Renderer::new(&p, &f, &scan, &time, RenderParams::default()).expect("valid");
+    assert!(matches!(g.forward(&point, &lamb), Err(RenderError::Gpu(m)) if m.contains("splat")));
+    let r = Renderer::new(&p, &f, &scan, &time, splat(Visibility::Off)).expect("valid");
+    let ggx = Ggx::new(0.5f32, 0.5, 0.2, Fresnel::One).expect("ggx");
+    assert!(matches!(g.forward(&r, &ggx), Err(RenderError::Gpu(m)) if m.contains("no GPU version")));
+    assert!(matches!(g.adjoint(&r, &lamb, &[1.0; 3]), Err(RenderError::LengthMismatch { .. })));
+}
