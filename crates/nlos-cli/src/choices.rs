@@ -29,4 +29,28 @@ pub(crate) enum ModeArg {
     Exact,
     /// Tsai et al. 2019's stratified area sampling.
     Mc,
+    /// The optimiser's rule: closed-form time integration against the tent kernel (`nlos_render::SplatRule`);
+    /// the one `--device gpu` runs.
+    Splat,
+}
+
+/// `--device`: where the renderer runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum DeviceArg {
+    /// The CPU.
+    Cpu,
+    /// A GPU (wgpu; software adapters such as Mesa's lavapipe too); an error without one.
+    Gpu,
+    /// A hardware GPU where one is found, else the CPU.
+    Auto,
+}
+
+impl From<DeviceArg> for nlos_render::Device {
+    fn from(d: DeviceArg) -> Self {
+        match d {
+            DeviceArg::Cpu => Self::Cpu,
+            DeviceArg::Gpu => Self::Gpu,
+            DeviceArg::Auto => Self::Auto,
+        }
+    }
 }

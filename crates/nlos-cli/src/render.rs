@@ -8,12 +8,12 @@
 use std::path::PathBuf;
 
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
-use nlos_render::{DeterministicRule, Kernel, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, Kernel, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient};
 
 use crate::CliError;
-use crate::choices::{BrdfArg, ModeArg, VisibilityArg};
+use crate::choices::{BrdfArg, DeviceArg, ModeArg, VisibilityArg};
 
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
@@ -39,8 +39,9 @@ pub(crate) struct Args {
     /// Both sides of every face reflect.
     #[arg(long)]
     two_sided: bool,
-    /// `exact`: noise-free adaptive quadrature; `mc`: Tsai et al. 2019's stratified area sampling (--spp samples
-    /// per measurement).
+    /// `exact`: noise-free adaptive quadrature (box kernel); `mc`: Tsai et al. 2019's stratified area sampling
+    /// (--spp samples per measurement); `splat`: the optimiser's closed-form rule (tent kernel; the mode the GPU
+    /// runs).
     #[arg(long, value_enum, default_value = "exact")]
     mode: ModeArg,
     /// Largest subdivision level of the `exact` quadrature (each sub-triangle spans at most half a bin of
@@ -55,6 +56,11 @@ pub(crate) struct Args {
     /// Sub-triangle level of the cached visibility rays (level² rays per triangle and measurement).
     #[arg(long, default_value_t = 2, value_name = "N")]
     vis_level: u32,
+    /// Where to render: `cpu`, `gpu` (needs `--mode splat` and visibility `cached` or `off`, Lambertian or
+    /// retroreflective; fails with the reason where there is no adapter) or `auto` (a hardware GPU where one
+    /// is found and the settings allow, else the CPU).
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: DeviceArg,
     /// Samples per measurement in `--mode mc`.
     #[arg(long, default_value_t = 20_000)]
     spp: u32,
@@ -152,7 +158,12 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         ModeArg::Exact => return Err(bad("--max-level must be at least 1")),
         ModeArg::Mc if args.spp > 0 => Sampling::Stratified { samples_per_measurement: args.spp, seed: args.seed },
         ModeArg::Mc => return Err(bad("--spp must be at least 1")),
+        ModeArg::Splat if (1..=64).contains(&args.max_level) => {
+            Sampling::Splat(SplatRule { max_level: args.max_level, ..SplatRule::default() })
+        }
+        ModeArg::Splat => return Err(bad(format!("--max-level {}: the splat rule takes 1..=64", args.max_level))),
     };
+    let kernel = if args.mode == ModeArg::Splat { Kernel::Tent } else { Kernel::Box };
     let model = match args.photons {
         Some(n) if !(n.is_finite() && n > 0.0) => return Err(bad(format!("--photons {n}: must be finite and > 0"))),
         Some(n) => Some(spad_model(args, n)?),
@@ -169,8 +180,14 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         VisibilityArg::Live => Visibility::Live,
         VisibilityArg::Off => Visibility::Off,
     };
-    let params = RenderParams { kernel: Kernel::Box, sampling, visibility, two_sided: args.two_sided };
-    let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
+    let params = RenderParams { kernel, sampling, visibility, two_sided: args.two_sided };
+    let mut renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
+    renderer.set_device(args.device.into()).map_err(bad)?;
+    if args.device == DeviceArg::Gpu && args.brdf == BrdfArg::Ggx {
+        return Err(bad(
+            "--device gpu: GGX has no GPU version yet (lambert and retroreflective have); use --device cpu",
+        ));
+    }
     let rendered: Transient = match args.brdf {
         BrdfArg::Lambert => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
         BrdfArg::Ggx => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),

@@ -474,3 +474,51 @@ fn the_cli_and_the_library_pipeline_make_the_same_mesh() {
     assert_eq!(read(cli_dir.join("mesh.obj")), read(lib_dir.join("mesh.obj")));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `render.device = "gpu"`: the same short reconstruction on the GPU backend (lavapipe in CI) ends where the CPU's
+/// does, to the metrics' precision (vertices within 0.1 mm, the final loss within 0.1 %). Without any adapter,
+/// `"gpu"` is refused with the reason.
+#[cfg(feature = "gpu")]
+#[test]
+fn gpu_reconstruction_matches_the_cpu() {
+    let adapter = nlos_render::GpuRenderer::new();
+    let dir = scratch("gpu");
+    let data = capture(&dir);
+    let d = data.to_string_lossy().into_owned();
+    let run = |device: &str| {
+        let out = dir.join(device);
+        let o = out.to_string_lossy().into_owned();
+        let set = format!("render.device=\"{device}\"");
+        let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--quiet", "--set", &set];
+        args.extend(FAST);
+        (nlos(&args), out)
+    };
+    let gpu = match adapter {
+        Ok(_) => run("gpu"),
+        Err(e) if std::env::var("NLOS_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("NLOS_REQUIRE_GPU=1 but {e}"),
+        Err(e) => {
+            let (refused, _) = run("gpu");
+            assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
+            assert!(text(&refused).contains("no GPU adapter found"), "{}", text(&refused));
+            eprintln!("skipping the comparison: {e}");
+            return;
+        }
+    };
+    assert!(gpu.0.status.success(), "{}", text(&gpu.0));
+    let cpu = run("cpu");
+    assert!(cpu.0.status.success(), "{}", text(&cpu.0));
+    let (mg, mc) = (
+        nlos_mesh::io::load(gpu.1.join("mesh.obj")).expect("GPU mesh"),
+        nlos_mesh::io::load(cpu.1.join("mesh.obj")).expect("CPU mesh"),
+    );
+    assert_eq!((mg.n_vertices(), mg.n_faces()), (mc.n_vertices(), mc.n_faces()), "same topology");
+    let worst = mg.positions().iter().zip(mc.positions()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "GPU and CPU vertices differ by {worst} m");
+    let loss = |dir: &Path| -> f64 {
+        let log: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("run_log.json")).expect("log")).expect("json");
+        log["iterations"].as_array().and_then(|a| a.last()).and_then(|r| r["loss"].as_f64()).expect("a loss")
+    };
+    let (lg, lc) = (loss(&gpu.1), loss(&cpu.1));
+    assert!((lg - lc).abs() <= 1e-3 * lc.abs(), "final loss {lg} on the GPU, {lc} on the CPU");
+}

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use nlos_mesh::evolve::EvolveParams;
 use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
-use nlos_render::{DeterministicRule, RenderParams, SplatRule};
+use nlos_render::{DeterministicRule, Device, RenderParams, SplatRule};
 
 use crate::adam::AdamParams;
 use crate::albedo::AlbedoMapParams;
@@ -317,6 +317,9 @@ pub struct ReconstructParams {
     /// Renderer settings (kernel: tent, needed for the time-shift gradient; visibility: live; one-sided).
     /// Its `sampling` is replaced by [`ReconstructParams::sampling`].
     pub render: RenderParams,
+    /// Where the shape and reflectance steps render ([`nlos_render::Renderer::set_device`]; default
+    /// [`Device::Auto`]: a hardware GPU where the build has the feature `gpu` and one is found, else the CPU).
+    pub device: Device,
     /// Sampling schedule.
     pub sampling: SamplingSchedule,
     /// Remeshing after every shape block (default: `RemeshParams::fast()` with the boundary remeshed along
@@ -372,6 +375,7 @@ impl Default for ReconstructParams {
             albedo_map: None,
             regulariser_weight: None,
             render: RenderParams::default(),
+            device: Device::Auto,
             sampling: SamplingSchedule::default(),
             remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
             collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),

@@ -160,5 +160,6 @@ pub use loss::Loss;
 #[cfg(feature = "gpu")]
 pub use render::gpu::GpuRenderer;
 pub use render::{
-    DeterministicRule, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule, Visibility,
+    DeterministicRule, Device, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule,
+    Visibility,
 };

@@ -9,7 +9,7 @@ use nlos_init::Material;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{OptimError, Result};
-use nlos_render::SplatRule;
+use nlos_render::{Device, SplatRule};
 
 use crate::{PruneParams, ReconstructParams, ResidualParams, Schedule};
 
@@ -303,11 +303,14 @@ pub struct RenderConfig {
     pub visibility: VisibilityChoice,
     /// Largest subdivision level of the closed-form time integration ([`SplatRule::max_level`], 1 to 64).
     pub max_level: u32,
+    /// `"auto"` (a hardware GPU where one is found, else the CPU), `"gpu"` (any adapter, software ones
+    /// included; an error without one) or `"cpu"` ([`nlos_render::Device`]).
+    pub device: Device,
 }
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        Self { visibility: VisibilityChoice::Cached, max_level: SplatRule::default().max_level }
+        Self { visibility: VisibilityChoice::Cached, max_level: SplatRule::default().max_level, device: Device::Auto }
     }
 }
 
@@ -492,6 +495,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("optimiser.boundary_smoothing", "weight of boundary smoothing relative to normal smoothing (0: off)"),
     ("render.visibility", "\"cached\" (per face and measurement), \"live\" (exact, slow) or \"off\" (height fields)"),
     ("render.max_level", "largest subdivision level of the closed-form time integration (1 to 64)"),
+    (
+        "render.device",
+        "\"auto\" (a hardware GPU where found, else the CPU), \"gpu\" (any adapter; error without) or \"cpu\"",
+    ),
     ("boundary.prune_rounds", "rounds of boundary pruning after every block (0: none)"),
     ("boundary.prune_margin", "margin κ of the pruning test"),
     ("boundary.residual_stages", "residual patches after the first N stages (0: none; confocal grids only)"),

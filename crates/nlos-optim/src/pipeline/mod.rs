@@ -29,7 +29,7 @@ use nlos_init::{
     CarveParams, FbpParams, FkParams, Gate, Material, SurfaceParams, Volume, carve, fbp, fk, lct, volume_to_surface,
 };
 use nlos_mesh::SurfaceMesh;
-use nlos_render::{SplatRule, Visibility};
+use nlos_render::{Device, SplatRule, Visibility};
 use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
 
@@ -180,6 +180,10 @@ impl Prepared {
             return Err(config_error("render.max_level", format!("{max_level}: from 1 to 64")));
         }
         p.sampling = SamplingSchedule::Splat(SplatRule { max_level, ..SplatRule::default() });
+        p.device = config.render.device;
+        if p.device == Device::Gpu && r.model == BrdfModel::Ggx {
+            return Err(config_error("render.device", "\"gpu\": GGX has no GPU version yet; use \"auto\" or \"cpu\""));
+        }
         p.schedule = self.schedule;
         let o = &config.optimiser;
         (p.lr_interior, p.lr_boundary, p.lr_reflectance) = (o.lr_interior, o.lr_boundary, o.lr_reflectance);

@@ -481,6 +481,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             stage_capture.time(),
             render_params(params, st.stage, &mut st.rng),
         )?;
+        renderer.set_device(params.device)?;
         // The albedo map's factors, held fixed through the shape block (crate::albedo, "Gradient").
         set_albedo_weights(&st, &mut renderer)?;
         let mut b = Block {

@@ -12,7 +12,8 @@
 //! the ranges in order, and the vertex distribution is the CPU's. The same device gives the same bits on every
 //! run; another GPU (or the CPU) agrees to f32 rounding (`tests/gpu.rs`: 1e-4 of the transient's peak).
 
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
 
@@ -80,6 +81,8 @@ pub struct GpuRenderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter: String,
+    /// Whether the adapter is a hardware GPU (not a software one such as lavapipe).
+    hardware: bool,
     limits: wgpu::Limits,
     layout: wgpu::BindGroupLayout,
     pipelines: Option<Pipelines>,
@@ -161,6 +164,7 @@ impl GpuRenderer {
             device,
             queue,
             adapter: format!("{} ({:?}, {})", info.name, info.backend, info.driver),
+            hardware: info.device_type != wgpu::DeviceType::Cpu,
             limits,
             layout,
             pipelines: None,
@@ -171,6 +175,11 @@ impl GpuRenderer {
     /// The adapter: name, backend and driver.
     pub fn adapter(&self) -> &str {
         &self.adapter
+    }
+
+    /// Whether the adapter is a hardware GPU (false for a software rasteriser such as Mesa's lavapipe).
+    pub fn is_hardware(&self) -> bool {
+        self.hardware
     }
 
     /// The forward pass of `r` on the GPU: the transient, measurement-major, as [`Renderer::forward`] gives it
@@ -259,17 +268,9 @@ impl GpuRenderer {
 
     /// Checks what `r` asks for, uploads its triangles, wall and visibility, and builds the pipelines.
     fn prepare<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Setup> {
-        let axis = match (r.params.sampling, r.splat_axis(&r.kernel)) {
-            (Sampling::Splat(_), Some(axis)) => axis,
-            _ => return Err(gpu_err("only the splat rule with the tent kernel runs on the GPU (Sampling::Splat)")),
-        };
-        let has_vis = match r.params.visibility {
-            Visibility::Off => false,
-            Visibility::Cached { .. } => true,
-            Visibility::Live => {
-                return Err(gpu_err("live shadow rays do not run on the GPU: use Visibility::Cached or Off"));
-            }
-        };
+        supported(&r.params).map_err(RenderError::Gpu)?;
+        let axis = r.splat_axis(&r.kernel).ok_or_else(|| gpu_err("internal: the splat rule without a tent axis"))?;
+        let has_vis = matches!(r.params.visibility, Visibility::Cached { .. });
         let (brdf_kind, albedo, inv_w2) = match brdf.gpu_model() {
             Some(GpuModel::Lambertian { albedo }) => (0, albedo, 0.0),
             Some(GpuModel::Retroreflective { albedo, lobe_width }) => (1, albedo, 1.0 / (lobe_width * lobe_width)),
@@ -506,5 +507,92 @@ fn check_scope(scope: wgpu::ErrorScopeGuard) -> Result<()> {
     match pollster::block_on(scope.pop()) {
         None => Ok(()),
         Some(e) => Err(gpu_err(format!("the device reported: {e}"))),
+    }
+}
+
+/// The process's GPU and whether it is a hardware one, or why there is none.
+type Shared = std::result::Result<(Arc<Mutex<GpuRenderer>>, bool), String>;
+
+/// The process's GPU, opened on first use ([`Renderer::set_device`]); the error where there is none.
+fn shared() -> Shared {
+    static SHARED: OnceLock<Shared> = OnceLock::new();
+    SHARED
+        .get_or_init(|| {
+            GpuRenderer::new()
+                .map(|g| {
+                    let hardware = g.hardware;
+                    (Arc::new(Mutex::new(g)), hardware)
+                })
+                .map_err(|e| e.to_string())
+        })
+        .clone()
+}
+
+/// Whether the renderer's settings have a GPU version (the BRDF is checked per call).
+pub(super) fn supported(p: &RenderParams) -> std::result::Result<(), String> {
+    if !(matches!(p.sampling, Sampling::Splat(_)) && p.kernel == Kernel::Tent) {
+        return Err("only the splat rule with the tent kernel runs on the GPU (Sampling::Splat)".into());
+    }
+    if p.visibility == Visibility::Live {
+        return Err("live shadow rays do not run on the GPU: use Visibility::Cached or Off".into());
+    }
+    Ok(())
+}
+
+/// A renderer's handle on the shared GPU; a device error sends it to the CPU for good (reported once).
+#[derive(Debug)]
+pub(crate) struct Attached {
+    gpu: Arc<Mutex<GpuRenderer>>,
+    failed: AtomicBool,
+}
+
+/// The GPU for `device` and settings `p` (None: the CPU).
+pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached>> {
+    let wrap = |gpu| Some(Attached { gpu, failed: AtomicBool::new(false) });
+    match device {
+        Device::Cpu => Ok(None),
+        Device::Auto => Ok(match (supported(p), shared()) {
+            (Ok(()), Ok((gpu, true))) => wrap(gpu),
+            _ => None,
+        }),
+        Device::Gpu => {
+            supported(p).map_err(RenderError::Gpu)?;
+            let (gpu, _) = shared().map_err(|e| RenderError::Gpu(e.trim_start_matches("GPU backend: ").to_string()))?;
+            Ok(wrap(gpu))
+        }
+    }
+}
+
+impl Attached {
+    /// The GPU's forward pass, None where it does not apply (the BRDF has no GPU version, the device failed).
+    pub(super) fn forward<B: RenderBrdf>(&self, r: &Renderer, brdf: &B) -> Option<Vec<f32>> {
+        self.run(brdf, |g| g.forward(r, brdf))
+    }
+
+    /// The GPU's adjoint pass, None where it does not apply.
+    pub(super) fn adjoint<B: RenderBrdf>(&self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Option<Gradient> {
+        if d_loss.len() != r.len() {
+            return None; // the CPU path reports the mismatch
+        }
+        self.run(brdf, |g| g.adjoint(r, brdf, d_loss))
+    }
+
+    fn run<B: RenderBrdf, T>(&self, brdf: &B, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
+        if brdf.gpu_model().is_none() || self.failed.load(Ordering::Relaxed) {
+            return None;
+        }
+        let out = match self.gpu.lock() {
+            Ok(mut g) => f(&mut g),
+            Err(_) => Err(gpu_err("the device's lock was poisoned by a panic")),
+        };
+        match out {
+            Ok(v) => Some(v),
+            Err(e) => {
+                if !self.failed.swap(true, Ordering::Relaxed) {
+                    eprintln!("warning: {e}; this renderer continues on the CPU");
+                }
+                None
+            }
+        }
     }
 }

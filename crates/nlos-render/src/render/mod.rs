@@ -88,6 +88,9 @@ pub struct Renderer {
     tri_levels: Vec<u32>,
     /// Counts the visibility refreshes (the GPU backend uploads the cache again when it changes).
     vis_generation: u64,
+    /// The GPU that runs the forward and adjoint passes ([`Renderer::set_device`]), None for the CPU.
+    #[cfg(feature = "gpu")]
+    gpu: Option<gpu::Attached>,
 }
 
 impl Renderer {
@@ -152,6 +155,8 @@ impl Renderer {
             block_levels: Vec::new(),
             tri_levels: Vec::new(),
             vis_generation: 0,
+            #[cfg(feature = "gpu")]
+            gpu: None,
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -333,6 +338,42 @@ impl Renderer {
         Ok(())
     }
 
+    /// Chooses where [`Renderer::forward`] and [`Renderer::adjoint`] (and so the loss-and-gradient) run: the
+    /// CPU, or a GPU through the feature `gpu`'s backend ([`crate::GpuRenderer`], one adapter shared by the
+    /// process). The GPU runs the splat rule with the tent kernel and cached or no visibility, for BRDFs with a
+    /// [`crate::GpuModel`]; a call it cannot take (another BRDF, a device error) runs on the CPU, and a device
+    /// error is reported once on stderr. Results on a GPU match the CPU's to f32 rounding and repeat bit for
+    /// bit on the same device; the CPU path is unchanged. Everything else (steady state, per-triangle shares,
+    /// visibility) stays on the CPU.
+    ///
+    /// # Errors
+    /// [`RenderError::Gpu`] for [`Device::Gpu`] when the build has no GPU backend, no adapter is found, or the
+    /// renderer's settings have no GPU version. [`Device::Auto`] never fails: it takes the CPU then.
+    pub fn set_device(&mut self, device: Device) -> Result<()> {
+        #[cfg(feature = "gpu")]
+        {
+            self.gpu = gpu::attach(device, &self.params)?;
+            Ok(())
+        }
+        #[cfg(not(feature = "gpu"))]
+        match device {
+            Device::Gpu => Err(RenderError::Gpu(
+                "this build has no GPU backend: build with the feature `gpu` (cargo build --features gpu)".into(),
+            )),
+            Device::Cpu | Device::Auto => Ok(()),
+        }
+    }
+
+    /// Where the forward and adjoint passes run: [`Device::Gpu`] when a GPU is attached
+    /// ([`Renderer::set_device`]), else [`Device::Cpu`].
+    pub fn device(&self) -> Device {
+        #[cfg(feature = "gpu")]
+        if self.gpu.is_some() {
+            return Device::Gpu;
+        }
+        Device::Cpu
+    }
+
     /// Sets one reflectance factor per mesh triangle (`None`: all 1): triangle t's contribution to the
     /// forward pass, and to every gradient, is multiplied by `w_t` — a spatially varying albedo constant over
     /// each face, on top of the BRDF. The factors are kept across [`Renderer::set_positions`]; the adjoint
@@ -392,6 +433,10 @@ impl Renderer {
     /// The forward pass, eq. (1): `I[m·bins + k] = Σ_t ∫_t K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x)` with f the
     /// product of eq. (2) (see the crate docs for the scale convention).
     pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
+        #[cfg(feature = "gpu")]
+        if let Some(out) = self.gpu.as_ref().and_then(|g| g.forward(self, brdf)) {
+            return out;
+        }
         self.forward_with(brdf, &self.kernel)
     }
 
@@ -411,6 +456,10 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
     pub fn adjoint<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        #[cfg(feature = "gpu")]
+        if let Some(out) = self.gpu.as_ref().and_then(|g| g.adjoint(self, brdf, d_loss)) {
+            return Ok(out);
+        }
         self.adjoint_with(brdf, d_loss, &self.kernel)
     }
 

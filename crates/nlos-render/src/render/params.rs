@@ -90,6 +90,20 @@ impl Default for Sampling {
     }
 }
 
+/// Where [`Renderer::forward`] and [`Renderer::adjoint`] run ([`Renderer::set_device`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// The CPU (rayon; byte-identical whatever the thread count and machine). The default.
+    #[default]
+    Cpu,
+    /// A GPU through wgpu (feature `gpu`), software adapters (Mesa's lavapipe) included: an error where there is
+    /// none or the renderer's settings have no GPU version.
+    Gpu,
+    /// A hardware GPU where one is found and the settings have a GPU version, else the CPU.
+    Auto,
+}
+
 /// How v(x, l) v(x, s) of eq. (1) is evaluated. In the adjoint pass visibility is always held fixed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub enum Visibility {
