@@ -289,3 +289,53 @@ fn bad_spad_arguments_are_input_errors() {
         assert_eq!(r.status.code(), Some(2), "{extra:?}: {}", text(&r));
     }
 }
+
+/// `--device`: on a machine with no Vulkan driver (the loader pointed at none), `gpu` fails with the reason and
+/// what to install, `auto` and `cpu` render on the CPU; where there is an adapter, `--mode splat --device gpu`
+/// gives the CPU's transient to 1e-4 of its peak. `gpu` outside the splat rule, or with GGX, is refused.
+#[cfg(feature = "gpu")]
+#[test]
+fn device_choice_and_the_gpu_without_a_driver() {
+    let dir = scratch("device");
+    let (mesh, setup) = inputs(&dir);
+    let out = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let run = |device: &str, file: &str, no_driver: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_nlos"));
+        c.args(["render", &mesh, "--setup", &setup, "--mode", "splat", "--device", device, "--out", file]);
+        if no_driver {
+            c.env("VK_DRIVER_FILES", "/nonexistent.json").env("VK_ICD_FILENAMES", "/nonexistent.json");
+        }
+        c.output().expect("run nlos")
+    };
+    let refused = run("gpu", &out("none.npy"), true);
+    assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
+    assert!(
+        text(&refused).contains("no GPU adapter found") && text(&refused).contains("mesa-vulkan-drivers"),
+        "{}",
+        text(&refused)
+    );
+    for device in ["auto", "cpu"] {
+        let ok = run(device, &out(&format!("{device}.npy")), true);
+        assert!(ok.status.success(), "{device}: {}", text(&ok));
+    }
+    let read = |f: &str| nlos_transient::read(f).expect("transient").data().to_vec();
+    if nlos_render::GpuRenderer::new().is_ok() {
+        let gpu = run("gpu", &out("gpu.npy"), false);
+        assert!(gpu.status.success(), "{}", text(&gpu));
+        let (g, c) = (read(&out("gpu.npy")), read(&out("cpu.npy")));
+        let peak = c.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        let err = g.iter().zip(&c).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(peak > 0.0 && err <= 1e-4 * peak, "GPU against CPU: {err} (peak {peak})");
+    }
+    for extra in [&["--mode", "exact"][..], &["--brdf", "ggx"][..]] {
+        let mut args = vec!["render", &mesh, "--setup", &setup, "--device", "gpu", "--out"];
+        let f = out("bad.npy");
+        args.push(&f);
+        if extra[0] != "--mode" {
+            args.extend(["--mode", "splat"]);
+        }
+        args.extend(extra);
+        let bad = nlos(&args);
+        assert_eq!(bad.status.code(), Some(2), "{extra:?}: {}", text(&bad));
+    }
+}

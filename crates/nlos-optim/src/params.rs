@@ -319,6 +319,9 @@ pub struct ReconstructParams {
     pub render: RenderParams,
     /// Where the shape and reflectance steps render ([`nlos_render::Renderer::set_device`]; default
     /// [`Device::Auto`]: a hardware GPU where the build has the feature `gpu` and one is found, else the CPU).
+    /// Not in a checkpoint's settings record: the device changes the results only by f32 rounding, so a run
+    /// may resume on another one.
+    #[serde(skip)]
     pub device: Device,
     /// Sampling schedule.
     pub sampling: SamplingSchedule,

@@ -95,6 +95,14 @@
 //! against the same piecewise cubic. `benches/loop_cost.rs` times the optimiser's exact configuration;
 //! docs/performance.md has the figures (per-step time and bin-level error of every rule).
 //!
+//! ## On a GPU (feature `gpu`)
+//! [`GpuRenderer`] runs the splat rule's forward and adjoint passes (tent kernel, cached or no visibility,
+//! Lambertian or retroreflective) as wgpu compute shaders; [`Renderer::set_device`] makes a renderer use the
+//! process's GPU for [`Renderer::forward`], [`Renderer::adjoint`] and the loss-and-gradient. The shaders follow
+//! the splat kernels below term for term; sums are deterministic without float atomics (the forward pass in
+//! 64-bit fixed point per bin, the adjoint per triangle in a fixed order), so a GPU run repeats bit for bit on
+//! its device and agrees with the CPU to f32 rounding (`tests/gpu.rs`). Timings: docs/performance.md.
+//!
 //! ## Performance
 //! Triangles are stored as structure of arrays (`f32` per coordinate), grouped by normal direction into
 //! blocks of 256; a block whose bounds (componentwise range of the unit normals, smallest plane offset)

@@ -78,16 +78,13 @@ fn pair_factor(t: u32, m: u32, fr: Frame) -> vec2<f32> {
 struct Sub { c0: vec2<f32>, c1: vec2<f32>, c2: vec2<f32>, cen: vec2<f32> }
 
 fn sub_triangle(n: u32, idx: u32) -> Sub {
-    // Row i holds 2(n − i) − 1 sub-triangles: (i, j) upright for j < n − i, then flipped ones between them.
+    // Row i holds 2(n − i) − 1 sub-triangles (upright ones at even k, flipped ones between them), so i(2n − i)
+    // come before row i: i = ⌊n − √(n² − idx)⌋, corrected by one where the square root rounds.
     let inv = 1.0 / f32(n);
-    var i = 0u;
-    var k = idx;
-    loop {
-        let row = 2u * (n - i) - 1u;
-        if (k < row) { break; }
-        k = k - row;
-        i = i + 1u;
-    }
+    var i = u32(max(f32(n) - sqrt(f32(n * n - idx)), 0.0));
+    if (i > 0u && i * (2u * n - i) > idx) { i = i - 1u; }
+    if ((i + 1u) * (2u * n - i - 1u) <= idx) { i = i + 1u; }
+    let k = idx - i * (2u * n - i);
     let j = k / 2u;
     let fi = f32(i);
     let fj = f32(j);
@@ -221,16 +218,13 @@ fn span_end(k: Knots) -> i32 {
     return k.k0 + i32(ceil(k.c));
 }
 
-// The centroid's value of one (face, sub-triangle, measurement): w·vis·f_s·Q, 0 where a cosine test fails.
-struct Sample { g: f32, x: vec3<f32>, a: vec3<f32>, b: vec3<f32>, n: vec3<f32>, ra: f32, rb: f32 }
+// The geometry of a pair at barycentric point c of triangle t: the point, the oriented normal, a = l − x,
+// b = s − x, the cosines' numerators c_l, p_l, c_s, p_s (eq. 2), and whether all four are positive.
+struct Geom { x: vec3<f32>, n: vec3<f32>, a: vec3<f32>, b: vec3<f32>, cl: f32, pl: f32, cs: f32, ps: f32, lit: bool }
 
-fn centroid_sample(t: u32, fr: Frame, sign: f32, vis_w: f32, c: vec2<f32>, w: f32) -> Sample {
-    let q0 = tris[4u * t];
-    let q1 = tris[4u * t + 1u];
-    let q2 = tris[4u * t + 2u];
-    let nn = tris[4u * t + 3u];
-    let x = q0.xyz + c.x * q1.xyz + c.y * q2.xyz;
-    let n = sign * nn.xyz;
+fn geometry(t: u32, fr: Frame, sign: f32, c: vec2<f32>) -> Geom {
+    let x = tris[4u * t].xyz + c.x * tris[4u * t + 1u].xyz + c.y * tris[4u * t + 2u].xyz;
+    let n = sign * tris[4u * t + 3u].xyz;
     let a = fr.l - x;
     var b = a;
     if (P.confocal == 0u) { b = fr.s - x; }
@@ -238,14 +232,22 @@ fn centroid_sample(t: u32, fr: Frame, sign: f32, vis_w: f32, c: vec2<f32>, w: f3
     let pl = dot(n, a);
     let cs = -dot(fr.n_s, b);
     let ps = dot(n, b);
-    let ra2 = dot(a, a);
-    let rb2 = dot(b, b);
+    return Geom(x, n, a, b, cl, pl, cs, ps, cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0);
+}
+
+// The centroid's value of one (face, sub-triangle, measurement): w·vis·f_s·Q, 0 where a cosine test fails.
+struct Sample { g: f32, ra: f32, rb: f32 }
+
+fn centroid_sample(t: u32, fr: Frame, sign: f32, vis_w: f32, c: vec2<f32>, w: f32) -> Sample {
+    let p = geometry(t, fr, sign, c);
+    let ra2 = dot(p.a, p.a);
+    let rb2 = dot(p.b, p.b);
     var g = 0.0;
-    if (cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0) {
-        let fs = brdf_grad(a, b, n).value;
-        g = w * vis_w * fs * (cl * pl * cs * ps * q1.w / (ra2 * ra2 * rb2 * rb2));
+    if (p.lit) {
+        let fs = brdf_grad(p.a, p.b, p.n).value;
+        g = w * vis_w * fs * (p.cl * p.pl * p.cs * p.ps * tris[4u * t + 1u].w / (ra2 * ra2 * rb2 * rb2));
     }
-    return Sample(g, x, a, b, n, sqrt(ra2), sqrt(rb2));
+    return Sample(g, sqrt(ra2), sqrt(rb2));
 }
 
 // The corner node values after the centring shift, and their gradients ∂τ/∂x.
@@ -384,9 +386,6 @@ fn adjoint(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (t >= P.nt) { return; }
     let m0 = gid.y * P.chunk;
     let m1 = min(m0 + P.chunk, P.nm);
-    let p0 = tris[4u * t].xyz;
-    let e1 = tris[4u * t + 1u].xyz;
-    let e2 = tris[4u * t + 2u].xyz;
     let inv_n2 = tris[4u * t + 2u].w;
     let n = level_of(t);
     let w = 1.0 / f32(n * n);
@@ -403,16 +402,15 @@ fn adjoint(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = w * pf.y;
         for (var j = 0u; j < n * n; j = j + 1u) {
             let sub = sub_triangle(n, j);
-            let x = p0 + sub.cen.x * e1 + sub.cen.y * e2;
-            let nrm = sg * tris[4u * t + 3u].xyz;
-            let a = fr.l - x;
-            var b = a;
-            if (P.confocal == 0u) { b = fr.s - x; }
-            let cl = -dot(fr.n_l, a);
-            let pl = dot(nrm, a);
-            let cs = -dot(fr.n_s, b);
-            let ps = dot(nrm, b);
-            if (!(cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0)) { continue; }
+            let p = geometry(t, fr, sg, sub.cen);
+            if (!p.lit) { continue; }
+            let a = p.a;
+            let b = p.b;
+            let nrm = p.n;
+            let cl = p.cl;
+            let pl = p.pl;
+            let cs = p.cs;
+            let ps = p.ps;
             let ra = sqrt(dot(a, a));
             let rb = sqrt(dot(b, b));
             // Stage 2: the closed-form gather Σ r_k w_k and Σ r_k ∂w_k/∂(a, b, c) over the span.
