@@ -188,6 +188,45 @@ fn at(a: &[&[f32]; 3], i: usize) -> Vec3 {
     Vec3::new(a[0][i], a[1][i], a[2][i])
 }
 
+/// The geometry every block kernel starts from, for one pair at a point x with oriented normal N: `a = l − x`,
+/// `b = s − x` (`b = a` for a confocal scan), the numerators of eq. (2)'s four cosines `c_l = −n_l·a`,
+/// `p_l = N·a`, `c_s = −n_s·b`, `p_s = N·b`, and whether the pair reflects there (oriented, visible in the cache,
+/// all four positive; NaN fails).
+#[derive(Clone, Copy)]
+pub(crate) struct PairGeom {
+    pub(crate) a: Vec3,
+    pub(crate) b: Vec3,
+    pub(crate) cl: f32,
+    pub(crate) pl: f32,
+    pub(crate) cs: f32,
+    pub(crate) ps: f32,
+    pub(crate) ok: bool,
+}
+
+/// [`PairGeom`] of a pair (`sign`, `vis`: its orientation and cached visibility), branch-free for the vector
+/// loops (`&`, not `&&`: a short-circuit branch in the loop body blocks vectorisation).
+#[inline(always)]
+pub(crate) fn pair_geometry<const CONFOCAL: bool>(x: Vec3, n: Vec3, fr: &Frame, sign: f32, vis: f32) -> PairGeom {
+    let a = fr.l - x;
+    let b = if CONFOCAL { a } else { fr.s - x };
+    let cl = -fr.n_l.dot(a);
+    let pl = n.dot(a);
+    let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(b), n.dot(b)) };
+    let ok = (sign != 0.0) & (vis != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+    PairGeom { a, b, cl, pl, cs, ps, ok }
+}
+
+impl<'a> Block<'a> {
+    /// The vertex, edge and normal lanes `(v0, e1, e2, N)`, each cut to the block's length (so the vector loops
+    /// index them without bounds checks).
+    #[inline(always)]
+    pub(crate) fn lanes(&self) -> [[&'a [f32]; 3]; 4] {
+        let len = self.len;
+        let cut = |a: &[&'a [f32]; 3]| [&a[0][..len], &a[1][..len], &a[2][..len]];
+        [cut(&self.v0), cut(&self.e1), cut(&self.e2), cut(&self.n)]
+    }
+}
+
 impl Block<'_> {
     /// `x(u, v) = v0 + u e1 + v e2` of triangle `i` (the expression of `Renderer::point`).
     #[inline(always)]

@@ -34,22 +34,13 @@ fn forward_samples_body<B: RenderBrdf, const CONFOCAL: bool, const TENT: bool>(
     let len = b.len;
     let (sign, vis, tau, g) = (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len]);
     let (idx, w0, w1) = (&mut sc.idx[..len], &mut sc.w0[..len], &mut sc.w1[..len]);
-    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
-    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
-    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
-    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let [v0, e1, e2, nn] = b.lanes();
     let inv_2n = &b.inv_2n[..len];
     for i in 0..len {
         let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
         let n = sign[i] * at(&nn, i);
-        let a = fr.l - x;
-        let bb = if CONFOCAL { a } else { fr.s - x };
-        let cl = -fr.n_l.dot(a);
-        let pl = n.dot(a);
-        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        // One-sided wall and surface cosines (max(0, ·) of eq. 2); NaN fails too; `&`, not `&&`: no
-        // short-circuit branches in the loop body.
-        let ok = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        // One-sided wall and surface cosines (max(0, ·) of eq. 2).
+        let PairGeom { a, b: bb, cl, pl, cs, ps, ok } = pair_geometry::<CONFOCAL>(x, n, fr, sign[i], vis[i]);
         let ra2 = a.length_squared();
         let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
         let ra = ra2.sqrt();
@@ -97,20 +88,11 @@ fn adjoint_lengths_body<const CONFOCAL: bool, const TENT: bool>(
     let (sign, vis, ra, rb, ok) =
         (&sc.sign[..len], &sc.vis[..len], &mut sc.tau[..len], &mut sc.g[..len], &mut sc.ok[..len]);
     let (idx, fr_) = (&mut sc.idx[..len], &mut sc.w0[..len]);
-    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
-    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
-    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
-    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+    let [v0, e1, e2, nn] = b.lanes();
     for i in 0..len {
         let x = at(&v0, i) + u * at(&e1, i) + v * at(&e2, i);
         let n = sign[i] * at(&nn, i);
-        let a = fr.l - x;
-        let bb = if CONFOCAL { a } else { fr.s - x };
-        let cl = -fr.n_l.dot(a);
-        let pl = n.dot(a);
-        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        // `&`, not `&&`: no short-circuit branches in the loop body (they block vectorisation).
-        let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        let PairGeom { a, b: bb, ok: pass, .. } = pair_geometry::<CONFOCAL>(x, n, fr, sign[i], vis[i]);
         let r = a.length_squared().sqrt();
         let r2 = if CONFOCAL { r } else { bb.length_squared().sqrt() };
         ra[i] = r;
@@ -306,10 +288,7 @@ kernel! {
         let (ok, hs) = (&sc.ok[..len], &mut hs[..len]);
         let (sign, vis, ra_s, rb_s, a_val, a_der) =
             (&sc.sign[..len], &sc.vis[..len], &sc.tau[..len], &sc.g[..len], &sc.a_val[..len], &sc.a_der[..len]);
-        let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
-        let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
-        let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
-        let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
+        let [v0, e1, e2, nn] = b.lanes();
         let (inv_2n, inv_n2) = (&b.inv_2n[..len], &b.inv_n2[..len]);
         let np = B::PARAM_NAMES.len().min(4);
         let (gx0, gx1, gx2, gn0, gn1, gn2) =

@@ -163,22 +163,14 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
     let (sign, vis, g) = (&sc.sign[..len], &sc.vis[..len], &mut sc.g[..len]);
     let [k0, k1, k2] = &mut sc.kn;
     let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
-    let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
-    let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
-    let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
-    let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
+    let [v0, e1, e2, nn] = b.lanes();
     let inv_2n = &b.inv_2n[..len];
     let (u, v) = sub.centroid;
     for i in 0..len {
         let (p0, d1, d2) = (at(&v0, i), at(&e1, i), at(&e2, i));
         let x = p0 + u * d1 + v * d2;
         let n = sign[i] * at(&nn, i);
-        let a = fr.l - x;
-        let bb = if CONFOCAL { a } else { fr.s - x };
-        let cl = -fr.n_l.dot(a);
-        let pl = n.dot(a);
-        let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-        let ok = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+        let PairGeom { a, b: bb, cl, pl, cs, ps, ok } = pair_geometry::<CONFOCAL>(x, n, fr, sign[i], vis[i]);
         let ra2 = a.length_squared();
         let rb2 = if CONFOCAL { ra2 } else { bb.length_squared() };
         let fs = if CONFOCAL { brdf.eval_confocal(a, n) } else { brdf.eval(a, bb, n) };
@@ -269,21 +261,13 @@ kernel! {
         let (k0, k1, k2) = (&mut k0[..len], &mut k1[..len], &mut k2[..len]);
         let (d0, d1, d2, d3, d4) = (&mut d0[..len], &mut d1[..len], &mut d2[..len], &mut d3[..len], &mut d4[..len]);
         let (d5, d6, d7, d8) = (&mut d5[..len], &mut d6[..len], &mut d7[..len], &mut d8[..len]);
-        let nn = [&b.n[0][..len], &b.n[1][..len], &b.n[2][..len]];
-        let v0 = [&b.v0[0][..len], &b.v0[1][..len], &b.v0[2][..len]];
-        let e1 = [&b.e1[0][..len], &b.e1[1][..len], &b.e1[2][..len]];
-        let e2 = [&b.e2[0][..len], &b.e2[1][..len], &b.e2[2][..len]];
+        let [v0, e1, e2, nn] = b.lanes();
         let (u, v) = sub.centroid;
         for i in 0..len {
             let (p0, q1, q2) = (at(&v0, i), at(&e1, i), at(&e2, i));
             let x = p0 + u * q1 + v * q2;
             let n = sign[i] * at(&nn, i);
-            let a = fr.l - x;
-            let bb = if CONFOCAL { a } else { fr.s - x };
-            let cl = -fr.n_l.dot(a);
-            let pl = n.dot(a);
-            let (cs, ps) = if CONFOCAL { (cl, pl) } else { (-fr.n_s.dot(bb), n.dot(bb)) };
-            let pass = (sign[i] != 0.0) & (vis[i] != 0.0) & (cl > 0.0) & (cs > 0.0) & (pl > 0.0) & (ps > 0.0);
+            let PairGeom { a, b: bb, ok: pass, .. } = pair_geometry::<CONFOCAL>(x, n, fr, sign[i], vis[i]);
             let r = a.length_squared().sqrt();
             let r2 = if CONFOCAL { r } else { bb.length_squared().sqrt() };
             ra[i] = r;
