@@ -14,25 +14,11 @@ use nlos_brdf::Lambertian;
 use nlos_render::{GpuRenderer, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
-/// A height field of about `faces` triangles over [−0.3, 0.3]² at z ≈ 0.5 facing the wall.
+/// A height field of about `faces` triangles (`nlos_testdata::scenes::height_field`).
 fn height_field(faces: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let n = ((faces as f64 / 2.0).sqrt().round() as usize + 1).max(2);
-    let mut p = Vec::with_capacity(n * n);
-    for i in 0..n {
-        for j in 0..n {
-            let (x, y) = (-0.3 + 0.6 * i as f32 / (n - 1) as f32, -0.3 + 0.6 * j as f32 / (n - 1) as f32);
-            p.push(Vec3::new(x, y, 0.5 + 0.05 * (13.0 * x).sin() * (9.0 * y).cos()));
-        }
-    }
-    let id = |i: usize, j: usize| (i * n + j) as u32;
-    let mut f = Vec::with_capacity(2 * (n - 1) * (n - 1));
-    for i in 0..n - 1 {
-        for j in 0..n - 1 {
-            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
-    (p, f)
+    let (p, f) = nlos_testdata::scenes::height_field(n);
+    (p.into_iter().map(Vec3::from_array).collect(), f)
 }
 
 fn max_abs(v: impl IntoIterator<Item = f32>) -> f32 {

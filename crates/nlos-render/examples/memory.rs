@@ -25,22 +25,9 @@ fn peak_mib() -> f64 {
 
 fn main() {
     let cached = std::env::args().nth(1).is_some_and(|a| a == "cached");
-    let n = 317usize; // (n)² ≈ 100k vertices
-    let mut p = Vec::with_capacity(n * n);
-    for i in 0..n {
-        for j in 0..n {
-            let (x, y) = (-0.3 + 0.6 * i as f32 / (n - 1) as f32, -0.3 + 0.6 * j as f32 / (n - 1) as f32);
-            p.push(Vec3::new(x, y, 0.5 + 0.05 * (13.0 * x).sin() * (9.0 * y).cos()));
-        }
-    }
-    let id = |i: usize, j: usize| (i * n + j) as u32;
-    let mut f = Vec::with_capacity(2 * (n - 1) * (n - 1));
-    for i in 0..n - 1 {
-        for j in 0..n - 1 {
-            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
-            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
-        }
-    }
+    // (n)² ≈ 100k vertices, 200k faces.
+    let (p, f) = nlos_testdata::scenes::height_field(317);
+    let p: Vec<Vec3> = p.into_iter().map(Vec3::from_array).collect();
     println!("mesh: {} vertices, {} faces; baseline peak RSS {:.0} MiB", p.len(), f.len(), peak_mib());
     let scan = Scan::confocal(PointSet::wall_grid(64, 64, 0.25, 0.25).expect("grid"));
     let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");

@@ -14,9 +14,11 @@
 //! of the same `cargo` process), which `cargo xtask test` counts and prints once at the end of the run. With `NLOS_REQUIRE_DATA=1` (set by
 //! CI) an absent file is a failure instead, so a missing data folder can never pass as green.
 //!
-//! [`mat5`] writes MATLAB level-5 MAT files, so that tests can make the inputs of the MAT readers.
+//! [`mat5`] writes MATLAB level-5 MAT files, so that tests can make the inputs of the MAT readers;
+//! [`scenes`] makes the synthetic meshes the benchmarks and examples share.
 
 pub mod mat5;
+pub mod scenes;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
