@@ -164,6 +164,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--brdf", "ggx", "--set", "reflectance.alpha=0"],
         vec!["--set", "render.visibility=sometimes"],
         vec!["--set", "render.max_level=0"],
+        vec!["--set", "render.device=\"tpu\""],
+        vec!["--brdf", "ggx", "--set", "render.device=\"gpu\""],
         vec!["--set", "sensor.background=-3", "--sensor", "ideal"],
         vec!["--set", "sensor.background=lots", "--sensor", "ideal"],
         vec!["--set", "sensor.background=0.5"],
