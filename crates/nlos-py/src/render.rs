@@ -9,7 +9,7 @@ use pyo3::types::PyDict;
 
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
-    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
+    Device, DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::Transient;
 use nlos_transient::sensor::{PhotonBudget, SpadModel};
@@ -105,6 +105,15 @@ fn visibility(name: &str, level: u32) -> PyResult<Visibility> {
     }
 }
 
+fn device(name: &str) -> PyResult<Device> {
+    match name {
+        "cpu" => Ok(Device::Cpu),
+        "gpu" => Ok(Device::Gpu),
+        "auto" => Ok(Device::Auto),
+        other => Err(PyValueError::new_err(format!("device: {other:?} is not \"cpu\", \"gpu\" or \"auto\""))),
+    }
+}
+
 fn matrix(py: Python<'_>, values: Vec<f32>, rows: usize, cols: usize) -> PyResult<Py<PyArray2<f32>>> {
     let array = Array2::from_shape_vec((rows, cols), values).map_err(errors::render)?;
     Ok(PyArray2::from_owned_array(py, array).unbind())
@@ -127,7 +136,8 @@ pub(crate) struct Renderer {
 impl Renderer {
     #[new]
     #[pyo3(signature = (vertices, faces, setup, *, brdf = "lambertian", albedo = 1.0, alpha = 0.3, specular = 1.0,
-        kernel = "tent", sampling = "splat", visibility = "cached", vis_level = 1, two_sided = false))]
+        kernel = "tent", sampling = "splat", visibility = "cached", vis_level = 1, two_sided = false,
+        device = "cpu"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -143,6 +153,7 @@ impl Renderer {
         visibility: &str,
         vis_level: u32,
         two_sided: bool,
+        device: &str,
     ) -> PyResult<Self> {
         let positions = arrays::points("vertices", vertices, None)?;
         let triangles = arrays::faces("faces", faces, positions.len())?;
@@ -154,7 +165,10 @@ impl Renderer {
         };
         let brdf = Brdf::new(brdf, albedo, alpha, specular)?;
         let (scan, time) = (setup.scan.clone(), setup.time);
-        let inner = py.detach(|| Inner::new(&positions, &triangles, &scan, &time, params)).map_err(errors::render)?;
+        let device = self::device(device)?;
+        let mut inner =
+            py.detach(|| Inner::new(&positions, &triangles, &scan, &time, params)).map_err(errors::render)?;
+        py.detach(|| inner.set_device(device)).map_err(errors::render)?;
         Ok(Self { inner, brdf, vertices: positions.len(), measurements: scan.measurements(), bins: time.bins })
     }
 
@@ -163,6 +177,15 @@ impl Renderer {
     fn set_vertices(&mut self, vertices: &Bound<'_, PyAny>) -> PyResult<()> {
         let positions = arrays::points("vertices", vertices, Some(self.vertices))?;
         self.inner.set_positions(&positions).map_err(errors::render)
+    }
+
+    /// Where forward and adjoint run: `"gpu"` when the renderer uses a GPU, else `"cpu"`.
+    #[getter]
+    fn device(&self) -> &'static str {
+        match self.inner.device() {
+            Device::Gpu => "gpu",
+            Device::Cpu | Device::Auto => "cpu",
+        }
     }
 
     /// Recomputes the cached visibility at the current vertices (no effect for `visibility="live"` or

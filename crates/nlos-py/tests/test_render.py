@@ -111,6 +111,7 @@ def test_bad_options_and_shapes_raise_value_errors():
         ({"vis_level": 99}, "vis_level"),
         ({"albedo": -1.0}, "albedo"),
         ({"brdf": "ggx", "alpha": 0.0}, "alpha"),
+        ({"device": "tpu"}, "device"),
     ]:
         with pytest.raises(ValueError, match=message):
             nlos.Renderer(v, f, setup, **kwargs)
@@ -179,3 +180,29 @@ def test_refresh_visibility_follows_the_vertices():
     fresh = r.forward()
     exact = nlos.Renderer(moved, f, setup).forward()
     assert np.array_equal(fresh, exact) and fresh.sum() > 1.5 * stale.sum()
+
+
+def test_device_gpu_matches_the_cpu_or_says_why_not():
+    """`device="gpu"`: the same transient and gradients as the CPU (to f32 rounding) where the machine has a GPU
+    adapter (Mesa's lavapipe counts), a RenderError naming the reason where it has none or the setting has no GPU
+    version; `"auto"` never fails."""
+    v, f = random_triangles(6)
+    setup = nlos.confocal_setup(n=4, half_width=0.2, bins=200, dt=0.005, t0=0.3)
+    cpu = nlos.Renderer(v, f, setup)
+    assert cpu.device == "cpu"
+    assert nlos.Renderer(v, f, setup, device="auto").device in ("cpu", "gpu")
+    with pytest.raises(nlos.RenderError, match="GPU"):
+        nlos.Renderer(v, f, setup, visibility="live", device="gpu")
+    try:
+        gpu = nlos.Renderer(v, f, setup, device="gpu")
+    except nlos.RenderError as e:
+        assert "no GPU adapter" in str(e) or "no GPU backend" in str(e)
+        pytest.skip(f"no GPU here: {e}")
+    assert gpu.device == "gpu"
+    a, b = cpu.forward(), gpu.forward()
+    assert a.sum() > 0 and np.max(np.abs(a - b)) <= 1e-4 * np.max(np.abs(a))
+    d = np.cos(np.arange(a.size, dtype=np.float32)).reshape(a.shape)
+    (ga, pa), (gb, pb) = cpu.adjoint(d), gpu.adjoint(d)
+    top = np.max(np.abs(ga))
+    assert top > 0 and np.max(np.abs(ga - gb)) <= 1e-4 * top
+    assert abs(pa["albedo"] - pb["albedo"]) <= 1e-4 * abs(pa["albedo"])

@@ -54,7 +54,8 @@ class RenderLayer(torch.nn.Module):
     (measurements x bins), differentiable with respect to ``vertices`` (n, 3).
 
     The renderer is built once, from the first vertices seen; keyword arguments are those of
-    :class:`nlos.Renderer` (``brdf``, ``albedo``, ``alpha``, ``kernel``, ``sampling``, ``visibility``, ...).
+    :class:`nlos.Renderer` (``brdf``, ``albedo``, ``alpha``, ``kernel``, ``sampling``, ``visibility``,
+    ``device``, ...).
     Its visibility cache (which triangle sees which wall spot) is recomputed whenever a vertex has moved
     more than ``refresh`` times the mesh's mean edge length since it was last computed (``None``: never,
     as the reconstruction loop keeps it within a block). The reflectance is ``layer.renderer.reflectance``;
