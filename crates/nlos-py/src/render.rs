@@ -9,7 +9,8 @@ use pyo3::types::PyDict;
 
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
-    Device, DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
+    DeterministicRule, Device, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule,
+    Visibility,
 };
 use nlos_transient::Transient;
 use nlos_transient::sensor::{PhotonBudget, SpadModel};

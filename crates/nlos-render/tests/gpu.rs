@@ -198,3 +198,25 @@ fn gpu_matches_the_cpu_at_fine_splat_levels() {
         assert!((ac - ag).abs() <= 1e-4 * ac, "level {level}: albedo gradient {ag} on the GPU, {ac} on the CPU");
     }
 }
+
+/// Renderers made one after another (as the loop makes one per block) each get their own visibility on the
+/// device, even when a new one has the same size as, and perhaps the address of, one dropped before it.
+#[test]
+fn each_renderer_gets_its_own_cached_visibility() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(10);
+    let time = TimeAxis::new(0.6, 0.004, 300).expect("axis");
+    let brdf = Lambertian::new(1.0f32).expect("albedo");
+    let occluder = p.len() - 3;
+    for shift in [0.0f32, 0.08, -0.08] {
+        let mut q = p.clone();
+        for v in &mut q[occluder..] {
+            v.x += shift;
+        }
+        let r = Renderer::new(&q, &f, &confocal_scan(), &time, splat(Visibility::Cached { level: 2 })).expect("valid");
+        let (c, d) = (r.forward(&brdf), g.forward(&r, &brdf).expect("GPU forward"));
+        let peak = max_abs(c.iter().copied());
+        let err = max_abs(c.iter().zip(&d).map(|(a, b)| a - b));
+        assert!(err <= 1e-4 * peak, "occluder moved by {shift} m: forward differs by {err} (peak {peak})");
+    }
+}

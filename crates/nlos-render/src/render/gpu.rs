@@ -57,11 +57,11 @@ struct Pipelines {
     reduce: wgpu::ComputePipeline,
 }
 
-/// The device's copy of the visibility cache and which refresh of which renderer it holds.
+/// The device's copy of the visibility cache and which refresh it holds (unique in the process).
 #[derive(Debug)]
 struct VisCopy {
     buffer: wgpu::Buffer,
-    key: (usize, u64, usize),
+    key: (u64, usize),
 }
 
 /// A GPU (wgpu adapter, device and queue) and the splat rule's compute pipelines. One `GpuRenderer` serves any
@@ -381,7 +381,7 @@ impl GpuRenderer {
         let Some(cache) = &r.cache else {
             return Err(gpu_err("Visibility::Cached without a cache: call Renderer::refresh_visibility"));
         };
-        let key = (std::ptr::from_ref(r) as usize, r.vis_generation, cache.len());
+        let key = (r.vis_generation, cache.len());
         if self.vis.as_ref().is_some_and(|v| v.key == key) {
             return Ok(());
         }

@@ -86,7 +86,8 @@ pub struct Renderer {
     /// (its block's level); empty for the other rules.
     block_levels: Vec<u32>,
     tri_levels: Vec<u32>,
-    /// Counts the visibility refreshes (the GPU backend uploads the cache again when it changes).
+    /// Which visibility refresh the cache holds, unique in the process (the GPU backend uploads the cache
+    /// again when it changes; 0: none yet).
     vis_generation: u64,
     /// The GPU that runs the forward and adjoint passes ([`Renderer::set_device`]), None for the CPU.
     #[cfg(feature = "gpu")]
@@ -289,7 +290,9 @@ impl Renderer {
             }
         });
         self.cache = Some(cache);
-        self.vis_generation += 1;
+        // Unique across renderers: a renderer made after another one was dropped may sit at its address.
+        static REFRESHES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        self.vis_generation = REFRESHES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// The scan.
