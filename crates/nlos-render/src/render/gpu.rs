@@ -129,6 +129,8 @@ impl GpuRenderer {
             trace: wgpu::Trace::Off,
         }))
         .map_err(|e| gpu_err(format!("the adapter {} refused a device: {e}", info.name)))?;
+        // Every call runs inside error scopes (`Scopes`); an error outside them is reported, never a panic.
+        device.on_uncaptured_error(Arc::new(|e| eprintln!("warning: GPU backend: {e}")));
         let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -196,7 +198,7 @@ impl GpuRenderer {
         let rows = self.storage("transient", (out_len * 4) as u64)?;
         let hb = setup.params.bins.min(self.pipelines.as_ref().map_or(1, |p| p.hb));
         let bin_chunks = (bins as u32).div_ceil(hb);
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let scopes = Scopes::push(&self.device);
         let bind = self.bind(&setup, &rows, None, None);
         let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
@@ -205,9 +207,9 @@ impl GpuRenderer {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups((nm as u32).min(M_ROW), bin_chunks, (nm as u32).div_ceil(M_ROW));
         }
-        let out = self.read(enc, &rows, out_len)?;
-        check_scope(scope)?;
-        Ok(out)
+        let out = self.read(enc, &rows, out_len);
+        scopes.check()?;
+        out
     }
 
     /// The adjoint pass of `r` on the GPU: dE/d(vertices), dE/d(BRDF parameters) and dE/d(face weights) for the
@@ -235,7 +237,7 @@ impl GpuRenderer {
         if nt == 0 {
             return Ok(r.distribute::<B>(&[], [0.0; 4]));
         }
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let scopes = Scopes::push(&self.device);
         let bind = self.bind(&setup, &rows, Some(&partial), Some(&sums));
         let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
@@ -247,8 +249,9 @@ impl GpuRenderer {
             pass.set_pipeline(&pipes.reduce);
             pass.dispatch_workgroups((16 * nt as u32).div_ceil(WG), 1, 1);
         }
-        let flat = self.read(enc, &sums, 16 * nt)?;
-        check_scope(scope)?;
+        let flat = self.read(enc, &sums, 16 * nt);
+        scopes.check()?;
+        let flat = flat?;
         let mut per_tri = vec![[0.0f64; 12]; nt];
         let mut dp = [0.0f64; 4];
         for (o, s) in per_tri.iter_mut().zip(flat.chunks_exact(16)) {
@@ -286,6 +289,10 @@ impl GpuRenderer {
             return Err(gpu_err(format!(
                 "{nt} triangles × {nm} measurements of cached visibility exceed the shader's 32-bit index"
             )));
+        }
+        // The reduction's grid: 16 values per triangle, 256 per workgroup, at most 65,535 workgroups.
+        if nt > 65_535 * (WG as usize / 16) {
+            return Err(gpu_err(format!("{nt} triangles exceed the GPU backend's 1,048,560; render on the CPU")));
         }
         let max_level = r.tri_levels.iter().copied().max().unwrap_or(1);
         let params = Params {
@@ -350,7 +357,7 @@ impl GpuRenderer {
             return Ok(());
         }
         let source = include_str!("gpu.wgsl").replacen("const HB: u32 = 1024u;", &format!("const HB: u32 = {hb}u;"), 1);
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scopes = Scopes::push(&self.device);
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("gpu.wgsl"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -371,7 +378,7 @@ impl GpuRenderer {
             })
         };
         let pipelines = Pipelines { hb, forward: make("forward"), adjoint: make("adjoint"), reduce: make("reduce") };
-        check_scope(scope)?;
+        scopes.check()?;
         self.pipelines = Some(pipelines);
         Ok(())
     }
@@ -503,10 +510,27 @@ struct Setup {
     has_vis: bool,
 }
 
-fn check_scope(scope: wgpu::ErrorScopeGuard) -> Result<()> {
-    match pollster::block_on(scope.pop()) {
-        None => Ok(()),
-        Some(e) => Err(gpu_err(format!("the device reported: {e}"))),
+/// Validation and out-of-memory error scopes around one call: its errors come back as [`RenderError::Gpu`].
+struct Scopes {
+    validation: wgpu::ErrorScopeGuard,
+    memory: wgpu::ErrorScopeGuard,
+}
+
+impl Scopes {
+    fn push(device: &wgpu::Device) -> Self {
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        Self { validation, memory }
+    }
+
+    /// Pops both (innermost first) and returns the first error either caught.
+    fn check(self) -> Result<()> {
+        let memory = pollster::block_on(self.memory.pop());
+        let validation = pollster::block_on(self.validation.pop());
+        match memory.or(validation) {
+            None => Ok(()),
+            Some(e) => Err(gpu_err(format!("the device reported: {e}"))),
+        }
     }
 }
 
