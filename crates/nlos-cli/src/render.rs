@@ -181,13 +181,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         VisibilityArg::Off => Visibility::Off,
     };
     let params = RenderParams { kernel, sampling, visibility, two_sided: args.two_sided };
-    let mut renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
-    renderer.set_device(args.device.into()).map_err(bad)?;
     if args.device == DeviceArg::Gpu && args.brdf == BrdfArg::Ggx {
         return Err(bad(
             "--device gpu: GGX has no GPU version yet (lambert and retroreflective have); use --device cpu",
         ));
     }
+    let mut renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
+    renderer.set_device(args.device.into()).map_err(bad)?;
     let rendered: Transient = match args.brdf {
         BrdfArg::Lambert => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
         BrdfArg::Ggx => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),

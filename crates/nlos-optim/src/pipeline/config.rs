@@ -310,7 +310,11 @@ pub struct RenderConfig {
 
 impl Default for RenderConfig {
     fn default() -> Self {
-        Self { visibility: VisibilityChoice::Cached, max_level: SplatRule::default().max_level, device: Device::Auto }
+        Self {
+            visibility: VisibilityChoice::Cached,
+            max_level: SplatRule::default().max_level,
+            device: ReconstructParams::default().device,
+        }
     }
 }
 

@@ -199,7 +199,7 @@ impl GpuRenderer {
         let hb = setup.params.bins.min(self.pipelines.as_ref().map_or(1, |p| p.hb));
         let bin_chunks = (bins as u32).div_ceil(hb);
         let scopes = Scopes::push(&self.device);
-        let bind = self.bind(&setup, &rows, None, None);
+        let bind = self.bind(&setup, &rows, None, None)?;
         let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
@@ -226,7 +226,8 @@ impl GpuRenderer {
         }
         let mut setup = self.prepare(r, brdf)?;
         let nt = r.tris.v0.len();
-        let ranges = ADJOINT_THREADS.div_ceil(nt.max(1)).clamp(1, nm);
+        // At most 65,535 ranges: the grid's y dimension.
+        let ranges = ADJOINT_THREADS.div_ceil(nt.max(1)).clamp(1, nm.min(65_535));
         let chunk = nm.div_ceil(ranges);
         let ranges = nm.div_ceil(chunk);
         setup.params.chunk = chunk as u32;
@@ -238,7 +239,7 @@ impl GpuRenderer {
             return Ok(r.distribute::<B>(&[], [0.0; 4]));
         }
         let scopes = Scopes::push(&self.device);
-        let bind = self.bind(&setup, &rows, Some(&partial), Some(&sums));
+        let bind = self.bind(&setup, &rows, Some(&partial), Some(&sums))?;
         let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
             let pipes = self.pipes()?;
@@ -324,7 +325,8 @@ impl GpuRenderer {
             let w = if valid { r.face_weight(t) } else { 0.0 };
             let (inv_2n, inv_n2) = if valid { (0.5 / len2.sqrt(), 1.0 / len2) } else { (0.0, 0.0) };
             let (v0, e1, e2) = (r.tris.v0[t], r.tris.e1[t], r.tris.e2[t]);
-            tris.extend_from_slice(&[v0.x, v0.y, v0.z, f32::from_bits(level)]);
+            // The level as a float (exact: at most 64), not its bits, which would be a subnormal a GPU may flush.
+            tris.extend_from_slice(&[v0.x, v0.y, v0.z, level as f32]);
             tris.extend_from_slice(&[e1.x, e1.y, e1.z, inv_2n, e2.x, e2.y, e2.z, inv_n2, n.x, n.y, n.z, w]);
         }
         let mut wall = Vec::with_capacity(nm * 16);
@@ -436,7 +438,7 @@ impl GpuRenderer {
         rows: &wgpu::Buffer,
         partial: Option<&wgpu::Buffer>,
         sums: Option<&wgpu::Buffer>,
-    ) -> wgpu::BindGroup {
+    ) -> Result<wgpu::BindGroup> {
         self.queue.write_buffer(&s.uniform, 0, bytemuck::bytes_of(&s.params));
         let vis = match (&self.vis, s.has_vis) {
             (Some(v), true) => &v.buffer,
@@ -446,11 +448,9 @@ impl GpuRenderer {
             wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
         }
         // Bindings a pass does not use get a one-word stand-in (they must be distinct from the writable ones).
-        let spare5 = self.storage("unused", 4).ok();
-        let spare6 = self.storage("unused", 4).ok();
-        let p5 = partial.or(spare5.as_ref()).unwrap_or(&s.dummy);
-        let p6 = sums.or(spare6.as_ref()).unwrap_or(&s.dummy);
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let (spare5, spare6) = (self.storage("unused", 4)?, self.storage("unused", 4)?);
+        let (p5, p6) = (partial.unwrap_or(&spare5), sums.unwrap_or(&spare6));
+        Ok(self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
             layout: &self.layout,
             entries: &[
@@ -462,7 +462,7 @@ impl GpuRenderer {
                 entry(5, p5),
                 entry(6, p6),
             ],
-        })
+        }))
     }
 
     /// Submits `enc` with a copy of `len` f32 of `src` into a mapped buffer, waits, and returns them.

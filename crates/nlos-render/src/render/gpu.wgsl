@@ -218,9 +218,9 @@ fn span_end(k: Knots) -> i32 {
     return k.k0 + i32(ceil(k.c));
 }
 
-// The geometry of a pair at barycentric point c of triangle t: the point, the oriented normal, a = l − x,
+// The geometry of a pair at barycentric point c of triangle t: the oriented normal, a = l − x,
 // b = s − x, the cosines' numerators c_l, p_l, c_s, p_s (eq. 2), and whether all four are positive.
-struct Geom { x: vec3<f32>, n: vec3<f32>, a: vec3<f32>, b: vec3<f32>, cl: f32, pl: f32, cs: f32, ps: f32, lit: bool }
+struct Geom { n: vec3<f32>, a: vec3<f32>, b: vec3<f32>, cl: f32, pl: f32, cs: f32, ps: f32, lit: bool }
 
 fn geometry(t: u32, fr: Frame, sign: f32, c: vec2<f32>) -> Geom {
     let x = tris[4u * t].xyz + c.x * tris[4u * t + 1u].xyz + c.y * tris[4u * t + 2u].xyz;
@@ -232,7 +232,7 @@ fn geometry(t: u32, fr: Frame, sign: f32, c: vec2<f32>) -> Geom {
     let pl = dot(n, a);
     let cs = -dot(fr.n_s, b);
     let ps = dot(n, b);
-    return Geom(x, n, a, b, cl, pl, cs, ps, cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0);
+    return Geom(n, a, b, cl, pl, cs, ps, cl > 0.0 && cs > 0.0 && pl > 0.0 && ps > 0.0);
 }
 
 // The centroid's value of one (face, sub-triangle, measurement): w·vis·f_s·Q, 0 where a cosine test fails.
@@ -266,7 +266,7 @@ fn sub_corners(t: u32, fr: Frame, sub: Sub, ra: f32, rb: f32) -> Corners {
 }
 
 fn level_of(t: u32) -> u32 {
-    return bitcast<u32>(tris[4u * t].w);
+    return u32(tris[4u * t].w);
 }
 
 // ----- forward -----
