@@ -7,7 +7,11 @@
 //! map of the error (` ` miss, `.` < 1 mm, `-` < 5 mm, `o` < 20 mm, `#` ≥ 20 mm; `x` ground truth only,
 //! `+` reconstruction only). With the environment variable `DUMP` set, also lists every pixel with an error
 //! above 20 mm (pixel, both depths, distance to the silhouette) and splits the missed ground-truth pixels
-//! at y = 0.09 m (above it: the bunny's ears).
+//! at y = 0.09 m (above it: the bunny's ears). With `WINDOW=ix,iy` set, also prints both depth maps (mm,
+//! `truth/reconstruction`) over the 11 × 9 pixels around pixel `(ix, iy)`.
+//!
+//! The interior line is the judged metric's (`nlos eval`'s `depth_error_mean_interior`: pixels at least
+//! 3 px inside the truth's silhouette), with the share of it that its pixels above 2 mm and 10 mm carry.
 #![allow(missing_docs)]
 
 use nlos_mesh::metrics::{EvalParams, depth_map};
@@ -65,10 +69,25 @@ fn main() {
     }
     for rec_path in &args[0..1].iter().chain(&args[2..]).cloned().collect::<Vec<_>>() {
         let rec = depth_map(&load(rec_path), &params).expect("depth map");
+        if let Some((wx, wy)) = std::env::var("WINDOW").ok().and_then(|w| {
+            let (x, y) = w.split_once(',')?;
+            Some((x.trim().parse::<usize>().ok()?, y.trim().parse::<usize>().ok()?))
+        }) {
+            for iy in (wy.saturating_sub(4)..=(wy + 4).min(n - 1)).rev() {
+                let mut line = format!("y {iy:3}:");
+                for ix in wx.saturating_sub(5)..=(wx + 5).min(n - 1) {
+                    let i = ix + n * iy;
+                    line += &format!(" {:>4.0}/{:<4.0}", gt[i] * 1e3, rec[i] * 1e3);
+                }
+                println!("{line}");
+            }
+        }
         let (mut both, mut sum) = (0usize, 0.0f64);
         let mut rings = [(0usize, 0.0f64); 5];
         let (mut big5, mut big20, mut front, mut behind) = (0.0f64, 0.0f64, 0usize, 0usize);
         let mut interior_signed: Vec<f32> = Vec::new();
+        // The judged interior (pixels ≥ 3 px inside): count, error sum, and the sums of its errors > 2 / 10 mm.
+        let (mut inner, mut inner_sum, mut inner2, mut inner10, mut inner2_count) = (0usize, 0.0f64, 0.0f64, 0.0f64, 0);
         let mut map = String::new();
         for iy in (0..n).rev().step_by(2) {
             for ix in (0..n).step_by(2) {
@@ -116,6 +135,17 @@ fn main() {
             if ring == 4 {
                 interior_signed.push(rec[i] - gt[i]);
             }
+            if dist[i] >= 3 {
+                inner += 1;
+                inner_sum += e;
+                if e > 2e-3 {
+                    inner2 += e;
+                    inner2_count += 1;
+                }
+                if e > 1e-2 {
+                    inner10 += e;
+                }
+            }
             if e > 5e-3 {
                 big5 += e;
                 if rec[i] < gt[i] { front += 1 } else { behind += 1 }
@@ -141,6 +171,14 @@ fn main() {
             "  errors > 5 mm carry {:.1} % of the total ({front} in front of the truth, {behind} behind); > 20 mm {:.1} %",
             100.0 * big5 / sum.max(1e-30),
             100.0 * big20 / sum.max(1e-30)
+        );
+        println!(
+            "  interior (≥ 3 px in, the judged metric): {inner} pixels, mean {:.3} mm; the {inner2_count} above 2 mm carry \
+             {:.1} % of it, those above 10 mm {:.1} % (without the pixels above 2 mm: {:.3} mm)",
+            inner_sum / inner.max(1) as f64 * 1e3,
+            100.0 * inner2 / inner_sum.max(1e-30),
+            100.0 * inner10 / inner_sum.max(1e-30),
+            (inner_sum - inner2) / (inner - inner2_count).max(1) as f64 * 1e3
         );
         interior_signed.sort_by(f32::total_cmp);
         let q = |f: f64| interior_signed.get((f * interior_signed.len() as f64) as usize).copied().unwrap_or(f32::NAN);
