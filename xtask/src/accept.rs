@@ -64,7 +64,7 @@ struct Metrics {
     depth_rms: f64,
     chamfer: f64,
     normal_deg: f64,
-    /// Over the vertices within 1 cm of the truth (`normal_error_near_deg`).
+    /// Over the vertices within `nlos_mesh::distance::FAR_FROM_REFERENCE` of the truth (`normal_error_near_deg`).
     normal_near_deg: f64,
     /// Vertices farther than that (`far_vertex_fraction`).
     far_fraction: f64,
@@ -371,9 +371,10 @@ fn shape_section(
             &mut t,
             &mut pass,
             &format!(
-                "normal error {:.1}° ≤ {deg}° on the vertices within 1 cm of the truth ({:.1} % of the vertices \
+                "normal error {:.1}° ≤ {deg}° on the vertices within {:.0} mm of the truth ({:.1} % of the vertices \
                  lie farther: rims and pieces, docs/accuracy.md; all vertices {:.1}°)",
                 r.normal_near_deg,
+                nlos_mesh::distance::FAR_FROM_REFERENCE * 1e3,
                 r.far_fraction * 100.0,
                 r.normal_deg
             ),
