@@ -14,7 +14,7 @@
 //! 3 px inside the truth's silhouette), with the share of it that its pixels above 2 mm and 10 mm carry.
 #![allow(missing_docs)]
 
-use nlos_mesh::metrics::{EvalParams, depth_map};
+use nlos_mesh::metrics::{EvalParams, SILHOUETTE_BAND, depth_map, interior_mask};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -32,6 +32,8 @@ fn main() {
         }
     };
     let gt = depth_map(&load(&args[1]), &params).expect("ground-truth depth map");
+    // The judged interior, as `nlos eval` takes it.
+    let interior = interior_mask(&gt, n, SILHOUETTE_BAND);
     // Distance (in pixels, chessboard) of every ground-truth pixel to the nearest pixel the truth misses.
     let mut dist = vec![u32::MAX; n * n];
     for (i, d) in dist.iter_mut().enumerate() {
@@ -86,7 +88,7 @@ fn main() {
         let mut rings = [(0usize, 0.0f64); 5];
         let (mut big5, mut big20, mut front, mut behind) = (0.0f64, 0.0f64, 0usize, 0usize);
         let mut interior_signed: Vec<f32> = Vec::new();
-        // The judged interior (pixels ≥ 3 px inside): count, error sum, and the sums of its errors > 2 / 10 mm.
+        // The judged interior: count, error sum, and the sums of its errors > 2 / 10 mm.
         let (mut inner, mut inner_sum, mut inner2, mut inner10, mut inner2_count) = (0usize, 0.0f64, 0.0f64, 0.0f64, 0);
         let mut map = String::new();
         for iy in (0..n).rev().step_by(2) {
@@ -135,7 +137,7 @@ fn main() {
             if ring == 4 {
                 interior_signed.push(rec[i] - gt[i]);
             }
-            if dist[i] >= 3 {
+            if interior[i] {
                 inner += 1;
                 inner_sum += e;
                 if e > 2e-3 {
@@ -173,7 +175,7 @@ fn main() {
             100.0 * big20 / sum.max(1e-30)
         );
         println!(
-            "  interior (≥ 3 px in, the judged metric): {inner} pixels, mean {:.3} mm; the {inner2_count} above 2 mm carry \
+            "  interior (the judged metric's pixels): {inner} pixels, mean {:.3} mm; the {inner2_count} above 2 mm carry \
              {:.1} % of it, those above 10 mm {:.1} % (without the pixels above 2 mm: {:.3} mm)",
             inner_sum / inner.max(1) as f64 * 1e3,
             100.0 * inner2 / inner_sum.max(1e-30),
