@@ -1,4 +1,4 @@
-//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|all> [--quick]`: the acceptance runs
+//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|nonconfocal|all> [--quick]`: the acceptance runs
 //! (and the sensor comparison of the noise-aware fit against L2). Each scenario runs the product end to end through the
 //! built `nlos` binary — `nlos render` (ground truth → transient), `nlos reconstruct --init lct`, `nlos eval`
 //! of the LCT initial mesh and of the result against the ground truth — prints a table, checks the issue's
@@ -23,6 +23,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
+
+mod nonconfocal;
 
 const BUNNY: &str = "meshes/bunny_centered.obj";
 const SOAP: &str = "meshes/soap_centered.obj";
@@ -734,13 +736,15 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "--" => {
                 opts.extra = it.by_ref().cloned().collect();
             }
-            "all" => names.extend(["bunny", "reference", "soap", "sensor", "ggx", "real"].map(s)),
-            n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "sensor") => names.push(n.to_string()),
+            "all" => names.extend(["bunny", "reference", "soap", "sensor", "ggx", "real", "nonconfocal"].map(s)),
+            n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "sensor" | "nonconfocal") => {
+                names.push(n.to_string())
+            }
             other => return Err(format!("unknown scenario or option `{other}`; see `cargo xtask help`")),
         }
     }
     if names.is_empty() {
-        return Err("name a scenario: bunny, soap, reference, ggx, real, sensor or all".into());
+        return Err("name a scenario: bunny, soap, reference, ggx, real, sensor, nonconfocal or all".into());
     }
     let mut r = Runner::new(root)?;
     let mut failed = Vec::new();
@@ -754,6 +758,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "reference" => reference(&mut r, &opts),
             "ggx" => ggx(&mut r, &opts),
             "real" => real(&mut r, &opts),
+            "nonconfocal" => nonconfocal::nonconfocal(&mut r, &opts),
             _ => sensor(&mut r, &opts),
         };
         let (text, pass) = match res {
@@ -796,7 +801,7 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 8] = [
+pub const SCENARIOS: [(&str, &str); 9] = [
     ("bunny", "the shared bunny, rendered at Tsai et al. 2019's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
@@ -805,6 +810,10 @@ pub const SCENARIOS: [(&str, &str); 8] = [
     (
         "real",
         "the Stanford captures (chart, diffuse S, S and U), default command: time, the chart's plane, the letters",
+    ),
+    (
+        "nonconfocal",
+        "one laser × 64 × 64 sensors, 4 × 4 lasers × 32 × 32 sensors, the independent one-laser render: default command",
     ),
     (
         "znlos",

@@ -43,7 +43,7 @@ fn peak(t: &Transient) -> Peak {
     let gate = t.direct_light_end();
     note.push_str(&format!("summed histogram after gating the direct light before {gate:.4} m of path"));
     let path = t.summed_peak_path(Some(gate));
-    let depth = if t.scan().is_confocal() { t.summed_peak_depth(Some(gate)).ok() } else { None };
+    let depth = t.summed_peak_depth(Some(gate)).ok();
     let end = Some(t.signal_end_path(gate)).filter(|&e| e < t.time().end());
     match path {
         Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), end, note },
@@ -189,13 +189,19 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         Err(e) => println!("photon counts: n/a (background not estimated: {e})"),
     }
     match (peak.depth, peak.path) {
+        (Some(d), Some(p)) if !scan.is_confocal() => println!(
+            "peak depth:    {} m straight in front of the scan (path {} m; {})",
+            num(d, 4),
+            num(p, 4),
+            peak.note
+        ),
         (Some(d), _) => println!("peak depth:    {} m ({})", num(d, 4), peak.note),
         (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
         _ => println!("peak depth:    n/a ({})", peak.note),
     }
     match peak.end {
         Some(e) => {
-            let depth = if scan.is_confocal() { format!(" (depth {} m)", num(e / 2.0, 4)) } else { String::new() };
+            let depth = format!(" (depth {} m)", num(t.depth_of_path(e), 4));
             println!("signal ends:   {} m of path{depth}: later bins hold only background", num(e, 4));
         }
         None => println!("signal ends:   at the end of the axis (no late bins of background only)"),

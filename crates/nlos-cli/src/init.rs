@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_init::{Gate, InitError, Material, SurfaceParams, Threshold, Volume, volume_to_surface};
+use nlos_init::{Gate, InitError, Material, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface};
 use nlos_optim::pipeline::{Config, Prepared, Setting, Volumetric};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
@@ -18,6 +18,8 @@ pub(crate) enum Method {
     Fk,
     /// Laplacian-filtered backprojection.
     Fbp,
+    /// Phasor-field reconstruction (Liu et al. 2019): any scan, confocal or not, grid or list.
+    Pf,
     /// Space carving from first-returning photons (Tsai et al. 2017); confocal or exhaustive.
     Carve,
 }
@@ -25,7 +27,8 @@ pub(crate) enum Method {
 /// Arguments of `nlos init`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// The capture file (any readable format; a confocal grid scan).
+    /// The capture file (any readable format; LCT and f-k need a confocal grid scan, the phasor field takes
+    /// any).
     file: PathBuf,
     /// Reconstruction method.
     #[arg(long, value_enum, default_value = "lct")]
@@ -54,6 +57,16 @@ pub(crate) struct Args {
     /// captures' reference values are 0.08 and 0.8)].
     #[arg(long)]
     snr: Option<f64>,
+    /// Virtual wavelength of the phasor field (metres of path) [default: 3 × the wall points' spacing].
+    #[arg(long, value_name = "METRES")]
+    wavelength: Option<f64>,
+    /// Periods of the phasor field's carrier within its pulse's ±3σ [default: 2].
+    #[arg(long, value_name = "N")]
+    cycles: Option<f64>,
+    /// Depth between the phasor field's voxels (metres) [default: the wavelength / 8]; half a bin of path puts
+    /// a voxel at every bin's depth.
+    #[arg(long, value_name = "METRES")]
+    depth_step: Option<f64>,
     /// Radiometric weighting for retroreflective instead of diffuse surfaces (LCT, FBP): the return falls as
     /// 1/r², as the Stanford captures' reference code assumes for every scene but the diffuse S.
     #[arg(long)]
@@ -145,9 +158,22 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Method::Lct => Volumetric::Lct,
         Method::Fk => Volumetric::Fk,
         Method::Fbp => Volumetric::Fbp,
+        Method::Pf => Volumetric::Pf,
         Method::Carve => Volumetric::Carve,
     };
-    let vol = prepared.volume(method, material, args.snr).map_err(optim_error)?;
+    let vol = if method == Volumetric::Pf {
+        let defaults = PfParams::default();
+        let params = PfParams {
+            material,
+            wavelength: args.wavelength,
+            cycles: args.cycles.unwrap_or(defaults.cycles),
+            depth_step: args.depth_step,
+            ..defaults
+        };
+        prepared.pf_volume(&params).map_err(optim_error)?
+    } else {
+        prepared.volume(method, material, args.snr).map_err(optim_error)?
+    };
     // Given a threshold, the plain extraction (this threshold, largest region, arg-max depth); else the
     // start's own settings (the settings for compact objects for LCT).
     let base = match args.threshold {

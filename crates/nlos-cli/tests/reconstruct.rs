@@ -524,3 +524,55 @@ fn gpu_reconstruction_matches_the_cpu() {
     let (lg, lc) = (loss(&gpu.1), loss(&cpu.1));
     assert!((lg - lc).abs() <= 1e-3 * lc.abs(), "final loss {lg} on the GPU, {lc} on the CPU");
 }
+
+/// The square of [`capture`] seen by one laser at `laser` and a 16 × 16 sensor grid (exhaustive).
+fn nonconfocal_capture(dir: &Path, lasers: PointSet) -> PathBuf {
+    let (h, d) = (0.1f32, 0.35f32);
+    let positions = [Vec3::new(-h, -h, d), Vec3::new(h, -h, d), Vec3::new(h, h, d), Vec3::new(-h, h, d)];
+    let triangles = [[0u32, 2, 1], [0, 3, 2]];
+    let scan = Scan::exhaustive(lasers, PointSet::wall_grid(16, 16, 0.25, 0.25).expect("grid"));
+    let time = TimeAxis::new(0.0, 0.004, 256).expect("axis");
+    let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
+    let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).expect("renderer");
+    let t = renderer.forward_transient(&Lambertian::new(1.0f32).expect("brdf")).expect("render");
+    let file = dir.join("square_nc.hdf5");
+    nlos_transient::write(&t, &file, Format::Tal).expect("write");
+    file
+}
+
+/// The default command (no `--init`) on captures that are not confocal: one laser (centre and corner) and a
+/// 2 × 2 laser grid, each × 16 × 16 sensors. `auto` takes the phasor field, says so in the run's output and
+/// its settings, the start lies at the square's depth, and `--init lct` is a clear input error.
+#[test]
+fn the_default_command_reconstructs_non_confocal_captures() {
+    let dir = scratch("nonconfocal");
+    for (name, lasers) in [
+        ("centre", PointSet::list(vec![Vec3::ZERO])),
+        ("corner", PointSet::list(vec![Vec3::new(-0.25, -0.25, 0.0)])),
+        ("grid", PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid")),
+    ] {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).expect("dir");
+        let data = nonconfocal_capture(&sub, lasers);
+        let out = sub.join("run");
+        let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
+        let mut args = vec!["reconstruct", &d, "--out", &o];
+        args.extend(FAST);
+        let run = nlos(&args);
+        assert!(run.status.success(), "{name}: {}", text(&run));
+        assert!(text(&run).contains("init auto: a non-confocal scan"), "{name}: {}", text(&run));
+        let settings = std::fs::read_to_string(out.join("settings.toml")).expect("settings");
+        assert!(settings.starts_with("# init = \"auto\" chose \"pf\""), "{name}: {settings}");
+        let init = nlos_mesh::io::load(out.join("init.obj")).expect("init mesh");
+        let mean_z = init.positions().iter().map(|p| p.z).sum::<f32>() / init.positions().len() as f32;
+        assert!((mean_z - 0.35).abs() < 0.02, "{name}: phasor-field start at {mean_z} m, square at 0.35 m");
+        assert!(out.join("mesh.obj").is_file() && out.join("report.html").is_file(), "{name}");
+        if name == "centre" {
+            let lct = nlos(&["reconstruct", &d, "--out", &sub.join("lct").to_string_lossy(), "--init", "lct"]);
+            assert_eq!(lct.status.code(), Some(2), "{}", text(&lct));
+            assert!(text(&lct).contains("--init pf"), "{}", text(&lct));
+            let info = nlos(&["info", &d]);
+            assert!(text(&info).contains("straight in front of the scan"), "{}", text(&info));
+        }
+    }
+}

@@ -9,7 +9,8 @@ pub enum InitError {
     /// The method needs a confocal scan.
     #[error(
         "{method} needs a confocal scan (laser and sensor spots coincide) but this capture is exhaustive; \
-         reconstruct it with filtered backprojection, or keep only its confocal measurements"
+         reconstruct it with the phasor field (`nlos_init::pf`; `--init pf`, or `auto`, the default, which \
+         chooses it), filtered backprojection or space carving"
     )]
     NotConfocal {
         /// The method that refused the input.
@@ -18,7 +19,8 @@ pub enum InitError {
     /// The method needs scan points on a regular grid.
     #[error(
         "{method} needs scan points on a regular nx × ny grid but this capture's points are an unstructured \
-         list; resample the capture onto a grid first"
+         list (or, for the phasor field, span no area); use the phasor field (`--init pf`), which takes any \
+         points spanning an area, or resample the capture onto a grid"
     )]
     NotGrid {
         /// The method that refused the input.

@@ -8,6 +8,8 @@
 //! - [`fk()`]: f-k (Stolt) migration (Lindell, Wetzstein & O'Toole, SIGGRAPH 2019), confocal grid scans;
 //! - [`fbp()`]: Laplacian-filtered backprojection (the LCT's adjoint) for confocal grid scans, direct
 //!   ellipsoidal backprojection for exhaustive scans with a sensor grid;
+//! - [`pf()`]: phasor-field reconstruction (Liu et al., Nature 2019) for any scan: confocal, one laser and
+//!   a sensor grid, many lasers × many sensors, wall points on a grid or in a list;
 //! - [`carve()`]: space carving from first-returning photons (Tsai et al., CVPR 2017), confocal or
 //!   exhaustive scans with a sensor grid;
 //! - [`volume_to_surface`]: per-column maximum, threshold (Otsu or explicit), largest connected region,
@@ -39,6 +41,7 @@ pub mod fbp;
 mod fft;
 pub mod fk;
 pub mod lct;
+pub mod pf;
 mod prep;
 pub mod rim;
 pub mod surface;
@@ -49,6 +52,7 @@ pub use error::{InitError, Result};
 pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};
 pub use lct::{LctParams, Material, lct};
+pub use pf::{PfParams, pf};
 pub use prep::Gate;
 pub use rim::round_rim;
 pub use surface::{

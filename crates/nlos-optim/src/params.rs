@@ -345,8 +345,8 @@ pub struct ReconstructParams {
     /// normal error by 2–7°, for 2–3 points of coverage (docs/accuracy.md).
     pub prune: Option<PruneParams>,
     /// Residual back-projection at the end of the first stage ([`crate::residual`]): the LCT of the fit's
-    /// residual proposes surface patches away from the mesh, added where they lower the data term (default
-    /// `Some(ResidualParams::default())`; skipped for scans that are not confocal grids): it finds parts
+    /// residual (the phasor field's on scans that are not confocal grids) proposes surface patches away from
+    /// the mesh, added where they lower the data term (default `Some(ResidualParams::default())`): it finds parts
     /// the start lacks, as far as the data show them ([`crate::residual`]).
     pub residual: Option<ResidualParams>,
     /// Seed of the run's RNG (default 0). A run is a deterministic function of its inputs and this seed.

@@ -7,7 +7,8 @@
 //! object is fitted it is most of what the residual holds.
 //!
 //! At the end of a stage the residual `Ĩ − Î` (`Î` the model of the data term: `s·I`, or `s·J I + b`
-//! for the sensor fit) is reconstructed with the LCT (`nlos_init::lct`, Wiener filter, no gate) and a
+//! for the sensor fit) is reconstructed with the LCT (`nlos_init::lct`, Wiener filter, no gate; on a scan
+//! that is not a confocal grid, the phasor field, `nlos_init::pf`) and a
 //! surface is extracted from it as from a measurement ([`nlos_init::volume_to_surface_where`], Otsu's
 //! threshold, sub-voxel peaks, every region), keeping only the columns whose point lies more than
 //! [`ResidualParams::separation`] from the current mesh (near the mesh the residual is the fit's own
@@ -38,7 +39,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use glam::Vec3;
-use nlos_init::{Gate, InitError, LctParams, SurfaceParams, Threshold, lct, volume_to_surface_where};
+use nlos_init::{Gate, InitError, LctParams, PfParams, SurfaceParams, Threshold, lct, pf, volume_to_surface_where};
 use nlos_mesh::bvh::TriangleBvh;
 use nlos_mesh::{BuildOptions, FaceId, SurfaceMesh};
 use nlos_render::{RenderParams, Renderer, RowSpan};
@@ -142,7 +143,8 @@ pub struct Patches {
     pub accepted: usize,
     /// `Σ ΔE_p` of the accepted patches (unnormalised data term).
     pub data_change: f64,
-    /// Why nothing was tried, when the measurement does not allow it (not a confocal grid scan).
+    /// Why nothing was tried, when the measurement does not allow it (device legs in the times, wall points
+    /// that span no area).
     pub skipped: Option<String>,
 }
 
@@ -156,9 +158,8 @@ pub struct Patches {
 /// and taken back.
 ///
 /// # Errors
-/// Invalid parameters, a residual of the wrong length, and renderer or LCT failures other than an
-/// unsupported scan (a scan that is not a confocal grid returns empty [`Patches`] with
-/// [`Patches::skipped`] set).
+/// Invalid parameters, a residual of the wrong length, and renderer or volume failures other than an
+/// unsupported scan (one the volume cannot take returns empty [`Patches`] with [`Patches::skipped`] set).
 #[allow(clippy::too_many_arguments)]
 pub fn residual_patches(
     positions: &[Vec3],
@@ -182,8 +183,15 @@ pub fn residual_patches(
     }
     let t = Transient::new(measured.scan().clone(), *measured.time(), residual)
         .map_err(|source| OptimError::Transient { context: "the residual's histograms", source })?;
-    let lct_params = LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() };
-    let vol = match lct(&t, &lct_params) {
+    // A confocal grid takes the LCT (its Wiener filter sharpens); every other scan the phasor field, which
+    // needs no grid and no confocal pairing.
+    let confocal_grid = t.scan().is_confocal() && t.scan().sensors().grid_dims().is_some();
+    let volume = if confocal_grid {
+        lct(&t, &LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() })
+    } else {
+        pf(&t, &PfParams { gate: Gate::None, ..PfParams::default() })
+    };
+    let vol = match volume {
         Ok(v) => v,
         Err(
             e @ (InitError::NotConfocal { .. }

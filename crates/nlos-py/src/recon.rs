@@ -42,7 +42,7 @@ pub(crate) fn default_settings() -> PyResult<String> {
     serde_json::to_string(&Config::default()).map_err(|e| ConfigError::new_err(e.to_string()))
 }
 
-/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"` or `"fbp"`, on the capture
+/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"`, `"fbp"` or `"pf"`, on the capture
 /// prepared as `nlos reconstruct` and `nlos init` prepare it with the default settings (`Prepared::volume`:
 /// direct light gated automatically). Returns `(volume, axes)`: the volume (nx, ny, nz) float32 and
 /// `{"x"|"y"|"z": (first voxel centre, spacing)}` in metres.
@@ -59,9 +59,10 @@ pub(crate) fn volume<'py>(
         "lct" => Volumetric::Lct,
         "fk" => Volumetric::Fk,
         "fbp" => Volumetric::Fbp,
+        "pf" => Volumetric::Pf,
         other => {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
-                "method: {other:?} is not \"lct\", \"fk\" or \"fbp\""
+                "method: {other:?} is not \"lct\", \"fk\", \"fbp\" or \"pf\""
             )));
         }
     };

@@ -11,7 +11,7 @@ FAST = {"schedule": {"max_stages": 1, "initial_resolution": 12, "max_blocks_per_
 DEMO = {"schedule": {"max_stages": 2, "initial_resolution": 20, "max_blocks_per_stage": 2, "shape_iterations": 15}}
 
 
-@pytest.mark.parametrize("method", ["lct", "fk", "fbp"])
+@pytest.mark.parametrize("method", ["lct", "fk", "fbp", "pf"])
 def test_volumes_peak_at_the_patch_depth(builtin_capture, method):
     volume = getattr(nlos, method)(nlos.load(builtin_capture))
     assert volume.data.ndim == 3 and volume.data.dtype == np.float32 and volume.data.shape[:2] == (24, 24)

@@ -298,26 +298,36 @@ impl Transient {
         Ok(ax.bin_center(k))
     }
 
-    /// Depth (metres from the wall) of the summed-histogram peak of a confocal scan: half its path length
-    /// (round trip). See [`Transient::summed_peak_path`] for `min_path`.
+    /// Depth (metres from the wall) of the summed-histogram peak: [`Transient::depth_of_path`] of its path
+    /// length (half of it for a confocal scan). See [`Transient::summed_peak_path`] for `min_path`.
     ///
     /// # Errors
-    /// [`TransientError::InvalidArgument`] for a non-confocal scan, for times that include the device legs,
-    /// or as [`Transient::summed_peak_path`].
+    /// [`TransientError::InvalidArgument`] for times that include the device legs, or as
+    /// [`Transient::summed_peak_path`].
     pub fn summed_peak_depth(&self, min_path: Option<f64>) -> Result<f64> {
-        if !self.scan().is_confocal() {
-            return Err(TransientError::InvalidArgument {
-                name: "scan",
-                reason: "peak depth is defined for confocal scans (use summed_peak_path otherwise)".into(),
-            });
-        }
         if self.time().includes_device_legs {
             return Err(TransientError::InvalidArgument {
                 name: "time",
                 reason: "times include the device legs; call remove_device_legs first".into(),
             });
         }
-        Ok(self.summed_peak_path(min_path)? / 2.0)
+        Ok(self.depth_of_path(self.summed_peak_path(min_path)?))
+    }
+
+    /// The depth of a point at path length `path` (metres, `l → x → s`) straight in front of the scan: on
+    /// the wall normal through the midpoint of the laser spots' and the sensor spots' centroids, at distance
+    /// `a` from each, `2·√(a² + z²) = path`, so `z = √((path/2)² − a²)` (0 when the path is shorter than
+    /// `2a`). A confocal scan has `a = 0`: half the path.
+    pub fn depth_of_path(&self, path: f64) -> f64 {
+        let centroid = |p: &crate::PointSet| {
+            p.points.iter().fold(glam::DVec3::ZERO, |acc, v| acc + v.as_dvec3()) / p.len().max(1) as f64
+        };
+        let a = if self.scan().is_confocal() {
+            0.0
+        } else {
+            0.5 * (centroid(self.scan().lasers()) - centroid(self.scan().sensors())).length()
+        };
+        ((0.5 * path).powi(2) - a * a).max(0.0).sqrt()
     }
 }
 

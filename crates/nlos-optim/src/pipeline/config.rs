@@ -54,11 +54,16 @@ impl fmt::Display for Setting {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(from = "String", into = "String")]
 pub enum InitMethod {
+    /// LCT on a confocal scan over a regular grid (the light-cone transform's home), the phasor field on
+    /// every other scan ([`InitMethod::resolve`]).
+    Auto,
     /// The light-cone transform's volume, extracted with the settings for compact objects
     /// ([`nlos_init::SurfaceParams::object`]).
     Lct,
     /// The f-k migration's volume.
     Fk,
+    /// The phasor field's volume (Liu et al. 2019; [`nlos_init::pf`]): any scan.
+    Pf,
     /// Space carving from first returns.
     Carve,
     /// A mesh file (OBJ, PLY, GLB) whose faces face the wall.
@@ -69,11 +74,31 @@ impl FromStr for InitMethod {
     type Err = std::convert::Infallible;
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         Ok(match s {
+            "auto" => Self::Auto,
             "lct" => Self::Lct,
             "fk" => Self::Fk,
+            "pf" => Self::Pf,
             "carve" => Self::Carve,
             path => Self::Mesh(path.into()),
         })
+    }
+}
+
+impl InitMethod {
+    /// What `auto` chooses for `scan`, with the reason in words: [`InitMethod::Lct`] on a confocal scan whose
+    /// points form a regular grid (the LCT's resampling needs both), [`InitMethod::Pf`] on everything else.
+    /// Any other method is returned as it is.
+    pub fn resolve(&self, scan: &nlos_transient::Scan) -> (Self, &'static str) {
+        match self {
+            Self::Auto if scan.is_confocal() && scan.sensors().grid_dims().is_some() => {
+                (Self::Lct, "a confocal scan on a regular grid: the light-cone transform")
+            }
+            Self::Auto if scan.is_confocal() => {
+                (Self::Pf, "a confocal scan whose points are no regular grid: the phasor field")
+            }
+            Self::Auto => (Self::Pf, "a non-confocal scan (lasers × sensors): the phasor field"),
+            other => (other.clone(), "as set"),
+        }
     }
 }
 
@@ -95,8 +120,10 @@ impl From<InitMethod> for String {
 impl fmt::Display for InitMethod {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Self::Auto => f.write_str("auto"),
             Self::Lct => f.write_str("lct"),
             Self::Fk => f.write_str("fk"),
+            Self::Pf => f.write_str("pf"),
             Self::Carve => f.write_str("carve"),
             Self::Mesh(p) => write!(f, "{}", p.display()),
         }
@@ -326,8 +353,7 @@ pub struct BoundaryConfig {
     pub prune_rounds: u32,
     /// Margin κ of the pruning test (a face goes when ΔE < −κ·½c).
     pub prune_margin: f64,
-    /// Residual back-projection after the first `residual_stages` stages ([`crate::residual`]; 0: none;
-    /// confocal grid scans only).
+    /// Residual back-projection after the first `residual_stages` stages ([`crate::residual`]; 0: none).
     pub residual_stages: u32,
     /// Residual columns closer than this to the mesh are left to the shape steps (metres).
     pub residual_separation: f64,
@@ -358,7 +384,8 @@ impl Default for BoundaryConfig {
 pub struct Config {
     /// Seed of the run (a run is a deterministic function of its inputs and seed).
     pub seed: u64,
-    /// Where the optimisation starts: `"lct"`, `"fk"`, `"carve"` or a mesh file ([`InitMethod`]).
+    /// Where the optimisation starts: `"auto"`, `"lct"`, `"fk"`, `"pf"`, `"carve"` or a mesh file
+    /// ([`InitMethod`]).
     pub init: InitMethod,
     /// Spatially varying albedo ([`crate::albedo`]): cells of this size (metres) over the wall plane, or
     /// `"off"` (one albedo). For objects with printed patterns.
@@ -383,7 +410,7 @@ impl Default for Config {
     fn default() -> Self {
         Self {
             seed: 0,
-            init: InitMethod::Lct,
+            init: InitMethod::Auto,
             albedo_map: Setting::OFF,
             capture: CaptureConfig::default(),
             reflectance: ReflectanceConfig::default(),
@@ -464,7 +491,11 @@ impl Config {
 /// One line per setting, for the comments of [`Config::to_toml`] (the fields' rustdoc says more).
 pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("seed", "seed of the run: a run is a deterministic function of its inputs and seed"),
-    ("init", "initial surface: \"lct\", \"fk\", \"carve\" or a mesh file (OBJ/PLY/GLB) facing the wall"),
+    (
+        "init",
+        "initial surface: \"auto\" (LCT on confocal grids, else the phasor field), \"lct\", \"fk\", \"pf\", \"carve\" \
+         or a mesh file (OBJ/PLY/GLB) facing the wall",
+    ),
     ("albedo_map", "albedo map over the wall plane: cell size in metres, or \"off\" (one albedo)"),
     ("capture.rebin", "sum this many consecutive bins first (1: as captured)"),
     ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
@@ -505,7 +536,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ),
     ("boundary.prune_rounds", "rounds of boundary pruning after every block (0: none)"),
     ("boundary.prune_margin", "margin κ of the pruning test"),
-    ("boundary.residual_stages", "residual patches after the first N stages (0: none; confocal grids only)"),
+    ("boundary.residual_stages", "residual patches after the first N stages (0: none)"),
     ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
     ("boundary.residual_margin", "margin κ of the residual patches' test"),
     ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),

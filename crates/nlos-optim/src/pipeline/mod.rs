@@ -26,7 +26,8 @@ use std::path::{Path, PathBuf};
 
 use nlos_brdf::{Fresnel, Ggx};
 use nlos_init::{
-    CarveParams, FbpParams, FkParams, Gate, Material, SurfaceParams, Volume, carve, fbp, fk, lct, volume_to_surface,
+    CarveParams, FbpParams, FkParams, Gate, Material, PfParams, SurfaceParams, Volume, carve, fbp, fk, lct, pf,
+    volume_to_surface,
 };
 use nlos_mesh::SurfaceMesh;
 use nlos_render::{Device, SplatRule, Visibility};
@@ -122,8 +123,9 @@ impl Prepared {
                 let ax = *full.time();
                 let end = full.signal_end_path(gate.unwrap_or(ax.t0));
                 if end < ax.end() {
-                    let confocal = full.scan().is_confocal();
-                    let depth = if confocal { format!(" (depth {:.4} m)", end / 2.0) } else { String::new() };
+                    // Each leg of a path is at least the depth of its point, so no surface lies deeper than
+                    // half the last return's path, whatever the scan.
+                    let depth = format!(" (depth at most {:.4} m)", end / 2.0);
                     notes.push(format!(
                         "max_depth auto: the last return ends at {end:.4} m of path{depth}; the {} later bins hold \
                          only background and are not fitted (capture.max_depth = \"off\" keeps them)",
@@ -131,7 +133,7 @@ impl Prepared {
                     ));
                     let cut =
                         full.crop_path(ax.t0, end).map_err(|e| config_error("capture.max_depth", e.to_string()))?;
-                    (Some(cut), confocal.then_some(end / 2.0))
+                    (Some(cut), Some(end / 2.0))
                 } else {
                     (None, None)
                 }
@@ -143,12 +145,13 @@ impl Prepared {
             1 => fitted,
             k => fitted.subsample(k, k).map_err(|e| config_error("capture.subsample", e.to_string()))?,
         };
-        let (schedule, note) = config.schedule.sized_to(
-            grid_spacing(measured.scan().lasers()),
-            measured.time().bin_width,
-            measured.measurements(),
-        );
+        let (schedule, note) =
+            config.schedule.sized_to(wall_spacing(measured.scan()), measured.time().bin_width, measured.measurements());
         notes.extend(note);
+        if config.init == InitMethod::Auto {
+            let (method, why) = config.init.resolve(full.scan());
+            notes.push(format!("init auto: {why} (\"{method}\"; init = \"lct\", \"pf\", … chooses another)"));
+        }
         Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes, schedule })
     }
 
@@ -322,14 +325,25 @@ impl Prepared {
                 lct(&self.full, &p)?
             }
             Volumetric::Fk => fk(&self.full, &FkParams::default())?,
+            Volumetric::Pf => self.pf_volume(&PfParams { material, ..PfParams::default() })?,
             Volumetric::Fbp => fbp(&self.full, &FbpParams { material, ..FbpParams::default() })?,
             Volumetric::Carve => carve(&self.full, &CarveParams::default())?,
         })
     }
 
-    /// The surface extraction of `method`'s start: the settings for compact objects for LCT
-    /// ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns, about half the
-    /// bunny's silhouette), the plain extraction otherwise; no voxel beyond [`Prepared::surface_depth`].
+    /// The phasor field's volume of [`Prepared::full`] with `params` (its gate and max depth are the
+    /// preparation's: those of `params` are ignored).
+    ///
+    /// # Errors
+    /// [`OptimError::Init`] for parameters out of range or an empty volume ([`nlos_init::pf`]).
+    pub fn pf_volume(&self, params: &PfParams) -> Result<Volume> {
+        Ok(pf(&self.full, &PfParams { gate: Gate::None, max_depth: None, ..*params })?)
+    }
+
+    /// The surface extraction of `method`'s start: the settings for compact objects for LCT and the phasor
+    /// field ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns, about half
+    /// the bunny's silhouette from the LCT, a fifth from the one-laser phasor field), the plain extraction
+    /// otherwise; no voxel beyond [`Prepared::surface_depth`].
     ///
     /// The largest depth step between neighbouring columns that still joins them grows with the scan's
     /// spacing: at least the extraction's own (5 cm), and what a surface at [`MAX_START_SLOPE`] to the wall
@@ -337,8 +351,11 @@ impl Prepared {
     /// 5 cm up to 18 mm and 8.6 cm at 31 mm; on the published 8 × 8 Z-NLOS bunny (12.5 cm) a fixed 5 cm tore
     /// every cell of its sloping surface apart but two.
     pub fn surface_params(&self, method: Volumetric) -> SurfaceParams {
-        let base = if method == Volumetric::Lct { SurfaceParams::object() } else { SurfaceParams::default() };
-        let spacing = grid_spacing(self.full.scan().lasers());
+        let base = match method {
+            Volumetric::Lct | Volumetric::Pf => SurfaceParams::object(),
+            _ => SurfaceParams::default(),
+        };
+        let spacing = wall_spacing(self.full.scan());
         let max_depth_jump = base.max_depth_jump.map(|j| j.max(MAX_START_SLOPE * spacing));
         SurfaceParams { max_depth: base.max_depth.or(self.surface_depth), max_depth_jump, ..base }
     }
@@ -349,11 +366,12 @@ impl Prepared {
     /// # Errors
     /// [`OptimError::Init`] when the volume or its surface fails, [`OptimError::Mesh`] for an unreadable mesh.
     pub fn initial_surface(&self, config: &Config) -> Result<SurfaceMesh> {
-        let method = match &config.init {
-            InitMethod::Lct => Volumetric::Lct,
+        let method = match config.init.resolve(self.full.scan()).0 {
+            InitMethod::Lct | InitMethod::Auto => Volumetric::Lct,
             InitMethod::Fk => Volumetric::Fk,
+            InitMethod::Pf => Volumetric::Pf,
             InitMethod::Carve => Volumetric::Carve,
-            InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(file)?),
+            InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(&file)?),
         };
         let volume = self.volume(method, config.reflectance.model.material(), None)?;
         Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
@@ -364,9 +382,13 @@ impl Prepared {
 /// columns ([`Prepared::surface_params`]).
 pub const MAX_START_SLOPE: f64 = 2.75;
 
-/// The larger spacing of a grid of points (metres), 0 for a list.
-fn grid_spacing(points: &nlos_transient::PointSet) -> f64 {
-    points.grid_spacing().map_or(0.0, |(dx, dy)| dx.max(dy))
+/// The spacing of the wall points that resolve the scene laterally (metres): the larger spacing of the
+/// denser of the laser and sensor sets (the scan points of a confocal scan, the sensor grid of a one-laser
+/// capture), 0 when that set is a list.
+fn wall_spacing(scan: &nlos_transient::Scan) -> f64 {
+    let (lasers, sensors) = (scan.lasers(), scan.sensors());
+    let dense = if lasers.len() > sensors.len() { lasers } else { sensors };
+    dense.grid_spacing().map_or(0.0, |(dx, dy)| dx.max(dy))
 }
 
 /// A volumetric method of the start ([`Prepared::volume`]).
@@ -376,6 +398,8 @@ pub enum Volumetric {
     Lct,
     /// f-k migration (Lindell et al. 2019).
     Fk,
+    /// The phasor field (Liu et al. 2019): any scan.
+    Pf,
     /// Laplacian-filtered backprojection.
     Fbp,
     /// Space carving from first returns (Tsai et al. 2017).
@@ -404,6 +428,30 @@ mod tests {
         }
         for (k, _) in FIELD_DOCS {
             assert!(keys.iter().any(|key| key == k), "comment for {k}, which is not a setting");
+        }
+    }
+
+    /// `init = "auto"`: LCT on confocal grids only, the phasor field on every other scan; other methods as set.
+    #[test]
+    fn auto_init_takes_lct_on_confocal_grids_and_the_phasor_field_elsewhere() {
+        use nlos_transient::{PointSet, Scan};
+        let grid = PointSet::wall_grid(8, 8, 0.25, 0.25).expect("grid");
+        let list = PointSet::list(grid.points.clone());
+        let one = PointSet::list(vec![glam::Vec3::ZERO]);
+        for (scan, want) in [
+            (Scan::confocal(grid.clone()), InitMethod::Lct),
+            (Scan::confocal(list), InitMethod::Pf),
+            (Scan::exhaustive(one.clone(), grid.clone()), InitMethod::Pf),
+            (Scan::exhaustive(grid.clone(), grid.clone()), InitMethod::Pf),
+        ] {
+            assert_eq!(InitMethod::Auto.resolve(&scan).0, want, "{scan:?}");
+            assert_eq!(InitMethod::Fk.resolve(&scan).0, InitMethod::Fk);
+        }
+        assert_eq!(Config::default().init, InitMethod::Auto);
+        for (text, want) in [("auto", InitMethod::Auto), ("pf", InitMethod::Pf), ("lct", InitMethod::Lct)] {
+            let c = Config::from_toml(&format!("init = \"{text}\"\n")).expect("parse");
+            assert_eq!(c.init, want);
+            assert_eq!(c.init.to_string(), text);
         }
     }
 

@@ -61,7 +61,11 @@ pub fn run(
         Start::New => {
             if let Some(dir) = &params.out_dir {
                 create_dir(dir)?;
-                let settings = config.to_toml()?;
+                let mut settings = config.to_toml()?;
+                if config.init == super::InitMethod::Auto {
+                    let (method, why) = config.init.resolve(prepared.full.scan());
+                    settings.insert_str(0, &format!("# init = \"auto\" chose \"{method}\": {why}\n"));
+                }
                 crate::reconstruct::checkpoint::write_atomic(&dir.join(SETTINGS_FILE), settings.as_bytes())?;
             }
             let init = prepared.initial_surface(config)?;

@@ -62,6 +62,7 @@ __all__ = [
     "initial_surface",
     "lct",
     "load",
+    "pf",
     "main",
     "read_mesh",
     "reconstruct",
@@ -161,6 +162,12 @@ def fk(capture: Capture) -> Volume:
 def fbp(capture: Capture) -> Volume:
     """Filtered back-projection of a capture; see :func:`lct`."""
     return _volume(capture, "fbp")
+
+
+def pf(capture: Capture) -> Volume:
+    """Phasor-field reconstruction (Liu et al. 2019) of any capture: confocal, one laser and a sensor grid,
+    lasers × sensors, wall points on a grid or in a list; see :func:`lct`."""
+    return _volume(capture, "pf")
 
 
 def _capture(capture: Union[Capture, PathLike]) -> Capture:
