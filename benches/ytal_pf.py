@@ -62,7 +62,8 @@ def theirs(capture: Path, work: Path, depths: np.ndarray):
     t0 = time.perf_counter()
     out = tal.reconstruct.pf_dev.solve(
         data, wl_mean=wavelength, wl_sigma=np.pi * PERIODS * wavelength / 18, volume_xyz=volume,
-        camera_system=tal.enums.CameraSystem.CONFOCAL_TIME_GATED, progress=False,
+        volume_format=tal.enums.VolumeFormat.X_Y_Z_3, camera_system=tal.enums.CameraSystem.DIRECT_LIGHT,
+        progress=False,
     )
     wall = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use nlos_init::{Gate, InitError, Material, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface};
-use nlos_optim::pipeline::{Config, Prepared, Setting, Volumetric};
+use nlos_optim::pipeline::{Config, InitMethod, Prepared, Setting, Volumetric};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
 use crate::CliError;
@@ -12,6 +12,8 @@ use crate::CliError;
 /// The volumetric method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum Method {
+    /// LCT on a confocal scan over a regular grid, the phasor field on every other scan (as `nlos reconstruct`).
+    Auto,
     /// Light-cone transform with Wiener deconvolution (O'Toole et al. 2018).
     Lct,
     /// f-k migration (Lindell et al. 2019).
@@ -31,7 +33,7 @@ pub(crate) struct Args {
     /// any).
     file: PathBuf,
     /// Reconstruction method.
-    #[arg(long, value_enum, default_value = "lct")]
+    #[arg(long, value_enum, default_value = "auto")]
     method: Method,
     /// Where to write the surface mesh (format from the extension: .obj, .ply, .glb). A PNG with the
     /// front view and the depth map is written beside it (same name, .png).
@@ -150,11 +152,23 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Gate::Path(g) => Setting::Value(g),
     };
     config.capture.max_depth = args.max_depth.map_or(Setting::AUTO, Setting::Value);
+    // The preparation notes what `auto` chooses; a method given by name needs no such note.
+    config.init = match args.method {
+        Method::Auto => InitMethod::Auto,
+        Method::Fk => InitMethod::Fk,
+        Method::Pf => InitMethod::Pf,
+        Method::Carve => InitMethod::Carve,
+        Method::Lct | Method::Fbp => InitMethod::Lct,
+    };
     let prepared = Prepared::new(t, &config).map_err(optim_error)?;
     for note in &prepared.notes {
         eprintln!("{note}");
     }
     let method = match args.method {
+        Method::Auto => match InitMethod::Auto.resolve(prepared.full.scan()).0 {
+            InitMethod::Lct => Volumetric::Lct,
+            _ => Volumetric::Pf,
+        },
         Method::Lct => Volumetric::Lct,
         Method::Fk => Volumetric::Fk,
         Method::Fbp => Volumetric::Fbp,
@@ -203,7 +217,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     println!(
         "{:?}: {} × {} × {} volume; {kept} of {} columns kept (threshold {:.3e}), median depth {} m; \
          {} vertices, {} triangles → {}; figure {}",
-        args.method,
+        method,
         vol.nx,
         vol.ny,
         vol.nz,

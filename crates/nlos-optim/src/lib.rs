@@ -59,7 +59,7 @@ pub use boundary_smoothing::BoundarySmoothing;
 pub use error::{OptimError, Result};
 pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
-pub use params::{ReconstructParams, SamplingSchedule, Schedule, faces_at};
+pub use params::{PHASOR_START_BLOCKS, ReconstructParams, SamplingSchedule, Schedule, faces_at};
 pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, RowTerm, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,

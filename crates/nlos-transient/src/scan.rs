@@ -292,6 +292,8 @@ impl Scan {
             ScanPattern::Exhaustive { lasers, sensors } => {
                 lasers.validate("laser_points")?;
                 sensors.validate("sensor_points")?;
+                on_the_grid_plane(lasers, "laser_points", sensors, "sensor grid")?;
+                on_the_grid_plane(sensors, "sensor_points", lasers, "laser grid")?;
             }
         }
         for (field, d) in [("laser_device", self.laser_device), ("sensor_device", self.sensor_device)] {
@@ -300,6 +302,31 @@ impl Scan {
             }
         }
         Ok(())
+    }
+}
+
+/// How far (metres) a spot may lie off the plane of the other set's grid: the relay wall's own roughness and
+/// calibration error, far below any hidden object's depth.
+pub const MAX_OFF_WALL: f32 = 0.02;
+
+/// Checks that every point of `points` lies within [`MAX_OFF_WALL`] of the plane of `grid` when `grid` is a
+/// grid (a grid lies in one plane of constant z; a list, a curved wall, is not checked).
+fn on_the_grid_plane(points: &PointSet, field: &str, grid: &PointSet, grid_name: &str) -> Result<()> {
+    if !matches!(grid.layout, Layout::Grid { .. }) || grid.is_empty() {
+        return Ok(());
+    }
+    let plane = grid.points.iter().map(|p| p.z).sum::<f32>() / grid.len() as f32;
+    match points.points.iter().enumerate().find(|(_, p)| (p.z - plane).abs() > MAX_OFF_WALL) {
+        Some((i, p)) => Err(invalid(
+            field,
+            format!(
+                "spot {i} at z = {} m lies {:.3} m off the plane of the {grid_name} (z = {plane} m); laser and \
+                 sensor spots lie on the relay wall: give both in the same frame (metres, wall at z = 0)",
+                p.z,
+                (p.z - plane).abs()
+            ),
+        )),
+        None => Ok(()),
     }
 }
 

@@ -558,3 +558,22 @@ fn exr_maps() {
     assert!(matches!(nlos_transient::formats::exr::read_image(&f), Err(TransientError::Unsupported { .. })));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A laser spot off the plane of the sensor grid (here 0.3 m into the hidden scene) is refused by the reader,
+/// naming the file and the field; a spot within the wall's tolerance is read.
+#[test]
+fn a_spot_off_the_grid_plane_names_file_and_field() -> R {
+    let scan = Scan::exhaustive(PointSet::list(vec![Vec3::ZERO]), PointSet::wall_grid(3, 2, 0.2, 0.1)?);
+    let t = Transient::new(scan, TimeAxis::new(0.0, 0.01, 5)?, vec![1.0; 30])?;
+    let f = Path::new("dir/nc.npy");
+    let (npy_bytes, json) = npy::write(&t, f)?;
+    let mut v: serde_json::Value = serde_json::from_slice(&json)
+        .map_err(|e| TransientError::Malformed { file: "nc.json".into(), detail: e.to_string() })?;
+    v["scan"]["lasers"]["points"] = serde_json::json!([[0.0, 0.0, 0.3]]);
+    let e = npy::read(&npy_bytes, v.to_string().as_bytes(), f).expect_err("off the wall");
+    assert!(field_of(&e).contains("laser_points"), "{e}");
+    assert!(e.to_string().contains("dir/nc") && e.to_string().contains("off the plane of the sensor grid"), "{e}");
+    v["scan"]["lasers"]["points"] = serde_json::json!([[0.0, 0.0, 0.005]]);
+    npy::read(&npy_bytes, v.to_string().as_bytes(), f)?;
+    Ok(())
+}

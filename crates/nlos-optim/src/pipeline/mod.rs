@@ -148,10 +148,12 @@ impl Prepared {
         let (schedule, note) =
             config.schedule.sized_to(wall_spacing(measured.scan()), measured.time().bin_width, measured.measurements());
         notes.extend(note);
+        let (method, why) = config.init.resolve(full.scan());
         if config.init == InitMethod::Auto {
-            let (method, why) = config.init.resolve(full.scan());
             notes.push(format!("init auto: {why} (\"{method}\"; init = \"lct\", \"pf\", … chooses another)"));
         }
+        let (schedule, note) = schedule.for_start(method == InitMethod::Pf);
+        notes.extend(note);
         Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes, schedule })
     }
 
