@@ -120,10 +120,16 @@ impl Planar {
             .enumerate()
             .map(|(c, freqs)| {
                 let mut acc = vec![Complex32::new(0.0, 0.0); nz * columns];
+                // The sparse points' phases at every voxel, stepped from one frequency to the next.
+                let mut phases = (!self.confocal() && self.sparse.len() * nz * columns <= MAX_PHASE_TABLE)
+                    .then(|| self.phases(freqs[0], band.df, band.tau0, z, nz));
                 for (j, &f) in freqs.iter().enumerate() {
                     let jb = c * chunk + j;
                     let g = &fields[jb * n_sparse * px * py..(jb + 1) * n_sparse * px * py];
-                    self.focus_frequency(f, band.tau0, g, &ffts, (px, py), z, &mut acc);
+                    self.focus_frequency(f, band.tau0, g, &ffts, (px, py), z, phases.as_ref(), &mut acc);
+                    if let Some(p) = phases.as_mut() {
+                        p.advance();
+                    }
                 }
                 acc
             })
@@ -142,7 +148,36 @@ impl Planar {
         Ok(out)
     }
 
-    /// Adds frequency `f`'s focused wave at every depth to `acc` (plane-major, `acc[iz·columns + c]`).
+    /// The phase `e^{i2πf(|x − p| − τ₀)}` of every sparse point `p` at every voxel `x`, at frequency `f`, and
+    /// its factor for a step of `df`.
+    fn phases(&self, f: f64, df: f64, tau0: f64, z: Axis, nz: usize) -> Phases {
+        let (nx, ny) = (self.nx, self.ny);
+        let n = self.sparse.len() * nz * nx * ny;
+        let (mut cur, mut step) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        let two_pi = 2.0 * std::f64::consts::PI;
+        for p in &self.sparse {
+            for iz in 0..nz {
+                let dz2 = (z.at(iz) - p.z).powi(2);
+                for iy in 0..ny {
+                    let y = self.columns.y.at(iy) - p.y;
+                    for ix in 0..nx {
+                        let x = self.columns.x.at(ix) - p.x;
+                        let path = (x * x + y * y + dz2).sqrt() - tau0;
+                        let (a, b) = (
+                            Complex64::from_polar(1.0, two_pi * f * path),
+                            Complex64::from_polar(1.0, two_pi * df * path),
+                        );
+                        cur.push(Complex32::new(a.re as f32, a.im as f32));
+                        step.push(Complex32::new(b.re as f32, b.im as f32));
+                    }
+                }
+            }
+        }
+        Phases { cur, step }
+    }
+
+    /// Adds frequency `f`'s focused wave at every depth to `acc` (plane-major, `acc[iz·columns + c]`);
+    /// `phases` holds the sparse points' phases at `f` (else they are computed here).
     #[allow(clippy::too_many_arguments)]
     fn focus_frequency(
         &self,
@@ -152,6 +187,7 @@ impl Planar {
         ffts: &Ffts,
         (px, py): (usize, usize),
         z: Axis,
+        phases: Option<&Phases>,
         acc: &mut [Complex32],
     ) {
         let (nx, ny) = (self.nx, self.ny);
@@ -202,6 +238,14 @@ impl Planar {
                     for iy in 0..ny {
                         for ix in 0..nx {
                             plane[ix + nx * iy] += ph * buf[iy * px + ix];
+                        }
+                    }
+                } else if let Some(ph) = phases {
+                    let row = &ph.cur[(sp * nz + iz) * columns..(sp * nz + iz + 1) * columns];
+                    for iy in 0..ny {
+                        let (out, phase) = (&mut plane[nx * iy..nx * (iy + 1)], &row[nx * iy..nx * (iy + 1)]);
+                        for ((o, p), b) in out.iter_mut().zip(phase).zip(&buf[iy * px..iy * px + nx]) {
+                            *o += p * b;
                         }
                     }
                 } else {
@@ -330,6 +374,25 @@ fn ifft2(
     }
 }
 
+/// The largest phase table ([`Phases`]) a thread keeps, in complex values (64 MiB each for the phases and
+/// their steps); beyond it the phases are computed at every frequency.
+const MAX_PHASE_TABLE: usize = 1 << 23;
+
+/// The sparse points' phases at every voxel (`[(sp·nz + iz)·columns + c]`) at one frequency, and the factor
+/// that takes each to the next frequency of the band (consecutive FFT frequencies, `df` apart).
+struct Phases {
+    cur: Vec<Complex32>,
+    step: Vec<Complex32>,
+}
+
+impl Phases {
+    fn advance(&mut self) {
+        for (c, s) in self.cur.iter_mut().zip(&self.step) {
+            *c *= s;
+        }
+    }
+}
+
 /// The inverse FFT plans along x and y.
 struct Ffts {
     x: Arc<dyn Fft<f32>>,
@@ -348,6 +411,8 @@ struct Band {
     gain: Vec<Complex32>,
     /// The path of the first bin's centre (metres).
     tau0: f64,
+    /// The spacing of the FFT's frequencies (cycles per metre): consecutive entries of `freqs` are this apart.
+    df: f64,
 }
 
 impl Band {
@@ -367,7 +432,7 @@ impl Band {
             }
         }
         let tau0 = w.t0 + (w.first as f64 + 0.5) * w.delta;
-        Self { n, bins, freqs, gain, tau0 }
+        Self { n, bins, freqs, gain, tau0, df: 1.0 / (n as f64 * w.delta) }
     }
 }
 
