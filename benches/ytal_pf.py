@@ -63,7 +63,7 @@ def theirs(capture: Path, work: Path, depths: np.ndarray):
     out = tal.reconstruct.pf_dev.solve(
         data, wl_mean=wavelength, wl_sigma=np.pi * PERIODS * wavelength / 18, volume_xyz=volume,
         volume_format=tal.enums.VolumeFormat.X_Y_Z_3, camera_system=tal.enums.CameraSystem.DIRECT_LIGHT,
-        progress=False,
+        progress=False, nt=data.H.shape[0], try_optimize_convolutions=False,  # y-tal 0.20: see the module doc
     )
     wall = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
