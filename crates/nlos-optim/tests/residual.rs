@@ -124,17 +124,25 @@ fn a_residual_of_noise_adds_nothing() {
     assert_eq!(before, after);
 }
 
+/// A scan that is not a confocal grid (one laser spot, the sensor spots on the grid) takes the phasor field of
+/// the residual instead of the LCT: the missing part is found there too, at its place and depth.
 #[test]
-fn a_scan_that_is_not_a_confocal_grid_is_skipped() {
+fn a_one_laser_scan_finds_the_missing_part_through_the_phasor_field() {
     let s = setup();
-    // Exhaustive: one laser spot, the sensor spots on the grid.
     let points = PointSet::wall_grid(16, 16, 0.25, 0.25).unwrap();
     let scan = Scan::exhaustive(PointSet::wall_grid(1, 1, 0.0, 0.0).unwrap(), points);
     let s2 = Setup { scan, ..s };
     let measured = render(&s2, &union(object_a(), object_b()));
     let (p, before, after) = run(&s2, &object_a(), &measured);
-    assert!(p.skipped.is_some() && p.triangles.is_empty(), "{p:?}");
-    assert_eq!(before, after);
+    assert!(p.skipped.is_none() && p.accepted >= 1 && !p.triangles.is_empty(), "{p:?}");
+    // Within two column spacings of B's square (the phasor field's wave, 3 spacings long, blurs wider than the
+    // LCT's one) and 2 cm of its depth.
+    for v in &p.positions {
+        assert!((v.x - 0.12).abs() < 0.06 + 0.067 && (v.y - 0.08).abs() < 0.06 + 0.067, "vertex {v} not at B");
+        assert!((v.z - 0.45).abs() < 0.02, "vertex {v} not at B's depth 0.45");
+    }
+    assert!(((after - before) - p.data_change).abs() <= 1e-6 * before, "{} vs {}", after - before, p.data_change);
+    assert!(after < before, "data term {before} → {after}");
 }
 
 #[test]
