@@ -34,17 +34,21 @@ fn scratch(name: &str) -> PathBuf {
 
 /// A 0.2 m square facing the wall at 0.35 m, rendered on a 12 × 12 confocal scan, 256 bins of 4 mm.
 fn capture(dir: &Path) -> PathBuf {
+    let scan = Scan::confocal(PointSet::wall_grid(12, 12, 0.25, 0.25).expect("grid"));
+    square_capture(&dir.join("square.hdf5"), scan)
+}
+
+/// The square of [`capture`] rendered on `scan` (256 bins of 4 mm), written to `file`.
+fn square_capture(file: &Path, scan: Scan) -> PathBuf {
     let (h, d) = (0.1f32, 0.35f32);
     let positions = [Vec3::new(-h, -h, d), Vec3::new(h, -h, d), Vec3::new(h, h, d), Vec3::new(-h, h, d)];
     let triangles = [[0u32, 2, 1], [0, 3, 2]]; // normals −z: toward the wall
-    let scan = Scan::confocal(PointSet::wall_grid(12, 12, 0.25, 0.25).expect("grid"));
     let time = TimeAxis::new(0.0, 0.004, 256).expect("axis");
     let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
     let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).expect("renderer");
     let t = renderer.forward_transient(&Lambertian::new(1.0f32).expect("brdf")).expect("render");
-    let file = dir.join("square.hdf5");
-    nlos_transient::write(&t, &file, Format::Tal).expect("write");
-    file
+    nlos_transient::write(&t, file, Format::Tal).expect("write");
+    file.to_path_buf()
 }
 
 fn text(o: &Output) -> String {
@@ -525,21 +529,6 @@ fn gpu_reconstruction_matches_the_cpu() {
     assert!((lg - lc).abs() <= 1e-3 * lc.abs(), "final loss {lg} on the GPU, {lc} on the CPU");
 }
 
-/// The square of [`capture`] seen by one laser at `laser` and a 16 × 16 sensor grid (exhaustive).
-fn nonconfocal_capture(dir: &Path, lasers: PointSet) -> PathBuf {
-    let (h, d) = (0.1f32, 0.35f32);
-    let positions = [Vec3::new(-h, -h, d), Vec3::new(h, -h, d), Vec3::new(h, h, d), Vec3::new(-h, h, d)];
-    let triangles = [[0u32, 2, 1], [0, 3, 2]];
-    let scan = Scan::exhaustive(lasers, PointSet::wall_grid(16, 16, 0.25, 0.25).expect("grid"));
-    let time = TimeAxis::new(0.0, 0.004, 256).expect("axis");
-    let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
-    let renderer = Renderer::new(&positions, &triangles, &scan, &time, params).expect("renderer");
-    let t = renderer.forward_transient(&Lambertian::new(1.0f32).expect("brdf")).expect("render");
-    let file = dir.join("square_nc.hdf5");
-    nlos_transient::write(&t, &file, Format::Tal).expect("write");
-    file
-}
-
 /// The default command (no `--init`) on captures that are not confocal: one laser (centre and corner) and a
 /// 2 × 2 laser grid, each × 16 × 16 sensors. `auto` takes the phasor field, says so in the run's output and
 /// its settings, the start lies at the square's depth, and `--init lct` is a clear input error.
@@ -553,7 +542,8 @@ fn the_default_command_reconstructs_non_confocal_captures() {
     ] {
         let sub = dir.join(name);
         std::fs::create_dir_all(&sub).expect("dir");
-        let data = nonconfocal_capture(&sub, lasers);
+        let sensors = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("grid");
+        let data = square_capture(&sub.join("square_nc.hdf5"), Scan::exhaustive(lasers, sensors));
         let out = sub.join("run");
         let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
         let mut args = vec!["reconstruct", &d, "--out", &o];
