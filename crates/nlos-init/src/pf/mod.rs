@@ -62,6 +62,9 @@ pub const DEFAULT_CYCLES: f64 = 2.0;
 /// Depth voxels per virtual wavelength ([`PfParams::depth_step`]).
 pub const DEPTH_STEPS_PER_WAVELENGTH: f64 = 8.0;
 
+/// The most voxels [`pf`] builds (a volume of 1 GiB of `f32`, as much again for the sums).
+const MAX_VOXELS: usize = 1 << 28;
+
 /// Parameters of [`pf`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PfParams {
@@ -193,7 +196,14 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
     if let Some(d) = params.max_depth {
         z_max = z_max.min(positive("max_depth", d)?);
     }
-    let nz = (z_max / dz).floor().min(1e6) as usize;
+    let nz = (z_max / dz).floor().min(1e9) as usize;
+    if columns.nx * columns.ny * nz > MAX_VOXELS {
+        return Err(InitError::InvalidParameter {
+            name: "depth_step",
+            value: dz,
+            reason: "gives more than 2^28 voxels (1 GiB of volume); raise the depth step or cap max_depth",
+        });
+    }
     let first = (0..time.bins).find(|&k| time.bin_start(k) >= gate).unwrap_or(time.bins);
     let last = (0..time.bins).rev().find(|&k| time.bin_start(k) < 2.0 * z_max).map_or(0, |k| k + 1);
     if nz < 5 || last <= first + 1 {
@@ -230,13 +240,6 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
         },
     );
     Ok(Volume { nx: columns.nx, ny: columns.ny, nz, x: columns.x, y: columns.y, z, data })
-}
-
-/// The wavelength [`pf`] uses by default on `t` (metres of path), `None` when its wall points span no area.
-pub fn default_wavelength(t: &Transient) -> Option<f64> {
-    let (lasers, sensors) = (t.scan().lasers(), t.scan().sensors());
-    let dense = if lasers.len() > sensors.len() { lasers } else { sensors };
-    Columns::of(dense).map(|c| WAVELENGTH_PER_SPACING * c.spacing)
 }
 
 fn gate_path(t: &Transient, gate: Gate) -> Result<f64> {
@@ -330,15 +333,25 @@ fn focus_column(
     }
 }
 
+/// The length of the time FFT for `len` bins of `delta` metres: room for the pulse's tails (±4σ) so that the
+/// circular convolution does not wrap, rounded up to a power of two.
+fn fft_len(len: usize, sigma: f64, delta: f64) -> usize {
+    (len + 2 * (4.0 * sigma / delta).ceil() as usize).next_power_of_two()
+}
+
+/// The virtual pulse's spectrum at frequency `f` (cycles per metre of path), relative to its peak at `fc =
+/// 1/λ`: `exp(−2π²σ²(f − fc)²)`, the Fourier transform of the pulse of the module docs over `σ√(2π)`.
+fn pulse_spectrum(f: f64, fc: f64, sigma: f64) -> f64 {
+    (-2.0 * (std::f64::consts::PI * sigma * (f - fc)).powi(2)).exp()
+}
+
 /// Each measurement's bins `first..last` convolved with the virtual pulse (module docs), by FFT: the
 /// pulse's spectrum `σ√(2π)·exp(−2π²σ²(f − 1/λ)²)` is one-sided, so the result is the analytic (complex)
 /// signal of the band-passed histogram.
 fn filter(t: &Transient, first: usize, last: usize, wavelength: f64, sigma: f64) -> Result<Vec<Complex32>> {
     let len = last - first;
     let delta = t.time().bin_width;
-    // Room for the pulse's tails (±4σ) so the circular convolution does not wrap.
-    let tail = (4.0 * sigma / delta).ceil() as usize;
-    let n = (len + 2 * tail).next_power_of_two();
+    let n = fft_len(len, sigma, delta);
     let r2c = RealFftPlanner::<f32>::new().plan_fft_forward(n);
     let inverse = FftPlanner::<f32>::new().plan_fft_inverse(n);
     let fc = 1.0 / wavelength;
@@ -346,8 +359,7 @@ fn filter(t: &Transient, first: usize, last: usize, wavelength: f64, sigma: f64)
     let pulse: Vec<f32> = (0..n / 2 + 1)
         .map(|k| {
             let f = k as f64 / (n as f64 * delta);
-            let g = (-2.0 * (std::f64::consts::PI * sigma * (f - fc)).powi(2)).exp();
-            (g / n as f64) as f32
+            (pulse_spectrum(f, fc, sigma) / n as f64) as f32
         })
         .collect();
     let measurements = t.measurements();
@@ -470,6 +482,7 @@ mod tests {
             PfParams { cycles: f64::NAN, ..PfParams::default() },
             PfParams { depth_step: Some(0.0), ..PfParams::default() },
             PfParams { max_depth: Some(f64::INFINITY), ..PfParams::default() },
+            PfParams { depth_step: Some(1e-9), ..PfParams::default() },
         ] {
             assert!(matches!(pf(&t, &p), Err(InitError::InvalidParameter { .. })), "{p:?}");
         }

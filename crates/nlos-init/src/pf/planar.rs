@@ -32,7 +32,7 @@ use rustfft::{Fft, FftPlanner};
 
 use nlos_transient::{Layout, Transient};
 
-use super::{Columns, Window};
+use super::{Columns, Window, fft_len, pulse_spectrum};
 use crate::error::{InitError, Result};
 use crate::lct::Material;
 use crate::volume::Axis;
@@ -417,14 +417,12 @@ struct Band {
 
 impl Band {
     fn new(w: &Window, wavelength: f64, sigma: f64) -> Self {
-        // Room for the pulse's tails (±4σ) so the circular convolution does not wrap.
-        let tail = (4.0 * sigma / w.delta).ceil() as usize;
-        let n = (w.len + 2 * tail).next_power_of_two();
+        let n = fft_len(w.len, sigma, w.delta);
         let fc = 1.0 / wavelength;
         let (mut bins, mut freqs, mut gain) = (Vec::new(), Vec::new(), Vec::new());
         for j in 1..n / 2 {
             let f = j as f64 / (n as f64 * w.delta);
-            let g = (-2.0 * (std::f64::consts::PI * sigma * (f - fc)).powi(2)).exp();
+            let g = pulse_spectrum(f, fc, sigma);
             if g >= BAND_FLOOR {
                 bins.push(j);
                 freqs.push(f);
