@@ -25,6 +25,7 @@ use std::time::Instant;
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 
 mod nonconfocal;
+mod preprocessed;
 
 const BUNNY: &str = "meshes/bunny_centered.obj";
 const SOAP: &str = "meshes/soap_centered.obj";
@@ -736,15 +737,18 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "--" => {
                 opts.extra = it.by_ref().cloned().collect();
             }
-            "all" => names.extend(["bunny", "reference", "soap", "sensor", "ggx", "real", "nonconfocal"].map(s)),
-            n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "sensor" | "nonconfocal") => {
+            "all" => names
+                .extend(["bunny", "reference", "soap", "sensor", "ggx", "real", "preprocessed", "nonconfocal"].map(s)),
+            n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "preprocessed" | "sensor" | "nonconfocal") => {
                 names.push(n.to_string())
             }
             other => return Err(format!("unknown scenario or option `{other}`; see `cargo xtask help`")),
         }
     }
     if names.is_empty() {
-        return Err("name a scenario: bunny, soap, reference, ggx, real, sensor, nonconfocal or all".into());
+        return Err(
+            "name a scenario: bunny, soap, reference, ggx, real, preprocessed, sensor, nonconfocal or all".into()
+        );
     }
     let mut r = Runner::new(root)?;
     let mut failed = Vec::new();
@@ -758,6 +762,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "reference" => reference(&mut r, &opts),
             "ggx" => ggx(&mut r, &opts),
             "real" => real(&mut r, &opts),
+            "preprocessed" => preprocessed::preprocessed(&mut r, &opts),
             "nonconfocal" => nonconfocal::nonconfocal(&mut r, &opts),
             _ => sensor(&mut r, &opts),
         };
@@ -801,7 +806,7 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 9] = [
+pub const SCENARIOS: [(&str, &str); 10] = [
     ("bunny", "the shared bunny, rendered at Tsai et al. 2019's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
@@ -810,6 +815,10 @@ pub const SCENARIOS: [(&str, &str); 9] = [
     (
         "real",
         "the Stanford captures (chart, diffuse S, S and U), default command: time, the chart's plane, the letters",
+    ),
+    (
+        "preprocessed",
+        "the S and U as Tsai et al. preprocessed them (gated) and raw: the same letters at the same depths, no phantoms",
     ),
     (
         "nonconfocal",

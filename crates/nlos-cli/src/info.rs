@@ -89,6 +89,7 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
     let peak = peak(&t);
     let ps = ax.bin_width / SPEED_OF_LIGHT * 1e12;
     let counts = count_summary(&t, BackgroundWindow::Auto);
+    let zero_gate = t.zero_gate().map(|z| (z, ax.bin_start(z)));
 
     if as_json {
         let device = |d: Option<[f32; 3]>| d.map_or(Value::Null, |d| json!(d.map(short)));
@@ -113,6 +114,7 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
                 "t_end_m": ax.end(),
                 "includes_device_legs": ax.includes_device_legs,
             },
+            "zero_gate": zero_gate.map_or(Value::Null, |(z, path)| json!({ "bins": z, "path_m": path })),
             "total_counts": total,
             "photon_counts": match &counts {
                 Ok(c) => json!({
@@ -173,6 +175,13 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         num(ax.end(), 4),
         if ax.includes_device_legs { "times include" } else { "times exclude" }
     );
+    if let Some((z, path)) = zero_gate {
+        println!(
+            "gate:          bins 0..{z} (path < {} m) are zero in every measurement: gated before it reached us \
+             (the direct light removed); the estimates below use the bins after it",
+            num(path, 4)
+        );
+    }
     println!("total counts:  {}", num(total, 3));
     match &counts {
         Ok(c) => println!(

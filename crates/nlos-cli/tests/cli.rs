@@ -282,3 +282,28 @@ fn real_capture_peak_depth_and_convert() {
         assert_eq!(nlos_transient::read(&out).expect("read back"), original, "{target}");
     }
 }
+
+/// Tsai et al.'s preprocessed S and U (the Stanford capture with bins 1–600 zeroed): `nlos info` names the
+/// gate and estimates the background after it, between the direct light's tail and the S (non-zero; the
+/// zeroed bins would give nearly 0).
+#[test]
+fn a_preprocessed_capture_names_its_gate() {
+    let Some(file) = measured("tsai_su_transient.mat") else { return };
+    let f = file.to_str().expect("utf8");
+    let o = nlos(&["info", f]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("gate:          bins 0..600 (path < 0.72 m) are zero in every measurement"), "{out}");
+    let o = nlos(&["info", "--json", f]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("json");
+    assert_eq!(v["zero_gate"]["bins"], 600);
+    let b = v["photon_counts"]["background_per_bin"].as_f64().expect("background");
+    let window = v["photon_counts"]["background_window_bins"][0].as_u64().expect("window");
+    assert!(b > 0.02 && b < 0.1, "background {b} per bin");
+    assert!(window >= 600, "the background window starts at bin {window}, inside the gate");
+    // The raw file has no zeroed bins: no gate line.
+    if let Some(raw) = measured("data_s_u.mat") {
+        let o = nlos(&["info", raw.to_str().expect("utf8")]);
+        assert!(!stdout(&o).contains("gate:"), "{}", stdout(&o));
+    }
+}

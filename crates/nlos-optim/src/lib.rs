@@ -68,5 +68,8 @@ pub use reconstruct::{
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};
-pub use residual::{Patches, ResidualParams, ResidualRecord, residual_patches};
+pub use residual::{
+    LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,
+    residual_patches,
+};
 pub use sensor::{SensorBackground, SensorFit, SensorModel, SensorRows, expected_half_deviance};

@@ -1,5 +1,6 @@
 //! Residual back-projection (`nlos_optim::residual`): a part of the object that the mesh lacks is found
-//! from the residual at its place and depth, and only there; a residual of noise adds nothing; the
+//! from the residual at its place and depth, and only there; a residual of noise adds nothing, nor does
+//! one that falls slowly in time (a sensor's tail, a background); the
 //! reported change is the exact change of the data term; a scan that is not a confocal grid is skipped.
 #![allow(clippy::unwrap_used)]
 
@@ -7,7 +8,8 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
-use nlos_optim::{ConcreteBrdf, DataTerm, ResidualParams, residual_patches};
+use nlos_optim::{ConcreteBrdf, DataTerm, LOCALISED_CONTRAST, ResidualParams, localisation, residual_patches};
+use nlos_render::RowSpan;
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
@@ -190,4 +192,61 @@ fn a_hot_pixel_is_not_explained_by_surface() {
     assert!(p.regions >= 1, "the shell must be proposed for the test to mean anything: {p:?}");
     assert!(after <= before);
     assert!(before - after < 0.05 * before, "{before} → {after}");
+}
+
+/// The contrast of `localisation` on one row of 400 bins of 4 mm: the patch's light on bins 100..105,
+/// against a residual given per bin.
+fn contrast_of(residual: impl Fn(usize) -> f32) -> f64 {
+    let bins = 400;
+    let span = RowSpan { measurement: 1, first_bin: 100, values: vec![1.0; 5] };
+    let mut r = vec![0.0f32; 2 * bins];
+    for k in 0..bins {
+        r[bins + k] = residual(k);
+    }
+    localisation(std::iter::once(std::slice::from_ref(&span)), &r, bins, 0.004)
+}
+
+#[test]
+fn localisation_tells_a_return_from_a_background_and_a_tail() {
+    let light = |k: usize| if (100..105).contains(&k) { 1.0 } else { 0.0 };
+    // The patch's own return, alone or on a flat background: far above the threshold.
+    assert_eq!(contrast_of(light), f64::INFINITY);
+    let on_background = contrast_of(|k| light(k) + 0.1);
+    assert!((on_background - 11.0).abs() < 1e-6, "{on_background}");
+    // A background the model lacks matches as well anywhere: contrast 1.
+    assert!((contrast_of(|_| 0.3) - 1.0).abs() < 1e-12);
+    // A falling tail matches better before the patch: contrast below 1.
+    let tail = contrast_of(|k| (-(k as f32) / 60.0).exp());
+    assert!(tail < 1.0, "{tail}");
+    // A residual that is negative at the patch: 0.
+    assert_eq!(contrast_of(|k| -light(k)), 0.0);
+    assert!(LOCALISED_CONTRAST > 1.0 && on_background >= LOCALISED_CONTRAST && tail < LOCALISED_CONTRAST);
+}
+
+/// What a gated capture keeps besides the object and a model without background lacks: a floor of ambient
+/// light and dark counts, and the direct light's diffusion tail falling slowly across the axis. The
+/// back-projection of that residual proposes surface, the data test takes some of it (it does lower an L2
+/// term), and the localisation test refuses every such patch.
+///
+/// (A tail that begins exactly at a return is another matter: a large surface just behind the object
+/// begins the same way, and the test keeps it when its light lies in that tail's first stretch.)
+#[test]
+fn a_background_and_a_slow_tail_are_not_explained_by_surface() {
+    let s = setup();
+    let truth = object_a();
+    let mut measured = render(&s, &truth);
+    let bins = s.time.bins;
+    let peak = measured.iter().copied().fold(0.0f32, f32::max);
+    for row in measured.chunks_exact_mut(bins) {
+        for (k, v) in row.iter_mut().enumerate() {
+            let path = (k as f32 + 0.5) * 0.004;
+            *v += 0.05 * peak * (1.0 + (-path / 0.3).exp());
+        }
+    }
+    let (p, before, after) = run(&s, &truth, &measured);
+    assert!(!p.notes.is_empty(), "a patch must pass the data test for the test to mean anything: {p:?}");
+    assert!(p.notes.iter().all(|n| !n.kept && n.contrast.is_none_or(|c| c < LOCALISED_CONTRAST)), "{:?}", p.notes);
+    assert_eq!(p.accepted, 0);
+    assert!(p.triangles.is_empty());
+    assert_eq!(before, after);
 }

@@ -214,13 +214,17 @@ impl Transient {
     /// place where the smoothed signal rises above twice that minimum marks the first return from the
     /// hidden scene; the running minimum's position is returned. When no such rise exists (no direct light
     /// on the axis, or it was already gated), the start of the axis is returned.
+    ///
+    /// A capture gated before it reached us ([`Transient::zero_gate`]) is searched from the end of its zeroed
+    /// bins on: what its gate left of the direct light's tail ends where the raw capture's would.
     pub fn direct_light_end(&self) -> f64 {
         let ax = self.time();
         let h = self.summed_histogram();
         let w = ((0.006 / ax.bin_width).round() as usize).max(1);
         let smooth = box_smooth(&h, w);
+        let z = self.zero_gate().unwrap_or(0);
         let head = (ax.bins / 10).max(1);
-        let start = (0..head).fold(0, |b, k| if smooth[k] > smooth[b] { k } else { b });
+        let start = (z..(z + head).min(ax.bins)).fold(z, |b, k| if smooth[k] > smooth[b] { k } else { b });
         let (mut min_k, mut min_v) = (start, smooth[start]);
         for (k, &v) in smooth.iter().enumerate().skip(start) {
             if v < min_v {
@@ -230,6 +234,32 @@ impl Transient {
             }
         }
         ax.t0
+    }
+
+    /// The number of leading bins that are zero in every measurement.
+    pub fn leading_zero_bins(&self) -> usize {
+        self.histograms().map(|h| h.iter().position(|&v| v != 0.0).unwrap_or(h.len())).min().unwrap_or(0)
+    }
+
+    /// The bins a preprocessing step zeroed before the capture reached us (Tsai et al. 2019's `transient.mat`
+    /// zeroes bins 1–600, as the Stanford reference code does before LCT, to remove the direct reflection):
+    /// `Some(z)` when the first `z ≥ 1` bins are zero in every measurement ([`Transient::leading_zero_bins`])
+    /// and the light that follows them does not rise — the summed histogram's mean over the 8 bins after
+    /// them is positive and at least half its mean over the next 8. What a gate leaves is the direct light's
+    /// falling tail, background or a flat stretch; a simulation without background also starts with zero
+    /// bins, but what follows them is its first return's rising edge, so it has no gate. Neither has a
+    /// capture without zero bins.
+    ///
+    /// Estimates that need bins without signal (the background, [`crate::sensor::BackgroundWindow`]) and
+    /// the direct light's end start after the gate: its zeros are neither background nor signal.
+    pub fn zero_gate(&self) -> Option<usize> {
+        let z = self.leading_zero_bins();
+        if z == 0 || z + 16 > self.bins() {
+            return None;
+        }
+        let h = self.summed_histogram();
+        let (first, next) = (h[z..z + 8].iter().sum::<f64>(), h[z + 8..z + 16].iter().sum::<f64>());
+        (first > 0.0 && first >= 0.5 * next).then_some(z)
     }
 
     /// Estimates where the last return from the hidden scene ends, as a path length (metres): the end of

@@ -227,11 +227,12 @@ impl Prepared {
     fn sensor_fit(&self, config: &Config) -> Result<Option<SensorFit>> {
         let s = &config.sensor;
         let counts = nlos_transient::sensor::is_integer_counts(self.measured.data());
-        // `auto`: the capture's own response when it holds one (a direct reflection, which the gate removed).
+        // `auto`: the capture's own response when it holds one: its direct reflection, which the gate removed,
+        // or, on a capture gated before it reached us, its first strong hidden return.
         let direct = match &s.response {
             SensorChoice::Off => return Ok(None),
             SensorChoice::Auto => {
-                match (counts && self.gated).then(|| JitterResponse::from_direct_return(&self.read)) {
+                match (counts && self.gated).then(|| self.own_response()) {
                     Some(Ok(r)) => Some(r),
                     _ => {
                         // An explicit background would be silently dropped, so it is an error.
@@ -285,9 +286,25 @@ impl Prepared {
         }))
     }
 
+    /// The capture's own timing response: its direct reflection ([`JitterResponse::from_direct_return`]), or,
+    /// when a preprocessing step zeroed it ([`Transient::zero_gate`]), its first strong hidden return
+    /// ([`JitterResponse::from_first_return`]).
+    fn own_response(&self) -> std::result::Result<JitterResponse, nlos_transient::TransientError> {
+        if self.read.zero_gate().is_some() {
+            JitterResponse::from_first_return(&self.read)
+        } else {
+            JitterResponse::from_direct_return(&self.read)
+        }
+    }
+
     /// What the sensor settings decided, for the user: the response's shape and the background level.
     pub fn describe_sensor(&self, config: &Config, params: &ReconstructParams) -> String {
         let response = match config.sensor.response {
+            SensorChoice::Auto if self.read.zero_gate().is_some() => format!(
+                "the capture's own response (its first strong hidden return: bins 0..{} are zero in every \
+                 measurement, the direct light gated before it reached us)",
+                self.read.zero_gate().unwrap_or(0)
+            ),
             SensorChoice::Auto | SensorChoice::Direct => "the capture's own response (its direct reflection)".into(),
             SensorChoice::Ideal => "an ideal sensor's response".into(),
             SensorChoice::File(ref f) => format!("the response of {}", f.display()),

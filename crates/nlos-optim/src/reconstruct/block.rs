@@ -22,7 +22,7 @@ use crate::error::{OptimError, Result};
 use crate::params::{ReconstructParams, faces_at};
 use crate::prune::{PruneRecord, RowLoss, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
-use crate::residual::{ResidualRecord, residual_patches};
+use crate::residual::{PatchNote, ResidualRecord, residual_patches};
 use crate::sensor::SensorRows;
 
 /// What every block of a run shares: its settings and what was decided from them once.
@@ -365,14 +365,17 @@ pub(super) fn prune_and_patch(
             stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
         }
         append(st, &p.positions, &p.triangles);
-        st.residual_log.push(ResidualRecord {
+        let record = ResidualRecord {
             stage: st.stage,
             columns: p.columns,
             regions: p.regions,
             accepted: p.accepted,
             faces: p.triangles.len(),
             data_change: p.data_change / norm,
-        });
+            patches: p.notes.into_iter().map(|n| PatchNote { data_change: n.data_change / norm, ..n }).collect(),
+        };
+        st.log.residual.push(record.clone());
+        st.residual_log.push(record);
     }
     Ok(stage_mesh)
 }

@@ -65,6 +65,10 @@ pub struct RunLog {
     /// The stages started: the edge each was run at ([`crate::Schedule::planned_edge`]).
     #[serde(default)]
     pub stages: Vec<StageRecord>,
+    /// Residual back-projection at the end of each stage that proposes patches: every candidate that passed
+    /// the data test, with its depth, what it explained, its contrast and whether it was kept.
+    #[serde(default)]
+    pub residual: Vec<crate::ResidualRecord>,
 }
 
 /// A stage as it was started: its target edge, planned for the time budget, beside the schedule's own.

@@ -82,8 +82,14 @@ pub enum BackgroundWindow {
     /// axis, else the first hidden-scene return). The summed histogram is smoothed with a box of
     /// `w = max(1, 6 mm/Δ)` bins; the return's onset is the first bin above
     /// `min + 10 %·(max − min)` of the smoothed signal; the window is `[0, onset − 3w)`, the margin
-    /// keeping the rising edge (jitter, smoothing) out.
+    /// keeping the rising edge (jitter, smoothing) out. On a capture gated before it reached us
+    /// ([`Transient::zero_gate`]) the window and the search start after the zeroed bins.
     BeforeFirstReturn,
+    /// On a capture gated before it reached us ([`Transient::zero_gate`]): the later half of the bins from
+    /// where what the gate left of the direct light's diffusion tail has fallen to within 2 % of the range
+    /// above the minimum, to the first hidden return (its onset found as above, at 2 % instead of 10 %: the
+    /// return's foot is not background either), when they are at least 32 — the tail's end still sits above
+    /// the floor. Otherwise
     /// [`BackgroundWindow::BeforeFirstReturn`] when it holds at least 16 bins; otherwise (captures cropped
     /// to start inside the direct light, e.g. the Stanford LCT `.mat` files) the last 10 % of the axis,
     /// assuming the axis runs past the last return. [`BackgroundEstimate::window`] tells which was used.
@@ -133,30 +139,20 @@ fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)
             (s.min(ax.bins as f64) as usize, e as usize)
         }
         BackgroundWindow::Auto => {
+            // A capture gated before it reached us: the later half of the bins between its gate and the first
+            // hidden return (the first half holds what the gate left of the direct light's tail).
+            if let Some(z) = t.zero_gate() {
+                let (s, e) = quiet_bins(t, z, 0.02, true);
+                if e >= s + 32 {
+                    return Ok((s + (e - s) / 2, e));
+                }
+            }
             return match window_bins(t, BackgroundWindow::BeforeFirstReturn) {
                 Ok((s, e)) if e - s >= 16 => Ok((s, e)),
                 _ => window_bins(t, BackgroundWindow::Bins { start: ax.bins - (ax.bins / 10).max(1), end: ax.bins }),
             };
         }
-        BackgroundWindow::BeforeFirstReturn => {
-            let h = t.summed_histogram();
-            let w = ((0.006 / ax.bin_width).round() as usize).clamp(1, ax.bins);
-            let mut smooth = vec![0.0; h.len()];
-            let mut acc = 0.0;
-            for k in 0..h.len() {
-                acc += h[k];
-                if k >= w {
-                    acc -= h[k - w];
-                }
-                smooth[k] = acc / (k + 1).min(w) as f64;
-            }
-            let lo = smooth.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = smooth.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let thr = lo + 0.1 * (hi - lo);
-            let onset = smooth.iter().position(|&v| v > thr).unwrap_or(0);
-            // The trailing box puts the smoothed rise up to w bins late relative to its centre; 3w covers it.
-            (0, onset.saturating_sub(3 * w))
-        }
+        BackgroundWindow::BeforeFirstReturn => quiet_bins(t, t.zero_gate().unwrap_or(0), 0.1, false),
     };
     if s >= e || e > ax.bins {
         return Err(bad(
@@ -169,6 +165,34 @@ fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)
         ));
     }
     Ok((s, e))
+}
+
+/// Bins `[start, onset − 3w)`: from `start` to the first return after it (the summed histogram smoothed with
+/// a trailing box of `w = max(1, 6 mm/Δ)` bins; the onset is the first bin above `min + fraction·(max − min)`
+/// of the smoothed bins from `start` on; the margin keeps the rising edge out). Empty when the return
+/// comes first. With `skip_leading`, bins above the threshold at `start` (a falling tail) are skipped: the
+/// window starts where the smoothed histogram first falls to the threshold, and the onset is searched after.
+fn quiet_bins(t: &Transient, start: usize, fraction: f64, skip_leading: bool) -> (usize, usize) {
+    let ax = t.time();
+    let h = &t.summed_histogram()[start..];
+    let w = ((0.006 / ax.bin_width).round() as usize).clamp(1, ax.bins);
+    let mut smooth = vec![0.0; h.len()];
+    let mut acc = 0.0;
+    for k in 0..h.len() {
+        acc += h[k];
+        if k >= w {
+            acc -= h[k - w];
+        }
+        smooth[k] = acc / (k + 1).min(w) as f64;
+    }
+    let lo = smooth.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = smooth.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let thr = lo + fraction * (hi - lo);
+    // Light already above the threshold at `start` (what a gate left of the direct light) is not the return.
+    let quiet = if skip_leading { smooth.iter().position(|&v| v <= thr).unwrap_or(0) } else { 0 };
+    let onset = smooth[quiet..].iter().position(|&v| v > thr).map_or(0, |k| quiet + k);
+    // The trailing box puts the smoothed rise up to w bins late relative to its centre; 3w covers it.
+    (start + quiet, start + onset.saturating_sub(3 * w).max(quiet))
 }
 
 /// Estimates the background (expected counts per bin) from bins that hold no signal.

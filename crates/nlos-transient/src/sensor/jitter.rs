@@ -178,6 +178,88 @@ impl JitterResponse {
         Self::from_histogram(-zero * ax.bin_width, ax.bin_width, &counts, false)
     }
 
+    /// A timing response taken from the capture's first strong hidden return, for a capture without a
+    /// direct reflection to take it from ([`Self::from_direct_return`]): one gated before it reached us
+    /// ([`Transient::zero_gate`]).
+    ///
+    /// Each measurement's histogram after the direct light ([`Transient::direct_light_end`]) is smoothed
+    /// with a box of `w = max(1, 6 mm/Δ)` bins; its first return's peak is the first local maximum of the
+    /// smoothed histogram at or above half its largest value. The 5 % of measurements whose peak holds
+    /// the most counts are aligned at their peaks and summed from 36 mm of path before to 150 mm after
+    /// it (the diffusion tail of the Stanford SPAD keeps 5 % of its peak 120 mm after it; the next return
+    /// of a scene is rarely that close behind its first), the background per bin
+    /// ([`crate::sensor::estimate_background`], [`crate::sensor::BackgroundWindow::Auto`]) is subtracted,
+    /// and zero delay is put at the summed peak.
+    ///
+    /// What this response holds besides the sensor's is the geometry of the first surface around each
+    /// spot's nearest point: a patch facing the wall spreads its return over a few millimetres of path
+    /// (a stroke 5 cm wide at 0.6 m: about 1 mm; 20 cm along it: about 16 mm on the late side). The fit
+    /// through it therefore explains the sensor's tail and a little of that spread; the peak, where the
+    /// depth is read, is the surface's.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidValue`] (field `first return`) when no measurement has light after the
+    /// direct light, or nothing is left above the background.
+    pub fn from_first_return(t: &Transient) -> Result<Self> {
+        let ax = *t.time();
+        let no_return = |reason: String| invalid("first return", reason);
+        let start = (((t.direct_light_end() - ax.t0) / ax.bin_width).ceil().max(0.0) as usize).min(ax.bins);
+        let w = ((0.006 / ax.bin_width).round() as usize).max(1);
+        let before = ((0.036 / ax.bin_width).round() as usize).max(2);
+        let after = ((0.150 / ax.bin_width).round() as usize).max(4);
+        // (peak counts of the smoothed histogram, measurement, peak bin)
+        let mut peaks: Vec<(f64, usize, usize)> = t
+            .histograms()
+            .enumerate()
+            .filter_map(|(m, h)| {
+                let h = &h[start..];
+                if h.len() < 2 * w + 1 {
+                    return None;
+                }
+                let mut acc: f64 = h[..w].iter().map(|&v| f64::from(v)).sum();
+                let mut smooth = vec![0.0; h.len() - w + 1];
+                for k in 0..smooth.len() {
+                    if k > 0 {
+                        acc += f64::from(h[k + w - 1]) - f64::from(h[k - 1]);
+                    }
+                    smooth[k] = acc / w as f64;
+                }
+                let top = smooth.iter().copied().fold(0.0f64, f64::max);
+                let first = smooth.iter().position(|&v| v >= 0.5 * top)?;
+                let peak = (first..smooth.len()).find(|&k| k + 1 == smooth.len() || smooth[k + 1] < smooth[k])?;
+                // The box covers bins [peak, peak + w): its centre is the peak's bin.
+                (top > 0.0).then_some((smooth[peak], m, start + peak + w / 2))
+            })
+            .collect();
+        if peaks.is_empty() {
+            return Err(no_return(format!("no measurement has light after the direct light (from bin {start})")));
+        }
+        peaks.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        peaks.truncate((peaks.len() / 20).max(1));
+        let background =
+            crate::sensor::estimate_background(t, crate::sensor::BackgroundWindow::Auto).map_or(0.0, |e| e.per_bin);
+        let mut counts = vec![0.0f64; before + 1 + after];
+        let mut used = vec![0usize; counts.len()];
+        for &(_, m, p) in &peaks {
+            let h = t.histogram(m);
+            for (i, c) in counts.iter_mut().enumerate() {
+                let Some(k) = (p + i).checked_sub(before).filter(|&k| k < ax.bins && k >= start) else { continue };
+                *c += f64::from(h[k]) - background;
+                used[i] += 1;
+            }
+        }
+        // Each offset averaged over the measurements that reach it (a peak near the axis's ends reaches fewer).
+        let counts: Vec<f64> =
+            counts.iter().zip(&used).map(|(&c, &n)| if n > 0 { (c / n as f64).max(0.0) } else { 0.0 }).collect();
+        let peak = counts.iter().enumerate().fold(0, |b, (i, &v)| if v > counts[b] { i } else { b });
+        if counts[peak] <= 0.0 {
+            return Err(no_return(format!(
+                "the strongest returns hold nothing above the background ({background} per bin)"
+            )));
+        }
+        Self::from_histogram(-(peak as f64) * ax.bin_width, ax.bin_width, &counts, false)
+    }
+
     /// Delay (metres of path) at the start of sample 0.
     pub fn origin(&self) -> f64 {
         self.origin

@@ -586,3 +586,84 @@ fn plateau_or_degenerate_top_is_not_completed() {
     let (out, _) = jitter::complete_rising_side(flat.clone(), 0);
     assert!(out.len() <= flat.len() + 3 * 128 + 2, "{} bins", out.len());
 }
+
+/// The response of [`raw_and_gated`]: a Gaussian rise (σ = 4 bins) and, after its peak, 90 % Gaussian fall
+/// and 10 % exponential diffusion tail (τ = 60 bins), at `j` bins from its peak.
+fn tailed_response(j: f64) -> f64 {
+    let g = (-0.5 * (j / 4.0).powi(2)).exp();
+    if j < 0.0 { g } else { 0.9 * g + 0.1 * (-j / 60.0).exp() }
+}
+
+/// A raw confocal capture as the Stanford files hold them (1,600 bins of 1.2 mm, 16 × 16 spots, Poisson
+/// counts): the direct reflection from bin 0 on (its rising side cut), one hidden return per spot at bins
+/// 1,100–1,163 (four spots each) through the same response, `b` background counts per bin; and the same capture with bins
+/// 0..600 zeroed, as Tsai et al.'s `transient.mat` zeroes bins 1–600 (the direct light's tail is left).
+fn raw_and_gated(b: f64) -> (Transient, Transient) {
+    let scan = Scan::confocal(PointSet::wall_grid(16, 16, 0.25, 0.25).unwrap());
+    let bins = 1600;
+    let mut data = Vec::with_capacity(256 * bins);
+    for m in 0..256 {
+        let mut rng = rng::Pcg32::new(7, m as u64);
+        let centre = 1100.0 + (m / 4) as f64;
+        data.extend((0..bins).map(|k| {
+            let k = k as f64;
+            let mean = 2.0e4 * tailed_response(k) + 40.0 * tailed_response(k - centre) + b;
+            rng.poisson(mean) as f32
+        }));
+    }
+    let raw = Transient::new(scan, TimeAxis::new(0.0, 0.0012, bins).unwrap(), data).unwrap();
+    let mut gated = raw.clone();
+    for m in 0..256 {
+        gated.histogram_mut(m)[..600].fill(0.0);
+    }
+    (raw, gated)
+}
+
+#[test]
+fn a_gated_capture_is_recognised_and_estimated_after_its_gate() {
+    let b_true = 0.05;
+    let (raw, gated) = raw_and_gated(b_true);
+    assert_eq!(raw.zero_gate(), None, "the raw capture has no zeroed bins");
+    assert_eq!(gated.zero_gate(), Some(600));
+    // What the gate left of the direct light's tail ends where the raw capture's does.
+    let (end_raw, end_gated) = (raw.direct_light_end(), gated.direct_light_end());
+    assert!(end_raw > 600.0 * 0.0012 && end_raw < 1100.0 * 0.0012, "raw direct light ends at {end_raw}");
+    assert_eq!(end_gated, end_raw);
+    // The background comes from the bins between the gate and the first hidden return, after the direct
+    // light's tail: not from the zeros (which would give nearly 0) nor from the tail.
+    let est = estimate_background(&gated, BackgroundWindow::Auto).unwrap();
+    assert!(est.window.0 > 700 && est.window.1 > est.window.0 + 100 && est.window.1 < 1100, "{:?}", est.window);
+    assert!((est.per_bin - b_true).abs() < 4.5 * est.std_error, "background {est:?}");
+    // A noiseless simulation starts with zeros too, but what follows them is its first return: no gate.
+    let sim = pulses(4, 300, 200.0, 5.0);
+    assert!(sim.leading_zero_bins() > 100);
+    assert_eq!(sim.zero_gate(), None);
+}
+
+#[test]
+fn a_gated_capture_gives_its_response_from_the_first_strong_return() {
+    let (raw, gated) = raw_and_gated(0.05);
+    assert!(JitterResponse::from_direct_return(&gated).is_err(), "the gate removed the direct reflection");
+    let direct = JitterResponse::from_direct_return(&raw).unwrap();
+    let first = JitterResponse::from_first_return(&gated).unwrap();
+    // The truth: the response sampled per bin, its peak at zero delay.
+    let w: Vec<f64> = (-30..=125).map(|j| tailed_response(f64::from(j))).collect();
+    let truth = JitterResponse::from_histogram(-30.0 * 0.0012, 0.0012, &w, false).unwrap();
+    eprintln!(
+        "FWHM truth {:.4} first-return {:.4} direct {:.4}; mean delay truth {:.4} first-return {:.4}",
+        truth.fwhm(),
+        first.fwhm(),
+        direct.fwhm(),
+        truth.mean_delay(),
+        first.mean_delay()
+    );
+    // Within two bins in width and in mean delay (its tail is cut at 150 mm and carries the noise of 3
+    // spots' returns).
+    assert!((first.fwhm() - truth.fwhm()).abs() < 2.0 * 0.0012, "FWHM {} against {}", first.fwhm(), truth.fwhm());
+    assert!((first.mean_delay() - truth.mean_delay()).abs() < 2.0 * 0.0012);
+    // No light after the gate at all: a typed error naming the field.
+    let mut dark = gated.clone();
+    dark.data_mut().fill(0.0);
+    let e = JitterResponse::from_first_return(&dark).unwrap_err();
+    assert!(e.to_string().contains("first return"), "{e}");
+}
