@@ -216,7 +216,9 @@ impl Transient {
     /// on the axis, or it was already gated), the start of the axis is returned.
     ///
     /// A capture gated before it reached us ([`Transient::zero_gate`]) is searched from the end of its zeroed
-    /// bins on: what its gate left of the direct light's tail ends where the raw capture's would.
+    /// bins on: what its gate left of the direct light's tail ends where the raw capture's would. When no
+    /// falling tail follows the zeros (a capture gated at the direct light's end already, as
+    /// `nlos reconstruct` prepares one), the end of the zeros is returned.
     pub fn direct_light_end(&self) -> f64 {
         let ax = self.time();
         let h = self.summed_histogram();
@@ -224,12 +226,19 @@ impl Transient {
         let smooth = box_smooth(&h, w);
         let z = self.zero_gate().unwrap_or(0);
         let head = (ax.bins / 10).max(1);
-        let start = (z..(z + head).min(ax.bins)).fold(z, |b, k| if smooth[k] > smooth[b] { k } else { b });
+        let start = if z == 0 { (0..head).fold(0, |b, k| if smooth[k] > smooth[b] { k } else { b }) } else { z };
         let (mut min_k, mut min_v) = (start, smooth[start]);
         for (k, &v) in smooth.iter().enumerate().skip(start) {
             if v < min_v {
                 (min_k, min_v) = (k, v);
             } else if v > 2.0 * min_v && min_v > 0.0 && k > start {
+                // Guard: after a gate, light that does not fall to the floor first is no direct light's tail
+                // (a capture this crate gated itself: its first hidden return follows the zeros); the gate
+                // ends the direct light.
+                let after = h[z..(z + w).min(ax.bins)].iter().sum::<f64>() / w as f64;
+                if z > 0 && after <= 2.0 * min_v {
+                    return ax.bin_start(z);
+                }
                 return ax.bin_start(min_k);
             }
         }
