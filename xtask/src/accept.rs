@@ -205,6 +205,19 @@ impl Runner {
         Metrics::parse(line)
     }
 
+    /// The run's depth maps of the start and the result (the report's own PNGs) copied to
+    /// `docs/img/{prefix}_depth_{init,final}.png`, as Markdown images for the results page.
+    fn depth_pictures(&self, run_dir: &Path, prefix: &str, name: &str, start: &str) -> Result<String, String> {
+        let mut pictures = Vec::new();
+        for (which, file) in [(start, "depth_init.png"), ("result", "depth_final.png")] {
+            let rel = format!("img/{prefix}_{file}");
+            let (from, to) = (run_dir.join(file), self.root.join("docs").join(&rel));
+            std::fs::copy(&from, &to).map_err(|e| format!("{} → {}: {e}", from.display(), to.display()))?;
+            pictures.push(format!("![{name}: depth of the {which}]({rel})"));
+        }
+        Ok(pictures.join(" "))
+    }
+
     /// The clean render of `mesh` (cached): `nlos render MESH --out FILE [ARGS]`.
     fn clean_render(&mut self, mesh: &Path, name: &str, args: &[String]) -> Result<(PathBuf, Option<Ran>), String> {
         let file = self.out.join(format!("{name}_clean.hdf5"));
@@ -547,14 +560,7 @@ fn real(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
         let median = z.get(z.len() / 2).copied().unwrap_or(f32::NAN);
         let q = |f: f64| z.get(((z.len().max(1) - 1) as f64 * f) as usize).copied().unwrap_or(f32::NAN);
         let (p10, p90) = (q(0.1), q(0.9));
-        // The depth maps of the start and the result go into the results page (the report's own PNGs).
-        let mut pictures = Vec::new();
-        for (which, file) in [("LCT start", "depth_init.png"), ("result", "depth_final.png")] {
-            let rel = format!("img/real_{name}_{file}");
-            let (from, to) = (run_dir.join(file), r.root.join("docs").join(&rel));
-            std::fs::copy(&from, &to).map_err(|e| format!("{} → {}: {e}", from.display(), to.display()))?;
-            pictures.push(format!("![{name}: depth of the {which}]({rel})"));
-        }
+        let pictures = r.depth_pictures(&run_dir, &format!("real_{name}"), name, "LCT start")?;
         let _ = writeln!(
             text,
             "\n#### {name}\n\n{} faces, median vertex depth {median:.4} m (10th–90th percentile {p10:.4}–{p90:.4} m); \
@@ -562,7 +568,7 @@ fn real(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
             mesh.n_faces(),
             ran.wall_s,
             ran.cpu_s,
-            pictures.join(" ")
+            pictures
         );
         if !opts.quick {
             check(&mut text, &mut pass, &format!("{:.0} s ≤ 600 s on this machine", ran.wall_s), ran.wall_s <= 600.0);

@@ -98,13 +98,7 @@ pub(super) fn preprocessed(r: &mut Runner, opts: &Opts) -> Result<Section, Strin
         a.extend(reconstruct_args(opts));
         let ran = r.nlos(&a)?;
         let (letter_s, letter_u, deepest) = letters(&run_dir.join("mesh.obj"))?;
-        let mut pictures = Vec::new();
-        for (which, file) in [("start", "depth_init.png"), ("result", "depth_final.png")] {
-            let rel = format!("img/preprocessed_{name}_{file}");
-            let (from, to) = (run_dir.join(file), r.root.join("docs").join(&rel));
-            std::fs::copy(&from, &to).map_err(|e| format!("{} → {}: {e}", from.display(), to.display()))?;
-            pictures.push(format!("![{name}: depth of the {which}]({rel})"));
-        }
+        let pictures = r.depth_pictures(&run_dir, &format!("preprocessed_{name}"), name, "start")?;
         let _ = writeln!(
             text,
             "\n#### {name} ({})\n\nS: {:.1} % of the area, median depth {:.4} m, centre ({:+.3}, {:+.3}) m; U: {:.1} %, \
@@ -120,7 +114,7 @@ pub(super) fn preprocessed(r: &mut Runner, opts: &Opts) -> Result<Section, Strin
             letter_u.centre[1],
             ran.wall_s,
             ran.cpu_s,
-            pictures.join(" ")
+            pictures
         );
         if !opts.quick {
             check(&mut text, &mut pass, &format!("{:.0} s ≤ 600 s on this machine", ran.wall_s), ran.wall_s <= 600.0);
