@@ -79,7 +79,8 @@ pub(crate) struct Args {
     /// Do not write the report (`nlos report` writes it later).
     #[arg(long)]
     no_report: bool,
-    /// Hide the progress bar and the sensor fit's description (what `auto` cut from the capture is still said).
+    /// Hide the progress (a bar on a terminal, one line per block in a log), the sensor fit's and the device's
+    /// description (what `auto` cut from the capture is still said).
     #[arg(long)]
     quiet: bool,
 }
@@ -181,26 +182,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     }
     if !args.quiet {
         eprintln!("sensor: {}", prepared.describe_sensor(&config, &params));
+        eprintln!("device: {}", nlos_optim::describe_device(&params));
     }
     let gt = load_gt(args.gt.as_deref())?;
     std::fs::create_dir_all(out).map_err(|e| fail(format!("{}: {e}", out.display())))?;
-    let bar = (!args.quiet).then(|| progress_bar(&params));
+    let mut reporter = Reporter::new(args.quiet, &params);
     let mut on_progress = |p: &Progress| {
-        if let Some(bar) = &bar {
-            bar.set_length(p.iterations_planned.max(1));
-            bar.set_position(p.iteration);
-            bar.set_message(format!(
-                "stage {}/{} · loss {:.4e} · {} faces · L {:.1} mm",
-                p.stage + 1,
-                p.max_stages,
-                p.loss,
-                p.faces,
-                p.target_edge_length * 1e3
-            ));
-            if p.event == ProgressEvent::BlockEnd {
-                bar.tick();
-            }
-        }
+        reporter.update(p);
         ControlFlow::Continue(())
     };
     let hooks = Hooks { progress: Some(&mut on_progress), evolve: None };
@@ -209,9 +197,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         write_command(args, out)?;
     }
     let outcome = pipeline::run(&prepared, &config, &params, start, hooks).map_err(bad)?;
-    if let Some(bar) = bar {
-        bar.finish_and_clear();
-    }
+    reporter.finish();
     if args.glb {
         save(&outcome.mesh, &out.join("mesh.glb"))?;
     }
@@ -375,6 +361,82 @@ fn report_options(run: &Run<'_>, prepared: &Prepared, params: &ReconstructParams
 
 fn save(mesh: &SurfaceMesh, path: &Path) -> Result<(), CliError> {
     nlos_mesh::io::save(mesh, path).map_err(fail)
+}
+
+/// How a run shows its progress on stderr: a bar on a terminal; one plain line per block where stderr is a
+/// file or a pipe (a batch job's log, where a bar would hide itself and the log stay empty for the whole run);
+/// nothing with `--quiet`.
+enum Reporter {
+    Bar(indicatif::ProgressBar),
+    Lines,
+    Quiet,
+}
+
+impl Reporter {
+    fn new(quiet: bool, params: &ReconstructParams) -> Self {
+        use std::io::IsTerminal;
+        if quiet {
+            Self::Quiet
+        } else if std::io::stderr().is_terminal() {
+            Self::Bar(progress_bar(params))
+        } else {
+            Self::Lines
+        }
+    }
+
+    fn update(&mut self, p: &Progress) {
+        match self {
+            Self::Bar(bar) => {
+                bar.set_length(p.iterations_planned.max(1));
+                bar.set_position(p.iteration);
+                bar.set_message(format!(
+                    "stage {}/{} · loss {:.4e} · {} faces · L {:.1} mm",
+                    p.stage + 1,
+                    p.max_stages,
+                    p.loss,
+                    p.faces,
+                    p.target_edge_length * 1e3
+                ));
+                if p.event == ProgressEvent::BlockEnd {
+                    bar.tick();
+                }
+            }
+            Self::Lines if p.event == ProgressEvent::BlockEnd => eprintln!("{}", progress_line(p)),
+            Self::Lines | Self::Quiet => {}
+        }
+    }
+
+    fn finish(self) {
+        if let Self::Bar(bar) = self {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// One block's line for a log: stage, block, faces, loss, elapsed time and the time left at the pace so far
+/// (an upper bound: the plan's iterations are a maximum).
+fn progress_line(p: &Progress) -> String {
+    let left = if p.iteration > 0 && p.iterations_planned > p.iteration {
+        p.elapsed_s * (p.iterations_planned - p.iteration) as f64 / p.iteration as f64
+    } else {
+        0.0
+    };
+    format!(
+        "progress: stage {}/{} · block {} · {} faces · loss {:.4e} · {} elapsed · at most {} left",
+        p.stage + 1,
+        p.max_stages,
+        p.blocks_done,
+        p.faces,
+        p.loss,
+        duration(p.elapsed_s),
+        duration(left)
+    )
+}
+
+/// `95 s`, `12 min 5 s`.
+fn duration(seconds: f64) -> String {
+    let s = seconds.max(0.0).round() as u64;
+    if s < 60 { format!("{s} s") } else { format!("{} min {} s", s / 60, s % 60) }
 }
 
 fn progress_bar(params: &ReconstructParams) -> indicatif::ProgressBar {

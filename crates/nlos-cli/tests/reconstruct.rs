@@ -566,3 +566,44 @@ fn the_default_command_reconstructs_non_confocal_captures() {
         }
     }
 }
+
+/// A batch job's log (stderr a pipe, no display session): one plain progress line per block, the device
+/// chosen in one line, and no `error:` line from the GPU probe's drivers on a run that succeeds.
+#[test]
+fn a_batch_log_has_a_line_per_block_and_no_driver_errors() {
+    let dir = scratch("batch-log");
+    let data = capture(&dir);
+    let out = dir.join("run");
+    let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
+    let schedule = ["--set", "schedule.max_stages=2", "--set", "schedule.max_blocks_per_stage=2"];
+    let mut args = vec!["reconstruct", d.as_str(), "--out", o.as_str(), "--no-report"];
+    args.extend(&FAST[2..4]);
+    args.extend(&FAST[6..8]);
+    args.extend(schedule);
+    let run = Command::new(env!("CARGO_BIN_EXE_nlos"))
+        .args(&args)
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .output()
+        .expect("run nlos");
+    assert!(run.status.success(), "{}", text(&run));
+    let (stdout, stderr) = (String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
+    let blocks: usize = stdout
+        .split(" blocks in ")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no block count in {stdout}"));
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("progress: ")).collect();
+    assert!(blocks >= 2, "{stdout}");
+    assert_eq!(lines.len(), blocks, "{stderr}");
+    for (i, l) in lines.iter().enumerate() {
+        assert!(l.contains(&format!(" block {} ", i + 1)) && l.contains(" faces ") && l.contains(" left"), "{l}");
+    }
+    assert!(lines.last().is_some_and(|l| l.starts_with("progress: stage 2/2 ")), "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.starts_with("device: ")).count(), 1, "{stderr}");
+    assert!(!stderr.lines().any(|l| l.starts_with("error")), "{stderr}");
+    let quiet = nlos(&[&args[..], &["--quiet"]].concat());
+    assert!(quiet.status.success(), "{}", text(&quiet));
+    assert!(!String::from_utf8_lossy(&quiet.stderr).contains("progress:"), "{}", text(&quiet));
+}

@@ -63,8 +63,8 @@ pub use params::{PHASOR_START_BLOCKS, ReconstructParams, SamplingSchedule, Sched
 pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, RowTerm, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
-    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason, reconstruct,
-    reconstruct_with, resume,
+    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason,
+    describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::{ConcreteBrdf, Reflectance};
 pub use regularizer::{NormalSmoothing, auto_weight};

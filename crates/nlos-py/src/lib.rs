@@ -40,6 +40,12 @@ fn cli(py: Python<'_>, args: Vec<String>) -> u8 {
 
 #[pymodule]
 fn _nlos(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // SAFETY: the module's initialisation runs once, holding the GIL, before any of the extension's threads
+    // (rayon's) exist; Python's own `os.putenv` changes the environment under the same conditions.
+    #[allow(unsafe_code)]
+    unsafe {
+        nlos_render::silence_display_probe();
+    }
     errors::register(m)?;
     m.add_class::<capture::Capture>()?;
     m.add_class::<render::Renderer>()?;

@@ -169,5 +169,5 @@ pub use loss::Loss;
 pub use render::gpu::GpuRenderer;
 pub use render::{
     DeterministicRule, Device, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule,
-    Visibility,
+    Visibility, describe_device, silence_display_probe,
 };

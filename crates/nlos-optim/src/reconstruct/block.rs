@@ -14,7 +14,7 @@ use super::checkpoint::{State, write_outputs};
 use super::topology::{append, drop_faces, evolve_block, mesh_of, surface_area, untangle};
 use super::{
     Attempt, Evolve, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, StepKind,
-    StopReason, evaluate, face_steps, planned_edge, report, rollback, rollback_refl, set_albedo_weights,
+    StopReason, evaluate, face_steps, planned_edge, progress, report, rollback, rollback_refl, set_albedo_weights,
 };
 use crate::adam::VertexAdam;
 use crate::boundary_smoothing::BoundarySmoothing;
@@ -157,7 +157,7 @@ pub(super) fn shape_block(
             time_s: ctx.elapsed(),
             noise_floor: ctx.counts.then_some(ev.floor),
         });
-        let _ = report(hooks, st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed());
+        let _ = report(hooks, &progress(st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed()));
         let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
         good = Some((st.positions.clone(), st.shape_adam.clone()));
         let (li, lb) = (params.lr_interior * b.target * st.lr_scale, params.lr_boundary * b.target * st.lr_scale);
@@ -237,7 +237,7 @@ pub(super) fn reflectance_block(
             time_s: ctx.elapsed(),
             noise_floor: None,
         });
-        let _ = report(hooks, st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed());
+        let _ = report(hooks, &progress(st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed()));
         good_refl =
             Some((st.reflectance.clone(), st.reflectance_adam.clone(), st.albedo.clone(), st.albedo_adam.clone()));
         if ctx.fit_brdf {

@@ -121,7 +121,7 @@ pub enum ProgressEvent {
 pub struct Progress {
     /// What happened.
     pub event: ProgressEvent,
-    /// Current stage (0-based) and the number of stages planned.
+    /// The stage (0-based) of the iteration or of the block that ended.
     pub stage: u32,
     /// Stages planned at most.
     pub max_stages: u32,
@@ -317,6 +317,12 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     run(measured, state, params, hooks)
 }
 
+/// Where the run's shape and reflectance steps render and why, in words for its log
+/// ([`nlos_render::describe_device`] for the first stage's renderer settings and [`ReconstructParams::device`]).
+pub fn describe_device(params: &ReconstructParams) -> String {
+    nlos_render::describe_device(params.device, &render_params(params, 0, &mut 0))
+}
+
 /// Render parameters of a block.
 fn render_params(params: &ReconstructParams, stage: u32, rng: &mut u64) -> RenderParams {
     let sampling = match params.sampling {
@@ -496,6 +502,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             first: f64::NAN,
             last: f64::NAN,
         };
+        let block_stage = st.stage;
         block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve)?;
         if ctx.refl_iters > 0 {
             block::reflectance_block(&mut st, &ctx, &mut b, &mut hooks)?;
@@ -503,7 +510,9 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let end = block::block_end(&st, &ctx, &b);
         let stage_mesh = block::prune_and_patch(&mut st, &ctx, &b, &end)?;
         block::bookkeeping(&mut st, &ctx, &b, &end, stage_mesh)?;
-        let flow = report(&mut hooks, &st, ProgressEvent::BlockEnd, ctx.planned, b.last, target, st.elapsed_s);
+        // The block's stage: `bookkeeping` has moved `st` to the next stage when this block ended one.
+        let end = progress(&st, ProgressEvent::BlockEnd, ctx.planned, b.last, target, st.elapsed_s);
+        let flow = report(&mut hooks, &Progress { stage: block_stage, ..end });
         if flow.is_break() && st.finished.is_none() {
             return Ok(outcome(&st, mesh_of(&st)?, StopReason::Interrupted));
         }
@@ -564,17 +573,9 @@ fn outcome(st: &State, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
     }
 }
 
-fn report(
-    hooks: &mut Hooks<'_>,
-    st: &State,
-    event: ProgressEvent,
-    planned: u64,
-    loss: f64,
-    target: f64,
-    elapsed_s: f64,
-) -> ControlFlow<()> {
-    let Some(cb) = hooks.progress.as_mut() else { return ControlFlow::Continue(()) };
-    cb(&Progress {
+/// What the progress hook is told of `st` now.
+fn progress(st: &State, event: ProgressEvent, planned: u64, loss: f64, target: f64, elapsed_s: f64) -> Progress {
+    Progress {
         event,
         stage: st.stage,
         max_stages: st.max_stages_hint,
@@ -585,7 +586,12 @@ fn report(
         faces: st.triangles.len(),
         target_edge_length: target,
         elapsed_s,
-    })
+    }
+}
+
+/// Calls the progress hook, if any.
+fn report(hooks: &mut Hooks<'_>, p: &Progress) -> ControlFlow<()> {
+    hooks.progress.as_mut().map_or(ControlFlow::Continue(()), |cb| cb(p))
 }
 
 /// Counts a rollback (failing with [`OptimError::Diverged`] past `max_rollbacks`) and halves the learning

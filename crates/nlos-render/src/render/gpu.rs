@@ -563,6 +563,46 @@ pub(super) fn supported(p: &RenderParams) -> std::result::Result<(), String> {
     Ok(())
 }
 
+/// Where a renderer with settings `p` runs for `device`, and why ([`super::describe_device`]).
+pub(super) fn describe(device: Device, p: &RenderParams) -> String {
+    let name = |g: &Arc<Mutex<GpuRenderer>>| g.lock().map_or_else(|_| "a GPU".to_string(), |g| g.adapter.clone());
+    match device {
+        Device::Cpu => "the CPU (render.device = \"cpu\")".into(),
+        Device::Gpu => match (supported(p), shared()) {
+            (Err(why), _) => format!("none: render.device = \"gpu\", but {why}"),
+            (Ok(()), Err(e)) => format!("none: render.device = \"gpu\", but {e}"),
+            (Ok(()), Ok((g, _))) => format!("the GPU {} (render.device = \"gpu\")", name(&g)),
+        },
+        Device::Auto => match (supported(p), shared()) {
+            (Err(why), _) => format!("the CPU (render.device = \"auto\": {why})"),
+            (Ok(()), Err(e)) => format!("the CPU (render.device = \"auto\": {e})"),
+            (Ok(()), Ok((g, false))) => format!(
+                "the CPU (render.device = \"auto\": the only GPU adapter, {}, is a software one; \"gpu\" uses it)",
+                name(&g)
+            ),
+            (Ok(()), Ok((g, true))) => format!("the GPU {} (render.device = \"auto\": a hardware GPU)", name(&g)),
+        },
+    }
+}
+
+/// Turns off Mesa's Vulkan device-selection layer (`VK_LAYER_MESA_device_select`, through its own switch
+/// `NODEVICE_SELECT=1`) on a machine without a display session (`XDG_RUNTIME_DIR` not a directory). Looking
+/// for a GPU there loads the layer, which connects to Wayland to find the display's GPU and prints
+/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` to stderr although nothing failed;
+/// without a display it has nothing to choose by. A value the user set is kept.
+///
+/// # Safety
+/// Changes the process's environment ([`std::env::set_var`]): call it before any other thread can read the
+/// environment, as at the top of `main`.
+#[allow(unsafe_code)] // `std::env::set_var` is unsafe; the contract is the caller's (above)
+pub(super) unsafe fn silence_display_probe() {
+    let display_session = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir());
+    if !display_session && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: the caller's contract: no other thread reads or writes the environment now.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
 /// A renderer's handle on the shared GPU; a device error sends it to the CPU for good (reported once).
 #[derive(Debug)]
 pub(crate) struct Attached {

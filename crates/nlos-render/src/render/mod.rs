@@ -23,6 +23,42 @@ mod sampling;
 use lobe::Lobe;
 pub use params::*;
 
+/// Where a renderer with settings `params` runs when [`Renderer::set_device`] is given `device`, and why, in
+/// words for a run's log: `the CPU (render.device = "auto": …)` or `the GPU NAME (…)`; for [`Device::Gpu`]
+/// where none can run, `none: …` and the reason `set_device` reports. Opens the process's GPU as
+/// `set_device` does (once per process; the passes' BRDF is checked per call, not here).
+pub fn describe_device(device: Device, params: &RenderParams) -> String {
+    #[cfg(feature = "gpu")]
+    {
+        gpu::describe(device, params)
+    }
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = params;
+        match device {
+            Device::Cpu => "the CPU (render.device = \"cpu\")".into(),
+            Device::Auto => "the CPU (render.device = \"auto\": this build has no GPU backend)".into(),
+            Device::Gpu => "none: render.device = \"gpu\", but this build has no GPU backend".into(),
+        }
+    }
+}
+
+/// Turns off Mesa's Vulkan device-selection layer on a machine without a display session, so that looking
+/// for a GPU prints no `error: XDG_RUNTIME_DIR is invalid …` (the layer's, not a failure); nothing without
+/// the feature `gpu`. See `gpu::silence_display_probe`.
+///
+/// # Safety
+/// Changes the process's environment ([`std::env::set_var`]): call it before any other thread can read the
+/// environment, as at the top of `main`.
+#[allow(unsafe_code)] // `std::env::set_var` is unsafe; the contract is the caller's (above)
+pub unsafe fn silence_display_probe() {
+    #[cfg(feature = "gpu")]
+    // SAFETY: the caller's contract, passed on.
+    unsafe {
+        gpu::silence_display_probe();
+    }
+}
+
 /// Measurements per task of the forward pass (their histograms stay in L1/L2 while each block of triangles
 /// is swept over them).
 const M_CHUNK: usize = 8;
