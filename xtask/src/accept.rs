@@ -493,9 +493,9 @@ fn fitted_alpha(run_dir: &Path) -> Result<f64, String> {
     let refl: nlos_optim::Reflectance =
         serde_json::from_value(v["reflectance"].clone()).map_err(|e| format!("{}: reflectance: {e}", f.display()))?;
     match refl.brdf().map_err(|e| e.to_string())? {
-        nlos_optim::ConcreteBrdf::Ggx(g) => Ok(f64::from(g.alpha())),
-        nlos_optim::ConcreteBrdf::Lambertian(_) => Err("the run fitted a Lambertian model".into()),
-        nlos_optim::ConcreteBrdf::Retroreflective(_) => Err("the run fitted a retroreflective model".into()),
+        nlos_render::AnyBrdf::Ggx(g) => Ok(f64::from(g.alpha())),
+        nlos_render::AnyBrdf::Lambertian(_) => Err("the run fitted a Lambertian model".into()),
+        nlos_render::AnyBrdf::Retroreflective(_) => Err("the run fitted a retroreflective model".into()),
     }
 }
 

@@ -4,7 +4,7 @@
 ///
 /// Every variant carries the offending value and its message says how to fix it. Values are widened to
 /// `f64` so that one error type serves both precisions.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum BrdfError {
     /// An albedo (Lambertian `albedo`, GGX `albedo_diffuse` or `specular`) is negative, NaN or infinite.
@@ -52,6 +52,12 @@ pub enum BrdfError {
     InvalidLobeWidth {
         /// The value given.
         value: f64,
+    },
+    /// A reflectance model's name is none of [`crate::Model`]'s.
+    #[error("reflectance model {got:?} is unknown: use \"lambert\", \"ggx\" or \"retroreflective\"")]
+    UnknownModel {
+        /// The name given.
+        got: String,
     },
 }
 

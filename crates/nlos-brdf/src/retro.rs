@@ -8,7 +8,7 @@
 //! of it whatever the distance, and the confocal measurement falls as `1/r²`. That is the retroreflective
 //! image formation model of the light-cone transform (O'Toole, Lindell & Wetzstein, "Confocal
 //! non-line-of-sight imaging based on the light-cone transform", Nature 2018, eq. 1 with the `1/r²` falloff
-//! of their retroreflective case; `nlos_init::Material::Retroreflective` weights the data by `t²` for it).
+//! of their retroreflective case; the volumetric starts weight the data by `t²` for it, [`crate::Model::distance_power`]).
 //!
 //! In the renderer's form of the measurement, `f_s · ⟨−ω_l,n_l⟩⟨ω_l,n⟩/|x−l|² · ⟨−ω_s,n_s⟩⟨ω_s,n⟩/|x−s|²`,
 //! the retroreflector is the reflectance

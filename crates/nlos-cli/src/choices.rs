@@ -1,14 +1,17 @@
-//! Choices shared by several commands, as clap value enums.
+//! Choices shared by several commands, as clap value enums and parsers.
 
-/// `--brdf`: the reflectance model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum BrdfArg {
-    /// One albedo.
-    Lambert,
-    /// GGX microfacet lobe.
-    Ggx,
-    /// A retroreflector: the confocal return falls as 1/r² (`nlos_brdf::Retroreflective`).
-    Retroreflective,
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use nlos_brdf::Model;
+
+/// `--brdf`: the reflectance model, by the names and aliases of [`Model`] (its `FromStr`).
+pub(crate) fn brdf_parser() -> impl TypedValueParser<Value = Model> {
+    let value = |m: Model| {
+        Model::ALIASES
+            .iter()
+            .filter(|(_, a)| *a == m)
+            .fold(PossibleValue::new(m.name()), |v, (alias, _)| v.alias(alias))
+    };
+    PossibleValuesParser::new(Model::ALL.map(value)).try_map(|s| s.parse::<Model>())
 }
 
 /// `--visibility`: how occlusion between the surface and the wall is computed.

@@ -135,7 +135,7 @@ pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<Sur
         VolumeMethod::Lct => Volumetric::Lct,
         VolumeMethod::Fk => Volumetric::Fk,
     };
-    let volume = prepared.volume(method, nlos_init::Material::Diffuse, None).map_err(|e| fail(e.to_string()))?;
+    let volume = prepared.volume(method, nlos_init::Model::Lambert, None).map_err(|e| fail(e.to_string()))?;
     // The LCT start's extraction (compact-object settings, max depth, the step allowed by the spacing).
     let surface = prepared.surface_params(Volumetric::Lct);
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_init::{Gate, InitError, Material, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface};
+use nlos_init::{Gate, InitError, Model, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface};
 use nlos_optim::pipeline::{Config, InitMethod, Prepared, Setting, Volumetric};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
@@ -141,7 +141,7 @@ fn init_error(e: InitError) -> CliError {
 
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let t = nlos_transient::read(&args.file).map_err(CliError::input)?;
-    let material = if args.retroreflective { Material::Retroreflective } else { Material::Diffuse };
+    let reflectance = if args.retroreflective { Model::Retroreflective } else { Model::Lambert };
     // The capture is prepared as `nlos reconstruct` prepares it (one library path: rebin, gate, the bins after
     // the last return, the depth the start may reach), with the same defaults.
     let mut config = Config::default();
@@ -178,7 +178,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let vol = if method == Volumetric::Pf {
         let defaults = PfParams::default();
         let params = PfParams {
-            material,
+            reflectance,
             wavelength: args.wavelength,
             cycles: args.cycles.unwrap_or(defaults.cycles),
             depth_step: args.depth_step,
@@ -186,7 +186,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         };
         prepared.pf_volume(&params).map_err(optim_error)?
     } else {
-        prepared.volume(method, material, args.snr).map_err(optim_error)?
+        prepared.volume(method, reflectance, args.snr).map_err(optim_error)?
     };
     // Given a threshold, the plain extraction (this threshold, largest region, arg-max depth); else the
     // start's own settings (the settings for compact objects for LCT).

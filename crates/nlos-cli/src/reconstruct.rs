@@ -11,14 +11,15 @@
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
+use nlos_brdf::Model;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::pipeline::{self, BrdfModel, Config, InitMethod, Prepared, SensorChoice, Start};
+use nlos_optim::pipeline::{self, Config, InitMethod, Prepared, SensorChoice, Start};
 use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, StopReason};
 use nlos_render::{RenderParams, Sampling};
 use nlos_report::ReportOptions;
 
 use crate::CliError;
-use crate::choices::BrdfArg;
+use crate::choices::brdf_parser;
 
 /// Arguments of `nlos reconstruct`.
 #[derive(Debug, clap::Args)]
@@ -48,8 +49,8 @@ pub(crate) struct Args {
     /// Reflectance model to fit (GGX's α starts at `reflectance.alpha`; `retroreflective` also weights the
     /// LCT start for a 1/r² return, as the Stanford captures' reference code does for every scene but the
     /// diffuse S) [default: lambert].
-    #[arg(long, value_enum)]
-    brdf: Option<BrdfArg>,
+    #[arg(long, value_parser = brdf_parser())]
+    brdf: Option<Model>,
     /// Fit photon counts through this SPAD timing response: a jitter file, `ideal` for no jitter, `direct`
     /// for the capture's own (its direct reflection off the wall), `off` for an L2 fit of intensities, or
     /// `auto`: `direct` for photon counts that hold a direct reflection (real captures), `off` otherwise
@@ -114,11 +115,7 @@ fn config(args: &Args) -> Result<Config, CliError> {
         config.init = init.clone();
     }
     if let Some(brdf) = args.brdf {
-        config.reflectance.model = match brdf {
-            BrdfArg::Lambert => BrdfModel::Lambert,
-            BrdfArg::Ggx => BrdfModel::Ggx,
-            BrdfArg::Retroreflective => BrdfModel::Retroreflective,
-        };
+        config.reflectance.model = brdf;
     }
     if let Some(sensor) = &args.sensor {
         config.sensor.response = sensor.clone();

@@ -7,13 +7,14 @@
 
 use std::path::PathBuf;
 
-use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
-use nlos_render::{DeterministicRule, Kernel, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_brdf::Model;
+use nlos_render::with_brdf;
+use nlos_render::{AnyBrdf, DeterministicRule, Kernel, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient};
 
 use crate::CliError;
-use crate::choices::{BrdfArg, DeviceArg, ModeArg, VisibilityArg};
+use crate::choices::{DeviceArg, ModeArg, VisibilityArg, brdf_parser};
 
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
@@ -31,8 +32,8 @@ pub(crate) struct Args {
     setup: Option<PathBuf>,
     /// Reflectance: `lambert` (albedo 1), `ggx` (specular 1, no diffuse, F = 1, roughness --alpha) or
     /// `retroreflective` (return 1, 1° lobe).
-    #[arg(long, value_enum, default_value = "lambert")]
-    brdf: BrdfArg,
+    #[arg(long, value_parser = brdf_parser(), default_value = "lambert")]
+    brdf: Model,
     /// GGX roughness α in [0.001, 1].
     #[arg(long, default_value_t = 0.3)]
     alpha: f32,
@@ -181,19 +182,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         VisibilityArg::Off => Visibility::Off,
     };
     let params = RenderParams { kernel, sampling, visibility, two_sided: args.two_sided };
-    if args.device == DeviceArg::Gpu && args.brdf == BrdfArg::Ggx {
-        return Err(bad(
-            "--device gpu: GGX has no GPU version yet (lambert and retroreflective have); use --device cpu",
-        ));
+    if args.device == DeviceArg::Gpu && !nlos_render::gpu_supports(args.brdf) {
+        return Err(bad(format!("--device gpu: --brdf {} has no GPU version; use --device cpu", args.brdf)));
     }
     let mut renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
     renderer.set_device(args.device.into()).map_err(bad)?;
-    let rendered: Transient = match args.brdf {
-        BrdfArg::Lambert => renderer.forward_transient(&Lambertian::new(1.0f32).map_err(bad)?),
-        BrdfArg::Ggx => renderer.forward_transient(&Ggx::new(0.0, 1.0, args.alpha, Fresnel::One).map_err(bad)?),
-        BrdfArg::Retroreflective => renderer.forward_transient(&Retroreflective::new(1.0f32).map_err(bad)?),
-    }
-    .map_err(bad)?;
+    let brdf = AnyBrdf::unit(args.brdf, args.alpha).map_err(bad)?;
+    let rendered: Transient = with_brdf!(brdf, b => renderer.forward_transient(&b)).map_err(bad)?;
     let out = match &model {
         Some(m) => m.simulate(&rendered, args.seed).map_err(bad)?,
         None => rendered,

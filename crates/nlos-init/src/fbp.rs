@@ -20,7 +20,7 @@
 //! merged bin width, as the confocal volume) sums, over all measurements `(l, s)`, the histogram value at
 //! its path length `τ = |x − l| + |x − s|` (linear interpolation between bin centres: the ellipsoidal
 //! backprojection of Velten et al. 2012, Eq. 1 there), weighted by `(|x − l|·|x − s|)²` for
-//! [`Material::Diffuse`] and `|x − l|·|x − s|` for [`Material::Retroreflective`] (the inverse of the
+//! [`Model::Lambert`] and `|x − l|·|x − s|` for [`Model::Retroreflective`] (the inverse of the
 //! radiometric fall-off, as the confocal path's `t⁴` and `t²`); then the same five-point depth filter,
 //! here along z, and the clamp. Parallel over columns with rayon. A confocal scan always takes the fast
 //! path.
@@ -31,7 +31,9 @@ use rayon::prelude::*;
 use nlos_transient::{Layout, Transient};
 
 use crate::error::{InitError, Result};
-use crate::lct::{LctParams, Material, lct_grid, volume_from_grid};
+use nlos_brdf::Model;
+
+use crate::lct::{LctParams, lct_grid, volume_from_grid};
 use crate::prep;
 use crate::prep::Gate;
 use crate::volume::{Axis, Volume};
@@ -39,8 +41,9 @@ use crate::volume::{Axis, Volume};
 /// Parameters of [`fbp`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FbpParams {
-    /// Radiometric model. Default [`Material::Diffuse`].
-    pub material: Material,
+    /// The reflectance model the back-projection is weighted for (each leg's distance to half its
+    /// [`Model::distance_power`]). Default [`Model::Lambert`].
+    pub reflectance: Model,
     /// Sum this many consecutive bins before reconstructing (≥ 1; default 1 = none).
     pub bin_merge: usize,
     /// Removal of the direct light. Default [`Gate::Auto`].
@@ -51,7 +54,7 @@ pub struct FbpParams {
 
 impl Default for FbpParams {
     fn default() -> Self {
-        Self { material: Material::Diffuse, bin_merge: 1, gate: Gate::Auto, max_depth: None }
+        Self { reflectance: Model::Lambert, bin_merge: 1, gate: Gate::Auto, max_depth: None }
     }
 }
 
@@ -69,7 +72,7 @@ pub fn fbp(t: &Transient, params: &FbpParams) -> Result<Volume> {
         return fbp_exhaustive(t, params);
     }
     let p = LctParams {
-        material: params.material,
+        reflectance: params.reflectance,
         bin_merge: params.bin_merge,
         gate: params.gate,
         max_depth: params.max_depth,
@@ -166,10 +169,7 @@ fn fbp_exhaustive(t: &Transient, params: &FbpParams) -> Result<Volume> {
     let (x0, y0) = (p[0].x as f64, p[0].y as f64);
     let dx = (p[nx - 1].x as f64 - x0) / (nx - 1) as f64;
     let dy = (p[nx * (ny - 1)].y as f64 - y0) / (ny - 1) as f64;
-    let power = match params.material {
-        Material::Diffuse => 2,
-        Material::Retroreflective => 1,
-    };
+    let power = params.reflectance.distance_power() as i32 / 2;
     let mut out = vec![0.0f32; nx * ny * nz];
     out.par_chunks_mut(nz).enumerate().for_each_init(
         || vec![0.0f32; nz],

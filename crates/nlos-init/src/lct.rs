@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use realfft::RealFftPlanner;
 use rustfft::num_complex::Complex32;
 
+use nlos_brdf::Model;
 use nlos_transient::Transient;
 
 use crate::error::{InitError, Result};
@@ -31,24 +32,15 @@ use crate::fft::{self, Dims};
 use crate::prep::{self, ConfocalGrid, Gate};
 use crate::volume::{Axis, Volume};
 
-/// Reflectance model of the radiometric weighting.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Material {
-    /// Lambertian surfaces: intensity falls as `1/r⁴`, data are weighted by `t⁴`.
-    #[default]
-    Diffuse,
-    /// Retroreflective surfaces: intensity falls as `1/r²`, data are weighted by `t²`.
-    Retroreflective,
-}
-
 /// Parameters of [`lct`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LctParams {
     /// Signal-to-noise ratio of the Wiener filter (> 0). Default 0.1; the reference code uses 0.08–0.8
     /// depending on the scene. Larger values sharpen and amplify noise.
     pub snr: f64,
-    /// Radiometric model. Default [`Material::Diffuse`].
-    pub material: Material,
+    /// The reflectance model the data are weighted for: by `t` to its [`Model::distance_power`] (`t⁴` for
+    /// Lambertian and GGX surfaces, `t²` for retroreflective ones). Default [`Model::Lambert`].
+    pub reflectance: Model,
     /// Sum this many consecutive bins before reconstructing (≥ 1; default 1 = none). The reference
     /// merges 4 bins of the 4 ps Stanford captures (`K = 2`), which is 16× faster and as sharp.
     pub bin_merge: usize,
@@ -64,7 +56,7 @@ impl Default for LctParams {
     fn default() -> Self {
         Self {
             snr: 0.1,
-            material: Material::Diffuse,
+            reflectance: Model::Lambert,
             bin_merge: 1,
             gate: Gate::Auto,
             max_depth: None,
@@ -173,10 +165,7 @@ pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) ->
     // Pad the time axis to a fast FFT size; the extra bins are zero and extend the range T.
     let m = prep::next_fast_len(g.bins);
     let d = Dims::new(2 * nx, 2 * ny, 2 * m);
-    let power = match params.material {
-        Material::Diffuse => 4,
-        Material::Retroreflective => 2,
-    };
+    let power = params.reflectance.distance_power() as i32;
     let resampler = Resampler::new(m);
     // Steps 1–2: radiometric weight and t → u resampling, one lane per scan point.
     let mut u = vec![0.0f32; nx * ny * m];

@@ -66,7 +66,7 @@ pub use reconstruct::{
     Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason,
     describe_device, reconstruct, reconstruct_with, resume,
 };
-pub use reflectance::{ConcreteBrdf, Reflectance};
+pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{
     LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,

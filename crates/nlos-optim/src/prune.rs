@@ -39,7 +39,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{OptimError, Result};
-use crate::reflectance::ConcreteBrdf;
+use nlos_render::AnyBrdf;
 use nlos_render::{Renderer, RowSpan};
 
 /// Settings of boundary pruning ([`crate::ReconstructParams::prune`]).
@@ -134,7 +134,7 @@ pub struct Pruned {
 pub fn prune_boundary(
     triangles: &[[u32; 3]],
     renderer: &Renderer,
-    brdf: &ConcreteBrdf,
+    brdf: &AnyBrdf,
     rendered: &mut [f32],
     bins: usize,
     row_loss: &RowLoss<'_>,

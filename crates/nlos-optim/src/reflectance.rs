@@ -2,9 +2,9 @@
 //! (softplus albedos, logistic α and F0), and the dispatch of renderer calls to the concrete BRDF type.
 
 use nlos_brdf::{
-    Fresnel, Ggx, GgxGrad, GgxTheta, Lambertian, LambertianTheta, Masking, Retroreflective, param::sigmoid,
+    Fresnel, Ggx, GgxGrad, GgxTheta, Lambertian, LambertianTheta, Masking, Model, Retroreflective, param::sigmoid,
 };
-use nlos_render::{Gradient, RenderBrdf, Renderer};
+use nlos_render::AnyBrdf;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
@@ -45,18 +45,29 @@ impl Default for Reflectance {
     }
 }
 
-/// A concrete `f32` BRDF built from a [`Reflectance`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ConcreteBrdf {
-    /// Lambertian.
-    Lambertian(Lambertian<f32>),
-    /// GGX.
-    Ggx(Ggx<f32>),
-    /// Retroreflective.
-    Retroreflective(Retroreflective<f32>),
-}
-
 impl Reflectance {
+    /// The start of a fit of `model`: [`AnyBrdf::unit`] (albedo 1; GGX's specular lobe alone, of roughness
+    /// `alpha`, without a Fresnel term).
+    ///
+    /// # Errors
+    /// [`crate::OptimError::Render`] for an `alpha` outside GGX's range.
+    pub fn start(model: Model, alpha: f32) -> Result<Self> {
+        Ok(match AnyBrdf::unit(model, alpha)? {
+            AnyBrdf::Lambertian(_) => Reflectance::default(),
+            AnyBrdf::Ggx(g) => Reflectance::from_ggx(&g),
+            AnyBrdf::Retroreflective(_) => Reflectance::retroreflective(),
+        })
+    }
+
+    /// The model, by name.
+    pub fn model(&self) -> Model {
+        match self {
+            Reflectance::Lambertian { .. } => Model::Lambert,
+            Reflectance::Ggx { .. } => Model::Ggx,
+            Reflectance::Retroreflective { .. } => Model::Retroreflective,
+        }
+    }
+
     /// From a Lambertian BRDF.
     pub fn from_lambertian(b: &Lambertian<f32>) -> Self {
         Reflectance::Lambertian { theta: f64::from(LambertianTheta::from_lambertian(b).albedo) }
@@ -87,10 +98,10 @@ impl Reflectance {
     ///
     /// # Errors
     /// [`crate::OptimError::Brdf`] only for a non-finite θ.
-    pub fn brdf(&self) -> Result<ConcreteBrdf> {
+    pub fn brdf(&self) -> Result<AnyBrdf> {
         Ok(match self {
             Reflectance::Lambertian { theta } => {
-                ConcreteBrdf::Lambertian(LambertianTheta { albedo: *theta as f32 }.to_lambertian()?)
+                AnyBrdf::Lambertian(LambertianTheta { albedo: *theta as f32 }.to_lambertian()?)
             }
             Reflectance::Ggx { theta, schlick, masking } => {
                 let t = GgxTheta {
@@ -99,11 +110,11 @@ impl Reflectance {
                     alpha: theta[2] as f32,
                     f0: theta[3] as f32,
                 };
-                ConcreteBrdf::Ggx(t.to_ggx(*schlick, *masking)?)
+                AnyBrdf::Ggx(t.to_ggx(*schlick, *masking)?)
             }
             Reflectance::Retroreflective { theta } => {
                 let rho = LambertianTheta { albedo: *theta as f32 }.to_lambertian()?.albedo();
-                ConcreteBrdf::Retroreflective(Retroreflective::new(rho)?)
+                AnyBrdf::Retroreflective(Retroreflective::new(rho)?)
             }
         })
     }
@@ -153,50 +164,6 @@ impl Reflectance {
     }
 }
 
-impl ConcreteBrdf {
-    /// Forward pass with this BRDF.
-    pub fn forward(&self, r: &Renderer) -> Vec<f32> {
-        match self {
-            ConcreteBrdf::Lambertian(b) => r.forward(b),
-            ConcreteBrdf::Ggx(b) => r.forward(b),
-            ConcreteBrdf::Retroreflective(b) => r.forward(b),
-        }
-    }
-
-    /// One triangle's share of the forward pass with this BRDF (`Renderer::forward_triangle`).
-    ///
-    /// # Errors
-    /// As `Renderer::forward_triangle`: a triangle index out of range.
-    pub fn forward_triangle(&self, r: &Renderer, triangle: usize) -> Result<Vec<nlos_render::RowSpan>> {
-        Ok(match self {
-            ConcreteBrdf::Lambertian(b) => r.forward_triangle(b, triangle)?,
-            ConcreteBrdf::Ggx(b) => r.forward_triangle(b, triangle)?,
-            ConcreteBrdf::Retroreflective(b) => r.forward_triangle(b, triangle)?,
-        })
-    }
-
-    /// Adjoint pass with this BRDF.
-    ///
-    /// # Errors
-    /// As `Renderer::adjoint`.
-    pub fn adjoint(&self, r: &Renderer, d: &[f32]) -> Result<Gradient> {
-        Ok(match self {
-            ConcreteBrdf::Lambertian(b) => r.adjoint(b, d)?,
-            ConcreteBrdf::Ggx(b) => r.adjoint(b, d)?,
-            ConcreteBrdf::Retroreflective(b) => r.adjoint(b, d)?,
-        })
-    }
-
-    /// Physical parameter names.
-    pub fn param_names(&self) -> &'static [&'static str] {
-        match self {
-            ConcreteBrdf::Lambertian(_) => <Lambertian<f32> as RenderBrdf>::PARAM_NAMES,
-            ConcreteBrdf::Ggx(_) => <Ggx<f32> as RenderBrdf>::PARAM_NAMES,
-            ConcreteBrdf::Retroreflective(_) => <Retroreflective<f32> as RenderBrdf>::PARAM_NAMES,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,7 +172,7 @@ mod tests {
     fn theta_round_trips_and_chain_matches_finite_differences() {
         let g = Ggx::new(0.3f32, 0.8, 0.3, Fresnel::Schlick { f0: 0.2 }).expect("valid");
         let r = Reflectance::from_ggx(&g);
-        let ConcreteBrdf::Ggx(back) = r.brdf().expect("finite") else { unreachable!("ggx") };
+        let AnyBrdf::Ggx(back) = r.brdf().expect("finite") else { unreachable!("ggx") };
         assert!((back.alpha() - 0.3).abs() < 1e-5 && (back.albedo_diffuse() - 0.3).abs() < 1e-5);
         // d(physical)/dθ against finite differences of the maps, component by component.
         for k in 0..4 {
@@ -218,7 +185,7 @@ mod tests {
                 let mut delta = [0.0; 4];
                 delta[k] = d;
                 rr.add_theta(&delta);
-                let ConcreteBrdf::Ggx(b) = rr.brdf().expect("finite") else { unreachable!("ggx") };
+                let AnyBrdf::Ggx(b) = rr.brdf().expect("finite") else { unreachable!("ggx") };
                 let f0 = b.fresnel().f0().unwrap_or(0.0);
                 f64::from([b.albedo_diffuse(), b.specular(), b.alpha(), f0][k])
             };

@@ -55,7 +55,7 @@ use nlos_transient::Transient;
 
 use crate::error::{OptimError, Result};
 use crate::prune::{RowLoss, apply_spans, delta};
-use crate::reflectance::ConcreteBrdf;
+use nlos_render::AnyBrdf;
 
 /// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -206,7 +206,7 @@ pub fn residual_patches(
     measured: &Transient,
     residual: Vec<f32>,
     render: RenderParams,
-    brdf: &ConcreteBrdf,
+    brdf: &AnyBrdf,
     rendered: &mut [f32],
     row_loss: &RowLoss<'_>,
     params: &ResidualParams,
@@ -283,8 +283,10 @@ pub fn residual_patches(
             let q = glam::Quat::from_rotation_arc(Vec3::NEG_Z, Vec3::new(st * cp, st * sp, -ct));
             let turned: Vec<Vec3> = pos.iter().map(|&p| centroid + q * (p - centroid)).collect();
             let r = Renderer::new(&turned, &tri, measured.scan(), measured.time(), render)?;
-            let shares: Vec<Vec<RowSpan>> =
-                (0..tri.len()).into_par_iter().map(|f| brdf.forward_triangle(&r, f)).collect::<Result<_>>()?;
+            let shares: Vec<Vec<RowSpan>> = (0..tri.len())
+                .into_par_iter()
+                .map(|f| brdf.forward_triangle(&r, f))
+                .collect::<nlos_render::Result<_>>()?;
             let mut trial = rendered.to_vec();
             let (chosen, change) = grow_connected(&shares, &adjacency, &mut trial, bins, row_loss, params.margin)?;
             // Back to `rendered` for a term that keeps something of the rendering (RowTerm::applied).

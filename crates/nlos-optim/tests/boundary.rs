@@ -8,7 +8,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{ConcreteBrdf, DataTerm, Loss, PruneParams, SensorBackground, SensorFit, prune_boundary};
+use nlos_optim::{DataTerm, Loss, PruneParams, SensorBackground, SensorFit, prune_boundary};
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::sensor::BinKernel;
 use nlos_transient::{PointSet, Scan, TimeAxis};
@@ -31,8 +31,8 @@ fn setup() -> (Scan, TimeAxis, RenderParams) {
     (scan, time, RenderParams { visibility: Visibility::Cached { level: 1 }, ..RenderParams::default() })
 }
 
-fn brdf() -> ConcreteBrdf {
-    ConcreteBrdf::Lambertian(Lambertian::new(1.0f32).unwrap())
+fn brdf() -> nlos_render::AnyBrdf {
+    nlos_render::AnyBrdf::Lambertian(Lambertian::new(1.0f32).unwrap())
 }
 
 /// The 8 × 8-cell truth's rendering as the measurement, and the `init_half` patch as the current mesh.

@@ -8,7 +8,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
-use nlos_optim::{ConcreteBrdf, DataTerm, LOCALISED_CONTRAST, ResidualParams, localisation, residual_patches};
+use nlos_optim::{DataTerm, LOCALISED_CONTRAST, ResidualParams, localisation, residual_patches};
 use nlos_render::RowSpan;
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -53,8 +53,8 @@ fn render(s: &Setup, mesh: &(Vec<Vec3>, Vec<[u32; 3]>)) -> Vec<f32> {
     Renderer::new(&mesh.0, &mesh.1, &s.scan, &s.time, s.render).unwrap().forward(&Lambertian::new(1.0f32).unwrap())
 }
 
-fn brdf() -> ConcreteBrdf {
-    ConcreteBrdf::Lambertian(Lambertian::new(1.0f32).unwrap())
+fn brdf() -> nlos_render::AnyBrdf {
+    nlos_render::AnyBrdf::Lambertian(Lambertian::new(1.0f32).unwrap())
 }
 
 /// Runs the back-projection of `mesh` against `measured` (L2, scale 1); returns the patches, the data term

@@ -68,7 +68,7 @@ pub(crate) fn volume<'py>(
     };
     let config = Config::default();
     let vol = py
-        .detach(|| Prepared::new(t, &config).and_then(|p| p.volume(method, nlos_init::Material::Diffuse, snr)))
+        .detach(|| Prepared::new(t, &config).and_then(|p| p.volume(method, nlos_init::Model::Lambert, snr)))
         .map_err(errors::optim)?;
     let axes = PyDict::new(py);
     for (name, axis) in [("x", vol.x), ("y", vol.y), ("z", vol.z)] {

@@ -7,10 +7,10 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
+use nlos_brdf::Model;
 use nlos_render::{
-    DeterministicRule, Device, Kernel, Loss, RenderBrdf, RenderParams, Renderer as Inner, Sampling, SplatRule,
-    Visibility,
+    AnyBrdf, DeterministicRule, Device, Kernel, Loss, RenderParams, Renderer as Inner, Sampling, SplatRule, Visibility,
+    with_brdf,
 };
 use nlos_transient::Transient;
 use nlos_transient::sensor::{PhotonBudget, SpadModel};
@@ -18,65 +18,16 @@ use nlos_transient::sensor::{PhotonBudget, SpadModel};
 use crate::capture::Capture;
 use crate::{arrays, errors};
 
-/// The reflectance a renderer evaluates.
-#[derive(Debug, Clone, Copy)]
-enum Brdf {
-    Lambertian(Lambertian<f32>),
-    Ggx(Ggx<f32>),
-    Retroreflective(Retroreflective<f32>),
+/// The reflectance model named `brdf` (`nlos_brdf::Model`'s names: "lambert", "ggx", "retroreflective"; and
+/// "lambertian", this module's first spelling).
+fn model(brdf: &str) -> PyResult<Model> {
+    brdf.parse().map_err(|e| PyValueError::new_err(format!("brdf: {e}")))
 }
 
-/// Calls `$body` with `$b` bound to the concrete BRDF.
-macro_rules! with_brdf {
-    ($brdf:expr, $b:ident => $body:expr) => {
-        match $brdf {
-            Brdf::Lambertian($b) => $body,
-            Brdf::Ggx($b) => $body,
-            Brdf::Retroreflective($b) => $body,
-        }
-    };
-}
-
-impl Brdf {
-    /// `"lambertian"` (albedo), `"ggx"` (diffuse albedo, specular weight, roughness α, no Fresnel term) or
-    /// `"retroreflective"` (return `albedo`, 1° lobe).
-    fn new(name: &str, albedo: f32, alpha: f32, specular: f32) -> PyResult<Self> {
-        match name {
-            "lambertian" | "lambert" => {
-                Lambertian::new(albedo).map(Brdf::Lambertian).map_err(|e| PyValueError::new_err(format!("albedo: {e}")))
-            }
-            "ggx" => Ggx::new(albedo, specular, alpha, Fresnel::One)
-                .map(Brdf::Ggx)
-                .map_err(|e| PyValueError::new_err(format!("albedo, specular, alpha: {e}"))),
-            "retroreflective" => Retroreflective::new(albedo)
-                .map(Brdf::Retroreflective)
-                .map_err(|e| PyValueError::new_err(format!("albedo: {e}"))),
-            other => Err(PyValueError::new_err(format!(
-                "brdf: {other:?} is not \"lambertian\", \"ggx\" or \"retroreflective\""
-            ))),
-        }
-    }
-
-    fn param_names(&self) -> &'static [&'static str] {
-        with_brdf!(self, b => param_names_of(b))
-    }
-
-    fn params(&self) -> Vec<f32> {
-        with_brdf!(self, b => b.params())
-    }
-
-    /// The same model with parameters `p` (in [`Self::param_names`] order).
-    fn with_params(&self, p: &[f32]) -> nlos_render::Result<Self> {
-        Ok(match self {
-            Brdf::Lambertian(b) => Brdf::Lambertian(b.with_params(p)?),
-            Brdf::Ggx(b) => Brdf::Ggx(b.with_params(p)?),
-            Brdf::Retroreflective(b) => Brdf::Retroreflective(b.with_params(p)?),
-        })
-    }
-}
-
-fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {
-    B::PARAM_NAMES
+/// `model` with the given parameters ([`AnyBrdf::new`]).
+fn any_brdf(model: Model, albedo: f32, specular: f32, alpha: f32) -> PyResult<AnyBrdf> {
+    AnyBrdf::new(model, albedo, specular, alpha)
+        .map_err(|e| PyValueError::new_err(format!("albedo, specular, alpha of {model}: {e}")))
 }
 
 fn kernel(name: &str) -> PyResult<Kernel> {
@@ -127,7 +78,7 @@ fn matrix(py: Python<'_>, values: Vec<f32>, rows: usize, cols: usize) -> PyResul
 #[pyclass(module = "nlos")]
 pub(crate) struct Renderer {
     inner: Inner,
-    brdf: Brdf,
+    brdf: AnyBrdf,
     vertices: usize,
     measurements: usize,
     bins: usize,
@@ -136,7 +87,7 @@ pub(crate) struct Renderer {
 #[pymethods]
 impl Renderer {
     #[new]
-    #[pyo3(signature = (vertices, faces, setup, *, brdf = "lambertian", albedo = 1.0, alpha = 0.3, specular = 1.0,
+    #[pyo3(signature = (vertices, faces, setup, *, brdf = "lambert", albedo = 1.0, alpha = 0.3, specular = 1.0,
         kernel = "tent", sampling = "splat", visibility = "cached", vis_level = 1, two_sided = false,
         device = "cpu"))]
     #[allow(clippy::too_many_arguments)]
@@ -164,7 +115,7 @@ impl Renderer {
             visibility: self::visibility(visibility, vis_level)?,
             two_sided,
         };
-        let brdf = Brdf::new(brdf, albedo, alpha, specular)?;
+        let brdf = any_brdf(model(brdf)?, albedo, specular, alpha)?;
         let (scan, time) = (setup.scan.clone(), setup.time);
         let device = self::device(device)?;
         let mut inner =
@@ -302,7 +253,7 @@ impl Renderer {
 /// bin), the exact adaptive rule, visibility cached at level 2 (or as given), Lambertian albedo 1 or GGX
 /// (`alpha`); with `photons`, SPAD photon counts (Poisson, expected `photons` per measurement, `seed`).
 #[pyfunction]
-#[pyo3(signature = (vertices, faces, setup = None, *, brdf = "lambertian", alpha = 0.3, visibility = "cached",
+#[pyo3(signature = (vertices, faces, setup = None, *, brdf = "lambert", alpha = 0.3, visibility = "cached",
     vis_level = 2, two_sided = false, photons = None, seed = 0))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn render(
@@ -333,11 +284,8 @@ pub(crate) fn render(
         visibility: self::visibility(visibility, vis_level)?,
         two_sided,
     };
-    // `nlos render`'s GGX: no diffuse part, specular weight 1.
-    let brdf = match brdf {
-        "ggx" => Brdf::new("ggx", 0.0, alpha, 1.0)?,
-        other => Brdf::new(other, 1.0, alpha, 1.0)?,
-    };
+    // `nlos render`'s surface: albedo 1, GGX's specular lobe alone.
+    let brdf = AnyBrdf::unit(model(brdf)?, alpha).map_err(|e| PyValueError::new_err(format!("alpha: {e}")))?;
     let model = match photons {
         Some(n) if !(n.is_finite() && n > 0.0) => {
             return Err(PyValueError::new_err(format!("photons: {n} must be finite and > 0")));

@@ -45,7 +45,7 @@ def five_point(e, h):
     return (-e(2 * h) + 8 * e(h) - 8 * e(-h) + e(-2 * h)) / (12 * h)
 
 
-@pytest.mark.parametrize("brdf", ["lambertian", "ggx", "retroreflective"])
+@pytest.mark.parametrize("brdf", ["lambert", "lambertian", "ggx", "retroreflective"])
 def test_adjoint_matches_central_finite_differences(brdf):
     v, f = random_triangles(2)
     r = nlos.Renderer(v, f, small_setup(), brdf=brdf, albedo=0.3, visibility="off")

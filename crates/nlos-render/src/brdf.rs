@@ -1,7 +1,9 @@
 //! [`RenderBrdf`]: what the renderer needs from an `nlos_brdf` model beyond [`Brdf`] — its parameters as a
-//! flat vector, so gradients and finite differences can be written once for every model.
+//! flat vector, so gradients and finite differences can be written once for every model; [`AnyBrdf`]: one
+//! BRDF of a [`Model`] chosen at run time, and [`with_brdf!`](crate::with_brdf) to call the renderer's
+//! generic passes with it.
 
-use nlos_brdf::{Brdf, Fresnel, Ggx, GgxGrad, Lambertian, LambertianGrad, Retroreflective, RetroreflectiveGrad};
+use nlos_brdf::{Brdf, Fresnel, Ggx, GgxGrad, Lambertian, LambertianGrad, Model, Retroreflective, RetroreflectiveGrad};
 
 use crate::error::Result;
 
@@ -18,19 +20,28 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn with_params(&self, params: &[f32]) -> Result<Self>;
     /// `∂f/∂(parameters)` as an array (first `PARAM_NAMES.len()` entries used).
     fn param_grad_array(g: &Self::ParamGrad) -> [f32; 4];
-    /// The power of the path length τ by which the measurement of a small face falls along a confocal path:
-    /// 4 for models whose value does not depend on distance (the `1/(|a|²|b|²)` of eq. 2), 2 for
-    /// [`Retroreflective`] (its value grows as `|a||b|`). The splat rule's fall-off correction uses it.
-    const DISTANCE_POWER: f32 = 4.0;
+    /// The model, by name.
+    const MODEL: Model;
+    /// The power of the path length τ by which the measurement of a small face falls along a confocal path
+    /// ([`Model::distance_power`]: 4, or 2 for [`Retroreflective`]). The splat rule's fall-off correction
+    /// uses it.
+    const DISTANCE_POWER: f32 = Self::MODEL.distance_power() as f32;
     /// The roughness α of a glossy (microfacet) lobe worth importance sampling, None for none (the
     /// default). Used by the lobe sampling of `Renderer::set_lobe_sampling`.
     fn lobe_alpha(&self) -> Option<f32> {
         None
     }
-    /// The model as the GPU backend evaluates it, None where it has no GPU version (the default).
+    /// The model as the GPU backend evaluates it, None where it has no GPU version ([`gpu_supports`]).
     fn gpu_model(&self) -> Option<GpuModel> {
         None
     }
+}
+
+/// Whether the GPU backend (feature `gpu`) evaluates `model`: the Lambertian and retroreflective models
+/// ([`GpuModel`]), not GGX. The one place that says so: the renderer sends other models' calls to the CPU, and
+/// settings that ask for the GPU with another model are refused with this reason.
+pub const fn gpu_supports(model: Model) -> bool {
+    matches!(model, Model::Lambert | Model::Retroreflective)
 }
 
 /// A BRDF the GPU backend (feature `gpu`) evaluates: its kind and parameters.
@@ -52,6 +63,7 @@ pub enum GpuModel {
 
 impl RenderBrdf for Lambertian<f32> {
     const PARAM_NAMES: &'static [&'static str] = &["albedo"];
+    const MODEL: Model = Model::Lambert;
     fn params(&self) -> Vec<f32> {
         vec![self.albedo()]
     }
@@ -69,6 +81,7 @@ impl RenderBrdf for Lambertian<f32> {
 
 impl RenderBrdf for Ggx<f32> {
     const PARAM_NAMES: &'static [&'static str] = &["albedo_diffuse", "specular", "alpha", "f0"];
+    const MODEL: Model = Model::Ggx;
     fn params(&self) -> Vec<f32> {
         let f0 = match self.fresnel() {
             Fresnel::One => 1.0,
@@ -95,7 +108,7 @@ impl RenderBrdf for Ggx<f32> {
 
 impl RenderBrdf for Retroreflective<f32> {
     const PARAM_NAMES: &'static [&'static str] = &["albedo"];
-    const DISTANCE_POWER: f32 = 2.0;
+    const MODEL: Model = Model::Retroreflective;
     fn params(&self) -> Vec<f32> {
         vec![self.albedo()]
     }
@@ -109,4 +122,115 @@ impl RenderBrdf for Retroreflective<f32> {
     fn gpu_model(&self) -> Option<GpuModel> {
         Some(GpuModel::Retroreflective { albedo: self.albedo(), lobe_width: self.lobe_width() })
     }
+}
+
+/// One BRDF of any [`Model`], for code that picks the model at run time (settings, the command line,
+/// Python); [`with_brdf!`](crate::with_brdf) calls the renderer's generic passes with the concrete type, so
+/// the inner loops stay monomorphised (`nlos_brdf`'s design).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AnyBrdf {
+    /// [`Model::Lambert`].
+    Lambertian(Lambertian<f32>),
+    /// [`Model::Ggx`].
+    Ggx(Ggx<f32>),
+    /// [`Model::Retroreflective`].
+    Retroreflective(Retroreflective<f32>),
+}
+
+/// Calls `$body` with `$b` bound to the concrete BRDF of an [`AnyBrdf`]:
+/// `with_brdf!(brdf, b => renderer.forward(&b))`.
+#[macro_export]
+macro_rules! with_brdf {
+    ($brdf:expr, $b:ident => $body:expr) => {
+        match $brdf {
+            $crate::AnyBrdf::Lambertian($b) => $body,
+            $crate::AnyBrdf::Ggx($b) => $body,
+            $crate::AnyBrdf::Retroreflective($b) => $body,
+        }
+    };
+}
+
+impl AnyBrdf {
+    /// `model` with these parameters: the Lambertian's albedo, the retroreflector's return `albedo` (1° lobe),
+    /// GGX's diffuse albedo `albedo`, lobe weight `specular` and roughness `alpha`, without a Fresnel term
+    /// (Tsai et al. 2019's model); the parameters a model does not have are ignored.
+    ///
+    /// # Errors
+    /// [`crate::RenderError::Brdf`] for a value outside the model's domain.
+    pub fn new(model: Model, albedo: f32, specular: f32, alpha: f32) -> Result<Self> {
+        Ok(match model {
+            Model::Lambert => AnyBrdf::Lambertian(Lambertian::new(albedo)?),
+            Model::Ggx => AnyBrdf::Ggx(Ggx::new(albedo, specular, alpha, Fresnel::One)?),
+            Model::Retroreflective => AnyBrdf::Retroreflective(Retroreflective::new(albedo)?),
+        })
+    }
+
+    /// The surface `nlos render` simulates and a reconstruction starts from: albedo 1; for GGX the
+    /// specular lobe alone (no diffuse part, weight 1) of roughness `alpha`.
+    ///
+    /// # Errors
+    /// [`crate::RenderError::Brdf`] for an `alpha` outside GGX's range.
+    pub fn unit(model: Model, alpha: f32) -> Result<Self> {
+        let albedo = if model == Model::Ggx { 0.0 } else { 1.0 };
+        Self::new(model, albedo, 1.0, alpha)
+    }
+
+    /// The model, by name.
+    pub fn model(&self) -> Model {
+        with_brdf!(self, b => model_of(b))
+    }
+
+    /// Parameter names, in the order of [`AnyBrdf::params`] and of [`crate::Gradient::brdf`].
+    pub fn param_names(&self) -> &'static [&'static str] {
+        with_brdf!(self, b => param_names_of(b))
+    }
+
+    /// The parameter vector ([`RenderBrdf::params`]).
+    pub fn params(&self) -> Vec<f32> {
+        with_brdf!(self, b => b.params())
+    }
+
+    /// The same model with parameters `p` (in [`AnyBrdf::param_names`] order).
+    ///
+    /// # Errors
+    /// [`crate::RenderError::Brdf`] when a value is out of the model's domain.
+    pub fn with_params(&self, p: &[f32]) -> Result<Self> {
+        Ok(match self {
+            AnyBrdf::Lambertian(b) => AnyBrdf::Lambertian(b.with_params(p)?),
+            AnyBrdf::Ggx(b) => AnyBrdf::Ggx(b.with_params(p)?),
+            AnyBrdf::Retroreflective(b) => AnyBrdf::Retroreflective(b.with_params(p)?),
+        })
+    }
+}
+
+/// The renderer's passes with the concrete BRDF ([`crate::Renderer`]'s generic methods of the same names).
+impl AnyBrdf {
+    /// [`crate::Renderer::forward`].
+    pub fn forward(&self, r: &crate::Renderer) -> Vec<f32> {
+        with_brdf!(self, b => r.forward(b))
+    }
+
+    /// [`crate::Renderer::forward_triangle`].
+    ///
+    /// # Errors
+    /// As `Renderer::forward_triangle`: a triangle index out of range.
+    pub fn forward_triangle(&self, r: &crate::Renderer, triangle: usize) -> Result<Vec<crate::RowSpan>> {
+        with_brdf!(self, b => r.forward_triangle(b, triangle))
+    }
+
+    /// [`crate::Renderer::adjoint`].
+    ///
+    /// # Errors
+    /// As `Renderer::adjoint`.
+    pub fn adjoint(&self, r: &crate::Renderer, d_loss: &[f32]) -> Result<crate::Gradient> {
+        with_brdf!(self, b => r.adjoint(b, d_loss))
+    }
+}
+
+fn model_of<B: RenderBrdf>(_: &B) -> Model {
+    B::MODEL
+}
+
+fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {
+    B::PARAM_NAMES
 }

@@ -161,7 +161,7 @@ mod soa;
 mod splat;
 mod visibility;
 
-pub use brdf::{GpuModel, RenderBrdf};
+pub use brdf::{AnyBrdf, GpuModel, RenderBrdf, gpu_supports};
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;

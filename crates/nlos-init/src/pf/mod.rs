@@ -41,9 +41,9 @@ use rustfft::num_complex::Complex32;
 use nlos_transient::{Layout, PointSet, Transient};
 
 use crate::error::{InitError, Result};
-use crate::lct::Material;
 use crate::prep::Gate;
 use crate::volume::{Axis, Volume};
+use nlos_brdf::Model;
 
 mod planar;
 use planar::Planar;
@@ -68,8 +68,9 @@ const MAX_VOXELS: usize = 1 << 28;
 /// Parameters of [`pf`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PfParams {
-    /// Radiometric weighting of the sum. Default [`Material::Diffuse`].
-    pub material: Material,
+    /// The reflectance model the sum is weighted for (the distances to the laser and sensor spots each to
+    /// half its [`Model::distance_power`]). Default [`Model::Lambert`].
+    pub reflectance: Model,
     /// Virtual wavelength λ (metres of path); `None`: [`WAVELENGTH_PER_SPACING`] × the wall points'
     /// spacing.
     pub wavelength: Option<f64>,
@@ -87,7 +88,7 @@ pub struct PfParams {
 impl Default for PfParams {
     fn default() -> Self {
         Self {
-            material: Material::Diffuse,
+            reflectance: Model::Lambert,
             wavelength: None,
             cycles: DEFAULT_CYCLES,
             gate: Gate::Auto,
@@ -218,15 +219,12 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
     let z = Axis { start: 0.5 * dz, step: dz };
     if let Some(plan) = Planar::of(t, &columns).filter(|_| planar) {
         let window = Window { t0: time.t0, delta: time.bin_width, first, len: last - first };
-        let data = plan.focus(t, &window, wavelength, sigma, params.material, z, nz)?;
+        let data = plan.focus(t, &window, wavelength, sigma, params.reflectance, z, nz)?;
         return Ok(Volume { nx: columns.nx, ny: columns.ny, nz, x: columns.x, y: columns.y, z, data });
     }
     let filtered = filter(t, first, last, wavelength, sigma)?;
     let groups = laser_groups(t);
-    let power = match params.material {
-        Material::Diffuse => 2,
-        Material::Retroreflective => 1,
-    };
+    let power = params.reflectance.distance_power() as i32 / 2;
     let window = Window { t0: time.t0, delta: time.bin_width, first, len: last - first };
     let mut data = vec![0.0f32; columns.nx * columns.ny * nz];
     data.par_chunks_mut(nz).enumerate().for_each_init(

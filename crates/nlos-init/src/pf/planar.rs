@@ -34,8 +34,8 @@ use nlos_transient::{Layout, Transient};
 
 use super::{Columns, Window, fft_len, pulse_spectrum};
 use crate::error::{InitError, Result};
-use crate::lct::Material;
 use crate::volume::Axis;
+use nlos_brdf::Model;
 
 /// Relative height of the pulse's spectrum below which a frequency is left out.
 const BAND_FLOOR: f64 = 1e-4;
@@ -99,7 +99,7 @@ impl Planar {
         w: &Window,
         wavelength: f64,
         sigma: f64,
-        material: Material,
+        reflectance: Model,
         z: Axis,
         nz: usize,
     ) -> Result<Vec<f32>> {
@@ -107,7 +107,7 @@ impl Planar {
         let n_sparse = self.sparse.len().max(1);
         let (px, py) = (fft_size(2 * nx), fft_size(2 * ny));
         let band = Band::new(w, wavelength, sigma);
-        let fields = self.wall_fields(t, w, &band, material, px, py)?;
+        let fields = self.wall_fields(t, w, &band, reflectance, px, py)?;
         let mut planner = FftPlanner::<f32>::new();
         let ffts = Ffts { x: planner.plan_fft_inverse(px), y: planner.plan_fft_inverse(py) };
         // The frequencies in one contiguous range per thread; each thread sums into its own volume.
@@ -274,16 +274,13 @@ impl Planar {
         t: &Transient,
         w: &Window,
         band: &Band,
-        material: Material,
+        reflectance: Model,
         px: usize,
         py: usize,
     ) -> Result<Vec<Complex32>> {
         let (nx, ny) = (self.nx, self.ny);
         let n_sparse = self.sparse.len().max(1);
-        let power = match material {
-            Material::Diffuse => 5,
-            Material::Retroreflective => 3,
-        };
+        let power = reflectance.distance_power() as i32 + 1;
         // Time weights (module docs): (τ/2)^(2p+1) at each bin's centre.
         let weights: Vec<f32> = (0..w.len)
             .map(|k| {

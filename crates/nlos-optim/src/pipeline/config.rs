@@ -5,7 +5,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use nlos_init::Material;
+use nlos_brdf::Model;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{OptimError, Result};
@@ -187,27 +187,6 @@ impl fmt::Display for SensorChoice {
     }
 }
 
-/// The reflectance model fitted alongside the shape.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum BrdfModel {
-    /// One albedo.
-    #[default]
-    Lambert,
-    /// GGX microfacet lobe (albedo, specular weight, roughness α), α starting at [`ReflectanceConfig::alpha`].
-    Ggx,
-    /// A retroreflector (`nlos_brdf::Retroreflective`): the confocal return falls as `1/r²`; the LCT start
-    /// is weighted for it.
-    Retroreflective,
-}
-
-impl BrdfModel {
-    /// The LCT weighting of the model's start: retroreflective for `retroreflective`, else diffuse.
-    pub fn material(self) -> Material {
-        if self == BrdfModel::Retroreflective { Material::Retroreflective } else { Material::Diffuse }
-    }
-}
-
 /// The noise model of the smoothing weight ([`crate::DataTerm::counts`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -262,15 +241,17 @@ impl Default for CaptureConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ReflectanceConfig {
-    /// `"lambert"`, `"ggx"` or `"retroreflective"` ([`BrdfModel`]).
-    pub model: BrdfModel,
+    /// `"lambert"` (also `"lambertian"`), `"ggx"` or `"retroreflective"` ([`Model`]): the model fitted
+    /// alongside the shape, starting at albedo 1 (GGX: its specular lobe alone, α below); the volumetric
+    /// start is weighted for it.
+    pub model: Model,
     /// Initial GGX roughness α, in [0.001, 1] (with `"ggx"`).
     pub alpha: f32,
 }
 
 impl Default for ReflectanceConfig {
     fn default() -> Self {
-        Self { model: BrdfModel::Lambert, alpha: 0.3 }
+        Self { model: Model::Lambert, alpha: 0.3 }
     }
 }
 
@@ -503,7 +484,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
     (
         "reflectance.model",
-        "\"lambert\", \"ggx\" or \"retroreflective\" (1/r² confocal return; LCT start weighted for it)",
+        "\"lambert\" (or \"lambertian\"), \"ggx\" or \"retroreflective\" (1/r² confocal return; start weighted for it)",
     ),
     ("reflectance.alpha", "initial GGX roughness, in [0.001, 1]"),
     ("sensor.response", "\"auto\", \"off\" (L2), \"ideal\", \"direct\" (the capture's own) or a jitter file"),

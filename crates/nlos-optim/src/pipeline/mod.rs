@@ -24,9 +24,8 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_brdf::{Fresnel, Ggx};
 use nlos_init::{
-    CarveParams, FbpParams, FkParams, Gate, Material, PfParams, SurfaceParams, Volume, carve, fbp, fk, lct, pf,
+    CarveParams, FbpParams, FkParams, Gate, Model, PfParams, SurfaceParams, Volume, carve, fbp, fk, lct, pf,
     volume_to_surface,
 };
 use nlos_mesh::SurfaceMesh;
@@ -170,11 +169,7 @@ impl Prepared {
         if !(1e-3..=1.0).contains(&r.alpha) {
             return Err(config_error("reflectance.alpha", format!("{}: GGX roughness lies in [0.001, 1]", r.alpha)));
         }
-        p.reflectance = match r.model {
-            BrdfModel::Lambert => Reflectance::default(),
-            BrdfModel::Ggx => Reflectance::from_ggx(&Ggx::new(0.0, 1.0, r.alpha, Fresnel::One)?),
-            BrdfModel::Retroreflective => Reflectance::retroreflective(),
-        };
+        p.reflectance = Reflectance::start(r.model, r.alpha)?;
         p.render.visibility = match config.render.visibility {
             VisibilityChoice::Cached => Visibility::Cached { level: 1 },
             VisibilityChoice::Live => Visibility::Live,
@@ -186,8 +181,11 @@ impl Prepared {
         }
         p.sampling = SamplingSchedule::Splat(SplatRule { max_level, ..SplatRule::default() });
         p.device = config.render.device;
-        if p.device == Device::Gpu && r.model == BrdfModel::Ggx {
-            return Err(config_error("render.device", "\"gpu\": GGX has no GPU version yet; use \"auto\" or \"cpu\""));
+        if p.device == Device::Gpu && !nlos_render::gpu_supports(r.model) {
+            return Err(config_error(
+                "render.device",
+                format!("\"gpu\": the reflectance model \"{}\" has no GPU version; use \"auto\" or \"cpu\"", r.model),
+            ));
         }
         p.schedule = self.schedule;
         let o = &config.optimiser;
@@ -335,17 +333,17 @@ impl Prepared {
     ///
     /// # Errors
     /// [`OptimError::Init`] when the method fails (not a confocal grid, an empty volume).
-    pub fn volume(&self, method: Volumetric, material: Material, snr: Option<f64>) -> Result<Volume> {
+    pub fn volume(&self, method: Volumetric, reflectance: Model, snr: Option<f64>) -> Result<Volume> {
         // `full` is gated already; the methods' own automatic gate finds no direct light left in it.
         Ok(match method {
             Volumetric::Lct => {
-                let mut p = crate::radiometry::lct_params(material);
+                let mut p = crate::radiometry::lct_params(reflectance);
                 p.snr = snr.unwrap_or(p.snr);
                 lct(&self.full, &p)?
             }
             Volumetric::Fk => fk(&self.full, &FkParams::default())?,
-            Volumetric::Pf => self.pf_volume(&PfParams { material, ..PfParams::default() })?,
-            Volumetric::Fbp => fbp(&self.full, &FbpParams { material, ..FbpParams::default() })?,
+            Volumetric::Pf => self.pf_volume(&PfParams { reflectance, ..PfParams::default() })?,
+            Volumetric::Fbp => fbp(&self.full, &FbpParams { reflectance, ..FbpParams::default() })?,
             Volumetric::Carve => carve(&self.full, &CarveParams::default())?,
         })
     }
@@ -392,7 +390,7 @@ impl Prepared {
             InitMethod::Carve => Volumetric::Carve,
             InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(&file)?),
         };
-        let volume = self.volume(method, config.reflectance.model.material(), None)?;
+        let volume = self.volume(method, config.reflectance.model, None)?;
         Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
     }
 }
@@ -497,7 +495,7 @@ mod tests {
         c.capture.gate = Setting::Value(0.3);
         c.capture.max_depth = Setting::OFF;
         c.sensor.response = SensorChoice::File("jitter.mat".into());
-        c.reflectance.model = BrdfModel::Ggx;
+        c.reflectance.model = Model::Ggx;
         c.schedule.max_stages = 2;
         c.boundary.residual_tilts = vec![30.0];
         assert_eq!(Config::from_toml(&c.to_toml().expect("toml")).expect("parse"), c);

@@ -8,6 +8,8 @@ import numpy.typing as npt
 
 _Path = Union[str, PathLike[str]]
 _Floats = npt.ArrayLike
+# The reflectance models, as in settings files and `nlos --brdf`; "lambertian" is another name of "lambert".
+_Brdf = Literal["lambert", "lambertian", "ggx", "retroreflective"]
 _Mesh = Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]
 
 __version__: str
@@ -66,7 +68,7 @@ class Renderer:
         faces: npt.ArrayLike,
         setup: Capture,
         *,
-        brdf: Literal["lambertian", "ggx", "retroreflective"] = "lambertian",
+        brdf: _Brdf = "lambert",
         albedo: float = 1.0,
         alpha: float = 0.3,
         specular: float = 1.0,
@@ -101,7 +103,7 @@ def render(
     faces: npt.ArrayLike,
     setup: Optional[Capture] = None,
     *,
-    brdf: str = "lambertian",
+    brdf: _Brdf = "lambert",
     alpha: float = 0.3,
     visibility: str = "cached",
     vis_level: int = 2,  # as `nlos render` simulates

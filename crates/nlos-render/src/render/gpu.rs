@@ -630,7 +630,7 @@ pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached
 impl Attached {
     /// The GPU's forward pass, None where it does not apply (the BRDF has no GPU version, the device failed).
     pub(super) fn forward<B: RenderBrdf>(&self, r: &Renderer, brdf: &B) -> Option<Vec<f32>> {
-        self.run(brdf, |g| g.forward(r, brdf))
+        self.run::<B, _>(|g| g.forward(r, brdf))
     }
 
     /// The GPU's adjoint pass, None where it does not apply.
@@ -638,11 +638,11 @@ impl Attached {
         if d_loss.len() != r.len() {
             return None; // the CPU path reports the mismatch
         }
-        self.run(brdf, |g| g.adjoint(r, brdf, d_loss))
+        self.run::<B, _>(|g| g.adjoint(r, brdf, d_loss))
     }
 
-    fn run<B: RenderBrdf, T>(&self, brdf: &B, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
-        if brdf.gpu_model().is_none() || self.failed.load(Ordering::Relaxed) {
+    fn run<B: RenderBrdf, T>(&self, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
+        if !crate::gpu_supports(B::MODEL) || self.failed.load(Ordering::Relaxed) {
             return None;
         }
         let out = match self.gpu.lock() {
