@@ -14,8 +14,7 @@ use std::path::{Path, PathBuf};
 use nlos_brdf::Model;
 use nlos_mesh::SurfaceMesh;
 use nlos_optim::pipeline::{self, Config, InitMethod, Prepared, SensorChoice, Start};
-use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, StopReason};
-use nlos_render::{RenderParams, Sampling};
+use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, StopReason};
 use nlos_report::ReportOptions;
 
 use crate::CliError;
@@ -277,7 +276,7 @@ fn write_report(
     params: &ReconstructParams,
     gt: Option<&SurfaceMesh>,
 ) -> Result<(), CliError> {
-    let opts = ReportOptions { area: wall_area(&prepared.full), ..report_options(run, prepared, params) };
+    let opts = ReportOptions::for_run(run.data, run.config, prepared, params, run.resumed);
     let report = nlos_report::write_report(run.out, &prepared.measured, gt, &opts).map_err(|e| match e {
         nlos_report::ReportError::MissingFile { .. } | nlos_report::ReportError::Json { .. } => bad(e),
         other => fail(other),
@@ -300,60 +299,6 @@ pub(crate) fn report_for_run(dir: &Path, data: &Path, gt: Option<&Path>) -> Resu
     let params = prepared.params(&config, Some(dir.to_owned())).map_err(bad)?;
     let gt = load_gt(gt.or(saved_gt.as_deref()))?;
     write_report(&Run { data, out: dir, config: &config, resumed: false }, &prepared, &params, gt.as_ref())
-}
-
-/// The wall rectangle of the report's depth maps and metrics: the bounding rectangle of the whole capture's
-/// sensor points, before subsampling (Tsai et al. 2019's setup's [−0.25, 0.25]², as `nlos eval`), as
-/// [`nlos_report::DepthView::over_scan`] takes it; `None` when they span no rectangle (the report then
-/// tries the fitted grid's, and says why it cannot).
-fn wall_area(full: &nlos_transient::Transient) -> Option<([f32; 2], [f32; 2])> {
-    nlos_report::DepthView::over_scan(full, 1).ok().map(|v| (v.x_range, v.y_range))
-}
-
-/// The report's settings: the run's renderer settings, data term and sensor fit, and its settings.
-fn report_options(run: &Run<'_>, prepared: &Prepared, params: &ReconstructParams) -> ReportOptions {
-    let sampling = match params.sampling {
-        SamplingSchedule::Splat(rule) => Sampling::Splat(rule),
-        SamplingSchedule::Deterministic(rule) => Sampling::Deterministic(rule),
-        SamplingSchedule::Stratified { initial_samples, .. } => {
-            Sampling::Stratified { samples_per_measurement: initial_samples, seed: params.seed }
-        }
-    };
-    let data = run.data;
-    let name = data.file_name().map_or_else(|| data.display().to_string(), |n| n.to_string_lossy().into());
-    let c = run.config;
-    let s = &params.schedule;
-    let parameters = vec![
-        ("data", data.display().to_string()),
-        ("initial surface", c.init.to_string()),
-        ("reflectance", format!("{:?}, alpha0 {}", c.reflectance.model, c.reflectance.alpha).to_lowercase()),
-        ("seed", c.seed.to_string()),
-        (
-            "schedule",
-            format!(
-                "{} stages from resolution {} (first edge {:.1} mm), {} blocks of {} steps",
-                s.max_stages,
-                s.initial_resolution,
-                1e3 * s.target_edge_length(0),
-                s.max_blocks_per_stage,
-                s.shape_iterations
-            ),
-        ),
-        ("rebin, subsample", format!("{}, {}", c.capture.rebin, c.capture.subsample)),
-        ("gate, max depth", format!("{}, {}", c.capture.gate, c.capture.max_depth)),
-        ("visibility, splat max level", format!("{:?}, {}", c.render.visibility, c.render.max_level).to_lowercase()),
-        ("sensor", format!("{} ({})", c.sensor.response, prepared.describe_sensor(c, params))),
-        ("albedo map (cell, m)", c.albedo_map.to_string()),
-        ("resumed", run.resumed.to_string()),
-    ];
-    ReportOptions {
-        title: format!("nlos reconstruct {name}"),
-        parameters: parameters.into_iter().map(|(k, v)| (k.to_string(), v)).collect(),
-        render: RenderParams { sampling, ..params.render },
-        loss: params.data.loss,
-        sensor: params.sensor.clone(),
-        ..ReportOptions::default()
-    }
 }
 
 fn save(mesh: &SurfaceMesh, path: &Path) -> Result<(), CliError> {

@@ -310,7 +310,7 @@ fn max_depth_auto_drops_the_late_background_of_a_capture_with_background_only() 
     // bins of 4 mm) so that the later half holds background only.
     let clean = nlos_transient::read(capture(&dir)).expect("clean");
     let peak = clean.data().iter().copied().fold(0.0f32, f32::max);
-    let mut rng = nlos_transient::sensor::Pcg32::new(3, 1);
+    let mut rng = nlos_transient::rng::Pcg32::new(3, 1);
     let bins = clean.bins();
     let counts: Vec<f32> = clean
         .histograms()
@@ -351,7 +351,7 @@ fn sensor_auto_fits_real_captures_through_their_own_response() {
     let dir = scratch("auto");
     let clean = nlos_transient::read(capture(&dir)).expect("clean");
     let peak = clean.data().iter().copied().fold(0.0f32, f32::max);
-    let mut rng = nlos_transient::sensor::Pcg32::new(5, 1);
+    let mut rng = nlos_transient::rng::Pcg32::new(5, 1);
     // The direct return: a tail of the sensor's response at path 0 (bins of 4 mm), 100× the object's peak.
     let direct = |k: usize| if k < 12 { 2e4 * (-(k as f64) / 2.0).exp() } else { 0.0 };
     let mut files = Vec::new();

@@ -365,7 +365,7 @@ mod tests {
     fn noise_floor_is_the_mean_data_term_of_poisson_counts() {
         let (r, _, w) = data();
         let scale = 2.5;
-        let mut rng = nlos_transient::sensor::Pcg32::new(11, 0);
+        let mut rng = nlos_transient::rng::Pcg32::new(11, 0);
         for loss in [Loss::L2, Loss::PoissonNll { floor: 1e-12 }] {
             let t = DataTerm { loss, weights: Some(w.clone()), solve_scale: false, counts: true };
             let scaled: Vec<f32> = r.iter().map(|x| scale as f32 * x).collect();

@@ -42,10 +42,8 @@ pub struct Schedule {
     /// Numerator of `L = extent/res` in metres (default 0.5, Tsai et al. 2019's; about the width of the scene).
     pub extent: f64,
     /// Number of stages (default 3: res 48, 72, 108, target edges 10.4, 6.9 and 4.6 mm; Tsai et al. 2019's schedule
-    /// is 4 stages from 64). At Tsai et al. 2019's setup (64 × 64 × 1200, 2 cores) one forward + adjoint costs about
-    /// 0.8 s at the bunny's 3k faces and 3.7 s at 20k (docs/performance.md), so Tsai et al. 2019's fourth stage
-    /// (about 27k faces) alone would take longer than this whole schedule; this is the configuration the
-    /// acceptance runs have measured since the subsampled days, now at full resolution.
+    /// is 4 stages from 64). A step's cost grows with the face count (docs/performance.md), so Tsai et al. 2019's
+    /// fourth stage (about 27k faces at the bunny's size) alone would cost more than this whole schedule.
     pub max_stages: u32,
     /// Face limit: a stage whose estimated face count (`area / (√3/4 · L²)`) exceeds it is not started
     /// (default 60,000).

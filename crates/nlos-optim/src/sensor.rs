@@ -799,7 +799,7 @@ mod tests {
     /// tolerance 5 standard errors of the sample mean).
     #[test]
     fn expected_half_deviance_matches_poisson_draws() {
-        let mut rng = nlos_transient::sensor::Pcg32::new(5, 0);
+        let mut rng = nlos_transient::rng::Pcg32::new(5, 0);
         for mu in [0.05f64, 0.7, 3.0, 20.0] {
             let draws = 20_000;
             let (mut sum, mut sum2) = (0.0, 0.0);

@@ -116,7 +116,7 @@ fn a_residual_of_noise_adds_nothing() {
     let clean = render(&s, &truth);
     let peak = clean.iter().copied().fold(0.0f32, f32::max);
     // Zero-mean uniform noise of ±2 % of the peak (seeded, so the test is deterministic).
-    let mut rng = nlos_transient::sensor::Pcg32::new(7, 0);
+    let mut rng = nlos_transient::rng::Pcg32::new(7, 0);
     let measured: Vec<f32> = clean.iter().map(|&c| c + 0.04 * peak * (rng.uniform() as f32 - 0.5)).collect();
     let (p, before, after) = run(&s, &truth, &measured);
     // The noise's back-projection is proposed (regions at random depths) and refused.

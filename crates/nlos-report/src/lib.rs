@@ -36,6 +36,7 @@
 pub mod error;
 pub mod figures;
 mod html;
+mod run;
 pub mod view3d;
 
 use std::path::{Path, PathBuf};

@@ -30,6 +30,7 @@ pub mod error;
 pub mod formats;
 mod ops;
 mod ops_views;
+pub mod rng;
 pub mod scan;
 pub mod sensor;
 pub mod time_axis;
@@ -39,6 +40,6 @@ pub use error::{Result, TransientError};
 #[cfg(feature = "formats")]
 pub use formats::{Format, detect, read, write};
 pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
-pub use sensor::rng;
+
 pub use time_axis::{SPEED_OF_LIGHT, TimeAxis};
 pub use transient::Transient;

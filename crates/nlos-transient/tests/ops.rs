@@ -206,7 +206,7 @@ fn fractional_leg_shift_conserves_and_splits_mass() {
 /// Photon counts of 16 measurements: background `b` per bin, a strong return at bin 400 (peak ≈ 400
 /// counts) and a weaker one (`second` × that) at bin 800, on 1200 bins of 1.2 mm.
 fn two_returns(b: f64, second: f64) -> Transient {
-    use nlos_transient::sensor::Pcg32;
+    use nlos_transient::rng::Pcg32;
     let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.1, 0.1).expect("grid"));
     let time = TimeAxis::new(0.0, 0.0012, 1200).expect("axis");
     let mut rng = Pcg32::new(7, 1);

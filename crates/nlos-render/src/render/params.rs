@@ -49,8 +49,8 @@ impl DeterministicRule {
 pub struct SplatRule {
     /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.09: on the first
     /// stage's 8 mm faces at Tsai et al. 2019's setup this cuts the blocks holding the longest faces in four, which
-    /// brings the bin-level error against the exact quadrature below the former adaptive rule's (see
-    /// `docs/performance.md`).
+    /// brings the bin-level error against the exact quadrature below the adaptive quadrature's at half a bin per
+    /// sub-triangle (see `docs/performance.md`).
     pub max_deviation: f32,
     /// Largest subdivision level (1..=64). Default 8.
     pub max_level: u32,

@@ -19,10 +19,8 @@ pub mod exr;
 pub mod hdf5;
 mod jitter_file;
 pub mod mat;
-mod mat5;
 pub mod npy;
 mod sidecar;
-mod znlos_mat;
 
 /// A transient file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -54,7 +54,8 @@
 //!   with its adjoint.
 //! - [`correct`]: Coates' pile-up correction and background estimation for real captures.
 //! - [`likelihood`]: the Poisson negative log-likelihood with background and its gradients.
-//! - [`rng`]: a seeded generator and exact Poisson/binomial samplers.
+//! - [`crate::rng`] (the crate's, shared by the workspace's tests): the seeded generators and the exact
+//!   Poisson/binomial samplers the simulation draws from.
 //!
 //! ## References
 //! - Q. Hernández, D. Gutierrez, A. Jarabo, "A Computational Model of a Single-Photon Avalanche Diode
@@ -70,17 +71,16 @@
 pub mod correct;
 pub mod jitter;
 pub mod likelihood;
-pub mod rng;
 #[cfg(test)]
 mod tests;
 
+use crate::rng::Pcg32;
 pub use correct::{
     BackgroundEstimate, BackgroundWindow, CountSummary, coates_correction, coates_histogram, count_summary,
     estimate_background, is_integer_counts,
 };
 pub use jitter::{BinKernel, JitterResponse};
 pub use likelihood::{PoissonNll, poisson_nll};
-pub use rng::{Pcg32, SplitMix64};
 
 use crate::SPEED_OF_LIGHT;
 use crate::error::{Result, TransientError};

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use super::*;
+use crate::rng;
 use crate::{PointSet, Scan, TimeAxis};
 
 /// A transient of `m` measurements (a 1×m grid) of `bins` bins of 1.2 mm, each a Gaussian pulse

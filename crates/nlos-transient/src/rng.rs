@@ -1,4 +1,4 @@
-//! The workspace's random number generators (also `nlos_transient::rng`): one module, so that every
+//! The workspace's random number generators: one module, so that every
 //! library and test draws from the same two documented generators, and the exact discrete samplers the
 //! sensor model needs.
 //!

@@ -15,7 +15,7 @@
 //!   default 0; not in the published files): bin 0's start in the same unit.
 //! - `cameraPosition`, `hiddenVolumePosition`, `hiddenVolumeSize` (optional): the SPAD's position, the
 //!   centre and side(s) of the box that holds the hidden scene. `cameraGridSize` (optional): the side(s) of
-//!   the wall's scan area, read by `mat::znlos_wall`. Anything else is not needed. Every file is confocal.
+//!   the wall's scan area, read by `super::znlos_wall`. Anything else is not needed. Every file is confocal.
 
 //! # Axes
 //! Z-NLOS walls are planes of constant y (their scenes put the hidden object at y < 0 of a wall at y = 0;
@@ -48,8 +48,8 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::mat::{invalid, positive_scalar, wrong_shape};
-use super::mat5::MatFile;
+use super::v5::MatFile;
+use super::{invalid, positive_scalar, wrong_shape};
 use crate::error::{Result, TransientError};
 use crate::scan::{PointSet, Scan};
 use crate::time_axis::TimeAxis;
@@ -171,7 +171,7 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
     Ok(t)
 }
 
-/// The full scan grid's rectangle in our frame (`super::mat::znlos_wall`), None without `cameraGridSize`
+/// The full scan grid's rectangle in our frame (`super::znlos_wall`), None without `cameraGridSize`
 /// or when the points fall outside it.
 pub(super) fn wall(m: &MatFile<'_>, file: &Path) -> Result<Option<[f32; 4]>> {
     if m.header("cameraGridSize").is_none() {

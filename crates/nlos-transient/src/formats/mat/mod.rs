@@ -1,7 +1,7 @@
 //! MATLAB level-5 MAT-files (v5/v6/v7): Stanford LCT, Tsai et al. 2019 and Stanford f-k captures (and
-//! Z-NLOS as NeTF preprocessed it, `super::znlos_mat`).
+//! Z-NLOS as NeTF preprocessed it, `znlos`).
 //!
-//! The container is parsed by this crate's own defensive MAT v5 reader (`mat5`, see its docs for why not
+//! The container is parsed by this crate's own defensive MAT v5 reader (`v5`, see its docs for why not
 //! the `matfile` crate). MATLAB v7.3 files are HDF5 and go through [`super::hdf5`]; the f-k conversion
 //! is shared through `fk_from_arrays` (crate-private).
 //!
@@ -73,12 +73,15 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::mat5::{MatFile, NumericArray, VarHeader};
+mod v5;
+mod znlos;
+
 use super::{Container, Format, read_file, sniff, with_file};
 use crate::error::{MEMORY, Result, TransientError};
 use crate::scan::{PointSet, Scan};
 use crate::time_axis::TimeAxis;
 use crate::transient::Transient;
+use v5::{MatFile, NumericArray, VarHeader};
 
 /// Bin width of the Stanford LCT captures: 4 ps at the reference code's `c = 3e8` m/s, metres of path.
 pub const LCT_BIN_WIDTH: f64 = 0.0012;
@@ -143,7 +146,7 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
         Format::LctMat => read_lct(&m, file),
         Format::TsaiMat => read_tsai(&m, file),
         Format::FkMat => read_fk(&m, file),
-        Format::ZNlosMat => super::znlos_mat::read(&m, file),
+        Format::ZNlosMat => znlos::read(&m, file),
         other => Err(TransientError::UnknownFormat {
             file: file.into(),
             reason: format!("{other} is not a MAT-file format"),
@@ -212,7 +215,7 @@ pub fn znlos_wall(path: &Path) -> Result<Option<[f32; 4]>> {
 /// As [`znlos_wall`].
 pub fn znlos_wall_bytes(bytes: &[u8], path: &Path) -> Result<Option<[f32; 4]>> {
     let m = MatFile::parse(bytes, path)?;
-    super::znlos_mat::wall(&m, path)
+    znlos::wall(&m, path)
 }
 
 pub(super) fn wrong_shape(file: &Path, h: &VarHeader, expected: impl Into<String>) -> TransientError {
