@@ -230,9 +230,10 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         .collect();
     if !coarsened.is_empty() {
         println!(
-            "time budget: {} edges, so that every stage ran whole within schedule.time_budget = {} s",
+            "budget: {} edges, so that every stage ran whole within schedule.reference_seconds = {} (seconds of \
+             the 2-core reference machine, predicted from face counts)",
             coarsened.join(", "),
-            params.schedule.time_budget
+            params.schedule.reference_seconds
         );
     }
     if outcome.stop != StopReason::Interrupted && !args.no_report {

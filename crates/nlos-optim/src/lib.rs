@@ -6,10 +6,10 @@
 //! step with Adam, remesh, repeat — coarse to fine.
 //!
 //! Building blocks:
-//! - [`loss`]: the data term — L2 of eq. (7) or Poisson NLL (`nlos_render::Loss`), per-bin weights, and an
-//!   unknown global intensity scale solved in closed form at every step;
-//! - [`sensor`]: the noise-aware data term — Poisson NLL of photon counts through the SPAD's
-//!   jitter response with a background level, `scale·J(I) + b` (set [`ReconstructParams::sensor`]);
+//! - [`data_term`]: the data term — L2 of eq. (7) or Poisson NLL of intensities (`nlos_render::Loss`), per-bin
+//!   weights and an unknown global intensity scale solved in closed form at every step; or the noise-aware
+//!   Poisson NLL of photon counts through the SPAD's jitter response with a background level,
+//!   `scale·J(I) + b` (set [`ReconstructParams::sensor`]); and both one histogram at a time;
 //! - [`regularizer`]: the normal-smoothing term of Delaunoy & Prados (IJCV 2011) with its exact gradient and
 //!   the automatic weight;
 //! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
@@ -40,8 +40,8 @@ pub mod adam;
 pub mod albedo;
 pub mod boundary_smoothing;
 pub mod builtin;
+pub mod data_term;
 pub mod error;
-pub mod loss;
 pub mod params;
 pub mod pipeline;
 pub mod prune;
@@ -50,17 +50,18 @@ pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;
 pub mod residual;
-pub mod response;
-pub mod sensor;
+pub mod schedule;
 
 pub use adam::{AdamParams, VectorAdam, VertexAdam};
 pub use albedo::{AlbedoMap, AlbedoMapParams};
 pub use boundary_smoothing::BoundarySmoothing;
+pub use data_term::{
+    DataEval, DataTerm, RowLoss, RowTerm, SensorBackground, SensorFit, SensorModel, SensorRows, expected_half_deviance,
+};
 pub use error::{OptimError, Result};
-pub use loss::{DataEval, DataTerm};
 pub use nlos_render::Loss;
-pub use params::{PHASOR_START_BLOCKS, ReconstructParams, SamplingSchedule, Schedule, faces_at};
-pub use prune::{PruneParams, PruneRecord, Pruned, RowLoss, RowTerm, prune_boundary};
+pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
+pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
     Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason,
@@ -72,4 +73,4 @@ pub use residual::{
     LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,
     residual_patches,
 };
-pub use sensor::{SensorBackground, SensorFit, SensorModel, SensorRows, expected_half_deviance};
+pub use schedule::{PHASOR_START_BLOCKS, Schedule, faces_at};

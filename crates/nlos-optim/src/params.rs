@@ -1,269 +1,20 @@
-//! Parameters of a reconstruction, with documented defaults.
+//! Parameters of a reconstruction, with documented defaults (the schedule's in [`crate::schedule`]).
 
 use std::path::PathBuf;
 
 use nlos_mesh::evolve::EvolveParams;
 use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
-use nlos_render::{DeterministicRule, Device, RenderParams, SplatRule};
+use nlos_render::{DeterministicRule, Device, Kernel, RenderParams, Sampling, SplatRule, Visibility};
 
 use crate::adam::AdamParams;
 use crate::albedo::AlbedoMapParams;
+use crate::data_term::counts::SensorFit;
+use crate::data_term::intensities::DataTerm;
 use crate::error::{OptimError, Result};
-use crate::loss::DataTerm;
 use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
 use crate::residual::ResidualParams;
-use crate::sensor::SensorFit;
-
-/// The coarse-to-fine schedule (Tsai et al. 2019, Sec. 5: target edge length `L = 0.5/res`, `res × 1.5`
-/// per stage from 64). Stage k has resolution `res_k = initial_resolution · growthᵏ` and target edge
-/// length `L_k = extent / res_k`. Each stage runs blocks (a shape block of `shape_iterations` Adam steps,
-/// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
-/// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages,
-/// or when the next stage would exceed `max_faces` faces. Stages after the first are planned at their start
-/// for the time budget ([`Schedule::planned_edge`]): when the stages left would not fit `time_budget` whole
-/// at the schedule's edges, they refine by less, so that every stage runs all its blocks; only when not
-/// even that fits do blocks stop at the budget ([`Schedule::block_fits`]).
-///
-/// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
-/// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
-/// first stage (10.4 mm edges by default) spans about fifteen 1.2 mm bins of Tsai et al. 2019's setup, so its shape is
-/// fitted as well from 4.8 mm bins, and one forward + adjoint then costs about a fifth (the splat rule's
-/// sub-triangle level follows the bin width); at the default fraction 0.5 Tsai et al. 2019's stages sum 4, 2 and 1
-/// bins. The sensor fit ([`crate::SensorFit`]) and per-bin weights are defined on the capture's own bins:
-/// with either, every stage runs at the capture's resolution.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Schedule {
-    /// Resolution of the first stage (default 48; Tsai et al. 2019's is 64).
-    pub initial_resolution: f64,
-    /// Resolution factor between stages (default 1.5, Tsai et al. 2019's).
-    pub growth: f64,
-    /// Numerator of `L = extent/res` in metres (default 0.5, Tsai et al. 2019's; about the width of the scene).
-    pub extent: f64,
-    /// Number of stages (default 3: res 48, 72, 108, target edges 10.4, 6.9 and 4.6 mm; Tsai et al. 2019's schedule
-    /// is 4 stages from 64). A step's cost grows with the face count (docs/performance.md), so Tsai et al. 2019's
-    /// fourth stage (about 27k faces at the bunny's size) alone would cost more than this whole schedule.
-    pub max_stages: u32,
-    /// Face limit: a stage whose estimated face count (`area / (√3/4 · L²)`) exceeds it is not started
-    /// (default 60,000).
-    pub max_faces: usize,
-    /// Blocks per stage at most (default 4).
-    pub max_blocks_per_stage: u32,
-    /// Adam steps on the vertices per shape block (default 20).
-    pub shape_iterations: u32,
-    /// Adam steps on θ per reflectance block (default 5; 0 disables reflectance steps).
-    pub reflectance_iterations: u32,
-    /// Relative-decrease stopping rule: a stage ends when a block lowers the loss by less than this
-    /// fraction (default 1e-3).
-    pub rel_tol: f64,
-    /// Largest summed bin of a stage as a fraction of its target edge length, both in metres (default 0.5;
-    /// 0: every stage at the capture's resolution).
-    pub rebin_fraction: f64,
-    /// Seconds of the reference machine (2 cores) the blocks may take (default 480: ten minutes less what the
-    /// start, the residual patches and the stage changes take; 0: no budget). Each stage after the first is
-    /// planned so that it and the stages after it fit whole ([`Schedule::planned_edge`]); a block is started
-    /// only when the blocks so far and its own predicted time fit ([`Schedule::block_fits`]). Predicted from
-    /// face counts, not timed, so the run stays a deterministic function of its inputs on every machine.
-    pub time_budget: f64,
-}
-
-impl Default for Schedule {
-    fn default() -> Self {
-        Self {
-            initial_resolution: 48.0,
-            growth: 1.5,
-            extent: 0.5,
-            max_stages: 3,
-            max_faces: 60_000,
-            max_blocks_per_stage: 4,
-            shape_iterations: 20,
-            reflectance_iterations: 5,
-            rel_tol: 1e-3,
-            rebin_fraction: 0.5,
-            time_budget: 480.0,
-        }
-    }
-}
-
-impl Schedule {
-    /// Bins of `bin_width` metres (of path length) summed in stage `stage`: the largest `k` with
-    /// `k · bin_width ≤ rebin_fraction · L_stage`, at least 1.
-    pub fn rebin(&self, stage: u32, bin_width: f64) -> usize {
-        self.rebin_at(self.target_edge_length(stage), bin_width)
-    }
-
-    /// Bins of `bin_width` metres summed by a stage of target edge length `edge` metres (see
-    /// [`Schedule::rebin`]).
-    pub fn rebin_at(&self, edge: f64, bin_width: f64) -> usize {
-        let k = (self.rebin_fraction * edge / bin_width).floor();
-        // NaN or below 1 (a zero fraction, bins wider than the limit) sum nothing; `as` saturates huge values.
-        if k >= 1.0 { k as usize } else { 1 }
-    }
-
-    /// Target edge length of stage `stage` (metres).
-    pub fn target_edge_length(&self, stage: u32) -> f64 {
-        self.extent / (self.initial_resolution * self.growth.powi(stage.min(i32::MAX as u32) as i32))
-    }
-
-    /// This schedule sized to a capture with scan spacing `spacing` and bins of `bin_width` (metres of
-    /// path), `measurements` histograms: the first stage's target edge is at least [`EDGE_PER_SPACING`]
-    /// spacings and [`EDGE_PER_BIN`] bins (`extent` raised; later stages follow by `growth`), and no stage
-    /// has more than [`FACES_PER_MEASUREMENT`] faces per measurement. Why: detail finer than the scan's
-    /// spacing or the bins cannot be told apart by the data, and only costs time; Tsai et al. 2019's 64 × 64 scan
-    /// over 0.5 m (7.9 mm, its 10.4 mm first edge is 1.3 spacings) and every shared capture (at most
-    /// 11.1 mm, 4 mm bins, 4,096 measurements) keep the schedule as set, while a 32 × 32 scan over 1 m
-    /// starts at 28 mm and an 8 × 8 one at 11 cm. Returns the sentence saying what changed, if anything.
-    pub fn sized_to(&self, spacing: f64, bin_width: f64, measurements: usize) -> (Schedule, Option<String>) {
-        let mut out = *self;
-        let mut said = Vec::new();
-        let edge = self.target_edge_length(0);
-        let (by_spacing, by_bin) = (EDGE_PER_SPACING * spacing, EDGE_PER_BIN * bin_width);
-        let floor = by_spacing.max(by_bin);
-        if floor.is_finite() && floor > edge {
-            out.extent = floor * self.initial_resolution;
-            let why = if by_spacing >= by_bin {
-                format!("{EDGE_PER_SPACING} × the scan's {:.1} mm spacing", 1e3 * spacing)
-            } else {
-                format!("{EDGE_PER_BIN} × its {:.1} mm bins", 1e3 * bin_width)
-            };
-            said.push(format!(
-                "first edge length {:.1} mm ({why}; schedule.extent {:.3} m)",
-                1e3 * out.target_edge_length(0),
-                out.extent
-            ));
-        }
-        let cap = FACES_PER_MEASUREMENT.saturating_mul(measurements);
-        if cap < out.max_faces {
-            out.max_faces = cap;
-            said.push(format!("at most {cap} faces ({FACES_PER_MEASUREMENT} per measurement)"));
-        }
-        let note = (!said.is_empty()).then(|| format!("schedule sized to the capture: {}", said.join("; ")));
-        (out, note)
-    }
-}
-
-/// How many times `max_blocks_per_stage` a run started from the phasor field may take ([`Schedule::for_start`]).
-pub const PHASOR_START_BLOCKS: u32 = 2;
-
-impl Schedule {
-    /// This schedule for a run whose start is the phasor field's (`phasor`: scans that are not confocal
-    /// grids): [`PHASOR_START_BLOCKS`] times the blocks per stage; the relative-decrease rule and the time
-    /// budget still end a stage that stops improving or does not fit. Why: that start lies farther from the
-    /// surface than the LCT's (the shared bunny seen by one laser and 64 × 64 sensors: 47.5 % of the truth
-    /// within 5 mm and 7.8 mm inside, against the LCT's 66.7 % and 2.2 mm on the confocal capture), and its
-    /// early stages were still gaining when their fourth block ended: 8 blocks a stage took that run from
-    /// 58.0 % and 3.2 mm to 64.1 % and 1.7 mm. Returns the sentence saying what changed, if anything.
-    pub fn for_start(&self, phasor: bool) -> (Schedule, Option<String>) {
-        if !phasor {
-            return (*self, None);
-        }
-        let blocks = self.max_blocks_per_stage.saturating_mul(PHASOR_START_BLOCKS);
-        let note = format!(
-            "schedule for a phasor-field start: at most {blocks} blocks per stage ({PHASOR_START_BLOCKS} × \
-             schedule.max_blocks_per_stage; the start lies farther from the surface than the LCT's)"
-        );
-        (Schedule { max_blocks_per_stage: blocks, ..*self }, Some(note))
-    }
-}
-
-/// Seconds per face, per measurement and per logged shape step that a block costs on the reference machine
-/// (2 cores), everything in the block included (reflectance steps, pruning, evolution, visibility), when
-/// the data are fitted through a sensor response: 1.2–1.6e-7 over every block of the three Stanford
-/// captures' default runs (4,096 measurements, 2,048 bins of 4 ps).
-pub const BLOCK_COST_SENSOR_S: f64 = 1.4e-7;
-/// The same for a fit of intensities by L2 (no sensor response): measured on the shared bunny's default
-/// run at Tsai et al. 2019's setup (6.0–8.6e-8 per block).
-pub const BLOCK_COST_L2_S: f64 = 7.0e-8;
-
-impl Schedule {
-    /// Predicted seconds of the reference machine for `face_steps` (the sum over shape steps of the mesh's
-    /// faces) on `measurements` histograms, through a sensor response or not ([`BLOCK_COST_SENSOR_S`],
-    /// [`BLOCK_COST_L2_S`]).
-    pub fn predicted_seconds(face_steps: f64, measurements: usize, sensor: bool) -> f64 {
-        face_steps * measurements as f64 * if sensor { BLOCK_COST_SENSOR_S } else { BLOCK_COST_L2_S }
-    }
-
-    /// Whether a block on a mesh of about `faces` faces may start when the blocks so far took `face_steps`
-    /// ([`Schedule::time_budget`]): their predicted seconds and the block's (`shape_iterations` steps)
-    /// within the budget. A stage ends early when its next block does not fit, and the next stage is not
-    /// started when its first block does not.
-    pub fn block_fits(&self, face_steps: f64, faces: f64, measurements: usize, sensor: bool) -> bool {
-        let steps = f64::from(self.shape_iterations);
-        self.time_budget <= 0.0
-            || Self::predicted_seconds(face_steps + faces * steps, measurements, sensor) <= self.time_budget
-    }
-}
-
-/// Faces of a mesh of `area` m² remeshed to edges of `edge` m (equilateral triangles).
-pub fn faces_at(area: f64, edge: f64) -> f64 {
-    area / (3f64.sqrt() / 4.0 * edge * edge)
-}
-
-impl Schedule {
-    /// Predicted seconds of one stage on a mesh of `faces` faces, all its blocks run.
-    fn stage_seconds(&self, faces: f64, measurements: usize, sensor: bool) -> f64 {
-        let steps = f64::from(self.max_blocks_per_stage) * f64::from(self.shape_iterations);
-        Self::predicted_seconds(faces * steps, measurements, sensor)
-    }
-
-    /// The target edge of stage `stage` ≥ 1, planned at its start so that it and the stages after it fit
-    /// the time budget whole ([`Schedule::time_budget`]): `previous` is the edge of the stage before, `area`
-    /// the mesh's area now (m²) and `face_steps` the shape steps' faces so far. The remaining stages refine
-    /// by a common growth `g ≤ growth`, the largest for which all their blocks (`max_blocks_per_stage` each,
-    /// on the faces of the current area at their edges) are predicted to fit what the budget has left
-    /// (bisection; deterministic). Never finer than the stage's own edge ([`Schedule::target_edge_length`]);
-    /// `g = 1` (the previous edge again) when not even that fits, and the blocks then stop at the budget
-    /// ([`Schedule::block_fits`]). Without a budget, the stage's own edge. Why: a large object (the S and U
-    /// capture's two letters, 0.14 m²) at the default edges would need 12,600 faces in the third stage and
-    /// about 900 s; cutting the stage short, or skipping it, left its refinement undone, whereas a
-    /// slightly coarser third stage runs every block.
-    #[allow(clippy::too_many_arguments)]
-    pub fn planned_edge(
-        &self,
-        stage: u32,
-        previous: f64,
-        area: f64,
-        face_steps: f64,
-        measurements: usize,
-        sensor: bool,
-    ) -> f64 {
-        let own = self.target_edge_length(stage);
-        if self.time_budget <= 0.0 || stage == 0 || !(area.is_finite() && area > 0.0) {
-            return own;
-        }
-        let left = self.time_budget - Self::predicted_seconds(face_steps, measurements, sensor);
-        let stages = self.max_stages.saturating_sub(stage);
-        let cost = |g: f64| -> f64 {
-            (1..=stages)
-                .map(|j| {
-                    let edge = (previous / g.powi(j as i32)).max(self.target_edge_length(stage + j - 1));
-                    self.stage_seconds(faces_at(area, edge), measurements, sensor)
-                })
-                .sum()
-        };
-        let growth = self.growth.max(1.0);
-        if cost(growth) <= left {
-            return (previous / growth).max(own);
-        }
-        if cost(1.0) > left {
-            return previous.max(own);
-        }
-        let (mut lo, mut hi) = (1.0, growth);
-        for _ in 0..50 {
-            let mid = 0.5 * (lo + hi);
-            if cost(mid) <= left { lo = mid } else { hi = mid }
-        }
-        (previous / lo).max(own)
-    }
-}
-
-/// The first stage's target edge length in scan spacings at least ([`Schedule::sized_to`]).
-pub const EDGE_PER_SPACING: f64 = 0.9;
-/// The first stage's target edge length in bins (of path) at least ([`Schedule::sized_to`]).
-pub const EDGE_PER_BIN: f64 = 1.5;
-/// Faces per measurement at most ([`Schedule::sized_to`]; 61,440 for 64 × 64, above the default cap).
-pub const FACES_PER_MEASUREMENT: usize = 15;
+use crate::schedule::Schedule;
 
 /// How the renderer samples the surface, stage by stage ("the sample budget grows").
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -293,20 +44,47 @@ impl Default for SamplingSchedule {
     }
 }
 
+/// A [`RenderParams`] without its sampling rule: the renderer's settings of a run, whose sampling
+/// [`ReconstructParams::sampling`] gives stage by stage.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RenderSettings {
+    /// Temporal kernel, used in both passes ([`RenderParams::kernel`]).
+    pub kernel: Kernel,
+    /// Visibility ([`RenderParams::visibility`]).
+    pub visibility: Visibility,
+    /// Whether back faces reflect too ([`RenderParams::two_sided`]).
+    pub two_sided: bool,
+}
+
+impl Default for RenderSettings {
+    /// [`RenderParams`]'s defaults.
+    fn default() -> Self {
+        let RenderParams { kernel, visibility, two_sided, .. } = RenderParams::default();
+        Self { kernel, visibility, two_sided }
+    }
+}
+
+impl RenderSettings {
+    /// The renderer's parameters with this sampling rule.
+    pub fn with_sampling(self, sampling: Sampling) -> RenderParams {
+        RenderParams { kernel: self.kernel, sampling, visibility: self.visibility, two_sided: self.two_sided }
+    }
+}
+
 /// Everything a reconstruction needs besides the measurement and the initial mesh.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ReconstructParams {
     /// Data term: loss (default L2, eq. 7), weights (none), scale solving (on).
     pub data: DataTerm,
-    /// Noise-aware fit of photon counts ([`crate::sensor`]): when set, the data term is the Poisson
+    /// Noise-aware fit of photon counts ([`crate::data_term::counts`]): when set, the data term is the Poisson
     /// NLL of `scale·J(I) + b` against the counts, replacing `data.loss` (`data.solve_scale` still applies;
     /// per-bin weights are not supported with it). Default None.
     pub sensor: Option<SensorFit>,
-    /// Initial reflectance (default Lambertian, albedo 1).
+    /// Initial reflectance (default Lambertian, albedo 1). Fitted in reflectance blocks of
+    /// [`Schedule::reflectance_iterations`] steps (0: none) where the model has free parameters beyond the scale
+    /// ([`Reflectance`]: none for a Lambertian or retroreflective model with the scale solved) or an albedo map
+    /// is fitted.
     pub reflectance: Reflectance,
-    /// Run reflectance blocks (default true; they only move θ when the model has free parameters beyond
-    /// the scale, see [`Reflectance`], so they are skipped for a Lambertian model with the scale solved).
-    pub optimise_reflectance: bool,
     /// Coarse-to-fine schedule.
     pub schedule: Schedule,
     /// Adam hyper-parameters for the vertices (default Kingma & Ba's).
@@ -322,7 +100,7 @@ pub struct ReconstructParams {
     pub lr_reflectance: f64,
     /// β of the automatic regulariser weight `λ = β E_data/R` (default 0.1), see
     /// [`crate::regularizer::auto_weight`]. With [`ReconstructParams::sensor`] or [`DataTerm::counts`],
-    /// `E_data` is the data term above its Poisson noise floor (`crate::sensor`, "Noise floor"), at least
+    /// `E_data` is the data term above its Poisson noise floor (`crate::data_term::counts`, "Noise floor"), at least
     /// 1 % of the data term.
     pub regulariser_ratio: f64,
     /// A fixed regulariser weight λ instead of the automatic one (default None).
@@ -336,9 +114,10 @@ pub struct ReconstructParams {
     /// For scenes whose reflectance varies (printed patterns, labels), which a uniform albedo turns into
     /// relief. With a Lambertian BRDF the reflectance blocks then run for the map alone.
     pub albedo_map: Option<AlbedoMapParams>,
-    /// Renderer settings (kernel: tent, needed for the time-shift gradient; visibility: live; one-sided).
-    /// Its `sampling` is replaced by [`ReconstructParams::sampling`].
-    pub render: RenderParams,
+    /// Renderer settings besides the sampling rule, which [`ReconstructParams::sampling`] gives stage by stage
+    /// (default: [`RenderParams`]'s — tent kernel, needed for the time-shift gradient; live visibility;
+    /// one-sided faces).
+    pub render: RenderSettings,
     /// Where the shape and reflectance steps render ([`nlos_render::Renderer::set_device`]; default
     /// [`Device::Auto`]: a hardware GPU where the build has the feature `gpu` and one is found, else the CPU).
     /// Not in a checkpoint's settings record: the device changes the results only by f32 rounding, so a run
@@ -388,7 +167,6 @@ impl Default for ReconstructParams {
             data: DataTerm::default(),
             sensor: None,
             reflectance: Reflectance::default(),
-            optimise_reflectance: true,
             schedule: Schedule::default(),
             shape_adam: AdamParams::default(),
             lr_interior: 0.05,
@@ -399,7 +177,7 @@ impl Default for ReconstructParams {
             boundary_smoothing: 1.0,
             albedo_map: None,
             regulariser_weight: None,
-            render: RenderParams::default(),
+            render: RenderSettings::default(),
             device: Device::Auto,
             sampling: SamplingSchedule::default(),
             remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
@@ -446,8 +224,12 @@ impl ReconstructParams {
         if !(s.rel_tol.is_finite() && s.rel_tol >= 0.0) {
             return bad("schedule.rel_tol", s.rel_tol, "must be finite and >= 0");
         }
-        if !(s.time_budget.is_finite() && s.time_budget >= 0.0) {
-            return bad("schedule.time_budget", s.time_budget, "must be finite and >= 0 seconds (0: no budget)");
+        if !(s.reference_seconds.is_finite() && s.reference_seconds >= 0.0) {
+            return bad(
+                "schedule.reference_seconds",
+                s.reference_seconds,
+                "must be finite and >= 0 seconds (0: no budget)",
+            );
         }
         if !(s.rebin_fraction.is_finite() && s.rebin_fraction >= 0.0) {
             return bad("schedule.rebin_fraction", s.rebin_fraction, "must be finite and >= 0 (0: no summed bins)");

@@ -38,6 +38,7 @@ use std::collections::HashMap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::data_term::RowLoss;
 use crate::error::{OptimError, Result};
 use nlos_render::AnyBrdf;
 use nlos_render::{Renderer, RowSpan};
@@ -230,72 +231,6 @@ pub fn prune_boundary(
     Ok(Pruned { keep, tested, removed, data_change: change })
 }
 
-/// The data term of one histogram as boundary pruning and growth see it: `value(m, row, window)` is
-/// histogram m's data term for the rendered histogram `row` (all of it, at the block's scale), summed over
-/// the bins whose terms a change of the bins `window` can reach — the window itself for a term that is a
-/// sum over bins (`DataTerm`), widened by the timing response's support for the sensor fit — so that for
-/// two renderings that differ only inside `window`, the difference of the two values is the change of the
-/// whole data term. `0..bins` gives the whole term. A face's share spans a few dozen of the bins: the tests
-/// of [`prune_boundary`] cost that, not the histograms' length.
-///
-/// Any `Fn(m, row, window) -> Result<f64>` is one ([`RowLoss`] is the trait object).
-pub trait RowTerm: Sync {
-    /// Histogram `m`'s data term for `row`, over the bins a change of `window` reaches (trait docs).
-    ///
-    /// # Errors
-    /// Those of the data term (a row of the wrong length).
-    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64>;
-
-    /// `E_m(row + k·share) − E_m(row)` for each `k` of `ks`, the share's values starting at its
-    /// `first_bin` (its `measurement` is not read: `m` is). The default evaluates [`RowTerm::value`] on
-    /// shifted copies, clamped at 0 (f32 cancellation can leave −ε where a deleted face was the only
-    /// light); a term that is linear in the rendering before its non-linearity (the sensor fit's
-    /// convolution) does better by transforming the share once.
-    ///
-    /// # Errors
-    /// As [`RowTerm::value`].
-    fn changes(&self, m: usize, row: &[f32], share: &RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
-        // Clamped to the row: a share starting past its end changes nothing (an empty window).
-        let end = (share.first_bin + share.values.len()).min(row.len());
-        let window = share.first_bin.min(end)..end;
-        let now = self.value(m, row, window.clone())?;
-        let mut shifted = row.to_vec();
-        ks.iter()
-            .map(|&k| {
-                shifted.copy_from_slice(row);
-                for (x, v) in shifted[window.clone()].iter_mut().zip(&share.values) {
-                    *x = (*x + k * v).max(0.0);
-                }
-                Ok(self.value(m, &shifted, window.clone())? - now)
-            })
-            .collect()
-    }
-    /// Told that `spans` (a face's share) were added to (`add`) or taken from the rendering that later calls
-    /// pass as `row`, for a term that keeps something of the rendering between calls ([`SensorRows`]'s
-    /// `J I`). The default keeps nothing.
-    ///
-    /// [`SensorRows`]: crate::SensorRows
-    ///
-    /// # Errors
-    /// Those of the term (a share outside its histograms).
-    fn applied(&self, spans: &[RowSpan], add: bool) -> Result<()> {
-        let _ = (spans, add);
-        Ok(())
-    }
-}
-
-impl<F> RowTerm for F
-where
-    F: Fn(usize, &[f32], std::ops::Range<usize>) -> Result<f64> + Sync,
-{
-    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64> {
-        self(m, row, window)
-    }
-}
-
-/// The data term as [`prune_boundary`] and [`crate::residual`] take it ([`RowTerm`]).
-pub type RowLoss<'a> = dyn RowTerm + 'a;
-
 /// Subtracts (`add` false) or adds a face's share `spans` to `rendered`.
 pub(crate) fn apply_spans(spans: &[RowSpan], rendered: &mut [f32], bins: usize, add: bool) {
     for s in spans {
@@ -388,6 +323,7 @@ fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_faces: &[Vec<
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+    use crate::data_term::RowTerm;
 
     /// A fan of 4 triangles around vertex 0 (a closed-off square cut into 4) plus one more.
     fn square() -> Vec<[u32; 3]> {

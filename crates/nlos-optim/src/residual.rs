@@ -53,8 +53,9 @@ use nlos_mesh::{BuildOptions, FaceId, SurfaceMesh};
 use nlos_render::{RenderParams, Renderer, RowSpan};
 use nlos_transient::Transient;
 
+use crate::data_term::RowLoss;
 use crate::error::{OptimError, Result};
-use crate::prune::{RowLoss, apply_spans, delta};
+use crate::prune::{apply_spans, delta};
 use nlos_render::AnyBrdf;
 
 /// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).

@@ -5,7 +5,9 @@
 
 use nlos_brdf::Lambertian;
 use nlos_mesh::{SurfaceMesh, shapes};
-use nlos_optim::{AlbedoMapParams, OptimError, ReconstructParams, SamplingSchedule, Schedule, reconstruct};
+use nlos_optim::{
+    AlbedoMapParams, OptimError, ReconstructParams, RenderSettings, SamplingSchedule, Schedule, reconstruct,
+};
 use nlos_render::{DeterministicRule, RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
@@ -60,7 +62,7 @@ fn params(map: Option<AlbedoMapParams>) -> ReconstructParams {
             rel_tol: 0.0,
             ..Schedule::default()
         },
-        render: render(),
+        render: RenderSettings { visibility: Visibility::Off, ..RenderSettings::default() },
         sampling: SamplingSchedule::Deterministic(DeterministicRule {
             max_bin_fraction: 1.0,
             min_level: 1,

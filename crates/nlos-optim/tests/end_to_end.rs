@@ -10,7 +10,7 @@ use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::{SurfaceMesh, shapes};
 use nlos_optim::{
-    Evolve, Hooks, OptimError, Progress, ProgressEvent, ReconstructParams, SamplingSchedule, Schedule,
+    Evolve, Hooks, OptimError, Progress, ProgressEvent, ReconstructParams, RenderSettings, SamplingSchedule, Schedule,
     SensorBackground, SensorFit, StopReason, reconstruct_with, resume,
 };
 use nlos_render::{DeterministicRule, RenderParams, Renderer, Visibility};
@@ -118,7 +118,7 @@ fn flat_start_converges_to_the_bumpy_truth() {
         },
         lr_interior: 0.1,
         lr_boundary: 0.05,
-        render: fast_render(),
+        render: RenderSettings { visibility: Visibility::Off, ..RenderSettings::default() },
         sampling: SamplingSchedule::Deterministic(DeterministicRule {
             max_bin_fraction: 1.5,
             min_level: 1,
@@ -170,7 +170,7 @@ fn small_params(dir: PathBuf) -> ReconstructParams {
         ),
         lr_interior: 0.1,
         seed: 42,
-        render: fast_render(),
+        render: RenderSettings { visibility: Visibility::Off, ..RenderSettings::default() },
         sampling: SamplingSchedule::Deterministic(DeterministicRule {
             max_bin_fraction: 2.0,
             min_level: 1,

@@ -82,7 +82,7 @@ fn one_stage(k: u32) -> ReconstructParams {
     }
 }
 
-/// The time budget (`Schedule::time_budget`): predicted from face counts, so a budget that holds two blocks
+/// The time budget (`Schedule::reference_seconds`): predicted from face counts, so a budget that holds two blocks
 /// of the patch's mesh but not three ends the run after two, with the stop reason saying why, and a run
 /// with the same budget again ends at the same mesh (deterministic, whatever the machine's speed).
 /// What it catches: a budget read from the wall clock (different stops on different machines) or one that
@@ -100,7 +100,7 @@ fn the_time_budget_stops_blocks_deterministically() {
     let first: Vec<usize> = free.log.iterations.iter().take(6).map(|r| r.faces).collect();
     let two = Schedule::predicted_seconds(first.iter().sum::<usize>() as f64, measured.measurements(), false);
     let three = two + Schedule::predicted_seconds(3.0 * first[5] as f64, measured.measurements(), false);
-    params.schedule.time_budget = 0.5 * (two + three);
+    params.schedule.reference_seconds = 0.5 * (two + three);
     let cut = reconstruct(&measured, &start, &params).unwrap();
     assert_eq!(cut.stop, StopReason::TimeBudget);
     assert_eq!((cut.blocks_done, cut.log.iterations.len()), (2, 6), "two blocks of three steps");
@@ -125,7 +125,7 @@ fn a_coarse_stage_fits_the_rebinned_capture() {
 }
 
 /// A sensor fit's coarse stage is the fit of the summed counts through the response of summed bins
-/// (`nlos_optim::response::summed_response`) with the background of a summed bin, and not the fit at the
+/// (`nlos_optim::data_term::response::summed_response`) with the background of a summed bin, and not the fit at the
 /// capture's bins.
 #[test]
 fn a_sensor_fit_sums_bins_through_the_summed_response() {
@@ -136,7 +136,7 @@ fn a_sensor_fit_sums_bins_through_the_summed_response() {
     let fit = |kernel: BinKernel, b: f64| SensorFit { kernel, background: SensorBackground::Fixed(b) };
     let with = |k, f: SensorFit| ReconstructParams { sensor: Some(f), ..one_stage(k) };
     let coarse = reconstruct(&measured, &start, &with(2, fit(kernel.clone(), b))).unwrap();
-    let summed = nlos_optim::response::summed_response(&kernel, 2).unwrap();
+    let summed = nlos_optim::data_term::response::summed_response(&kernel, 2).unwrap();
     let by_hand = reconstruct(&measured.rebin(2).unwrap(), &start, &with(1, fit(summed, 2.0 * b))).unwrap();
     let full = reconstruct(&measured, &start, &with(1, fit(kernel, b))).unwrap();
     assert_eq!(positions(&coarse.mesh), positions(&by_hand.mesh), "stage 0 fits the counts summed over 2 bins");
@@ -159,9 +159,9 @@ fn a_bad_time_budget_is_a_typed_error_naming_the_setting() {
     let (measured, start) = capture_and_start();
     for bad in [-1.0, f64::NAN, f64::INFINITY] {
         let mut p = one_stage(1);
-        p.schedule.time_budget = bad;
+        p.schedule.reference_seconds = bad;
         let err = reconstruct(&measured, &start, &p).unwrap_err();
-        assert!(matches!(err, OptimError::InvalidParameter { name: "schedule.time_budget", .. }), "{err}");
+        assert!(matches!(err, OptimError::InvalidParameter { name: "schedule.reference_seconds", .. }), "{err}");
     }
 }
 
@@ -182,13 +182,13 @@ fn later_stages_are_planned_to_fit_the_budget_whole() {
     // A small object (the chart's 0.03 m²): the schedule's own edges.
     assert_eq!(s.planned_edge(1, e0, 0.03, 2e5, m, sensor), e1);
     // Without a budget, or at stage 0: the schedule's.
-    let free = Schedule { time_budget: 0.0, ..s };
+    let free = Schedule { reference_seconds: 0.0, ..s };
     assert_eq!(free.planned_edge(1, e0, 10.0, 2e5, m, sensor), e1);
     assert_eq!(s.planned_edge(0, e0, 10.0, 0.0, m, sensor), e0);
     // A large one (the S and U's 0.14 m² after a first stage of 2.3·10⁵ face-steps): coarser, and exactly
     // what fits — stages 1 and 2 at the common growth fill what is left, a hair finer would not fit.
     let (area, done) = (0.14, 2.3e5);
-    let left = s.time_budget - Schedule::predicted_seconds(done, m, sensor);
+    let left = s.reference_seconds - Schedule::predicted_seconds(done, m, sensor);
     let edge = s.planned_edge(1, e0, area, done, m, sensor);
     assert!(edge > e1 && edge < e0, "{edge}");
     let g = e0 / edge;

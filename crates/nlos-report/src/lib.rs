@@ -66,7 +66,7 @@ pub struct ReportOptions {
     /// Run parameters to list, in order (e.g. the command line's), besides what the run directory tells.
     pub parameters: Vec<(String, String)>,
     /// The renderer settings of the run (kernel, sampling, visibility, sidedness), used to render the final
-    /// mesh. Default: `nlos_optim::ReconstructParams::default().render`.
+    /// mesh. Default: [`RenderParams::default`].
     pub render: RenderParams,
     /// The run's loss, which defines the closed-form scale (default L2).
     pub loss: Loss,
@@ -98,7 +98,7 @@ impl Default for ReportOptions {
         Self {
             title: "nlos reconstruction".into(),
             parameters: Vec::new(),
-            render: nlos_optim::ReconstructParams::default().render,
+            render: RenderParams::default(),
             loss: Loss::L2,
             sensor: None,
             gate: None,

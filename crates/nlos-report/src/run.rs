@@ -6,7 +6,7 @@ use std::path::Path;
 
 use nlos_optim::pipeline::{Config, Prepared};
 use nlos_optim::{ReconstructParams, SamplingSchedule};
-use nlos_render::{RenderParams, Sampling};
+use nlos_render::Sampling;
 
 use crate::{DepthView, ReportOptions};
 
@@ -35,7 +35,7 @@ impl ReportOptions {
         ReportOptions {
             title: format!("nlos reconstruct {name}"),
             parameters: parameters(data, config, prepared, params, resumed),
-            render: RenderParams { sampling, ..params.render },
+            render: params.render.with_sampling(sampling),
             loss: params.data.loss,
             sensor: params.sensor.clone(),
             area: DepthView::over_scan(&prepared.full, 1).ok().map(|v| (v.x_range, v.y_range)),

@@ -408,13 +408,41 @@ pub(super) fn config_error(field: &str, reason: impl Into<String>) -> OptimError
     OptimError::Config { field: field.to_owned(), reason: reason.into() }
 }
 
+/// Settings a file may still name that no longer exist, and what replaced each: such a file gets this error
+/// (naming the key) rather than an unknown field's.
+const REPLACED: [(&str, &str); 1] = [(
+    "schedule.time_budget",
+    "renamed schedule.reference_seconds: the same number, the budget in seconds of the 2-core reference \
+     machine as predicted from face counts (not wall-clock time)",
+)];
+
+/// Whether `table` sets the dotted `key`.
+fn names(table: &toml::Table, key: &str) -> bool {
+    let mut node = table;
+    let mut parts = key.split('.').peekable();
+    while let Some(part) = parts.next() {
+        match (node.get(part), parts.peek()) {
+            (Some(_), None) => return true,
+            (Some(toml::Value::Table(t)), Some(_)) => node = t,
+            _ => return false,
+        }
+    }
+    false
+}
+
 impl Config {
     /// Reads a configuration from TOML text; absent fields keep their defaults.
     ///
     /// # Errors
     /// [`OptimError::Config`] for malformed TOML, an unknown field or a value of the wrong type (the
-    /// message names the line and the field).
+    /// message names the line and the field), or a setting that was renamed or removed (naming what
+    /// replaced it).
     pub fn from_toml(text: &str) -> Result<Self> {
+        let table: toml::Table =
+            text.parse().map_err(|e: toml::de::Error| config_error("config", e.to_string().trim_end().to_owned()))?;
+        if let Some((key, what)) = REPLACED.iter().find(|(key, _)| names(&table, key)) {
+            return Err(config_error(key, format!("{key} is no longer a setting: {what}")));
+        }
         toml::from_str(text).map_err(|e| config_error("config", e.to_string().trim_end().to_owned()))
     }
 
@@ -499,7 +527,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("schedule.shape_iterations", "Adam steps on the vertices per block"),
     ("schedule.reflectance_iterations", "Adam steps on the reflectance per block (0: none)"),
     ("schedule.rel_tol", "a stage ends when a block lowers the loss by less than this fraction"),
-    ("schedule.time_budget", "seconds of a 2-core machine the blocks may take, predicted from faces (0: none)"),
+    (
+        "schedule.reference_seconds",
+        "budget of the blocks in seconds of a 2-core reference machine, predicted from faces, not timed (0: none)",
+    ),
     (
         "schedule.rebin_fraction",
         "a stage sums bins up to this fraction of its edge length (0: all at the capture's bins)",

@@ -525,4 +525,22 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn a_renamed_setting_says_what_replaced_it() {
+        let from_file = Config::from_toml("[schedule]\ntime_budget = 300\n");
+        let mut set = toml::Table::new();
+        set.insert("schedule".into(), toml::Value::Table(toml::toml! { time_budget = 300 }));
+        for result in [from_file, Config::default().overridden(set)] {
+            match result {
+                Err(OptimError::Config { field, reason }) => {
+                    assert_eq!(field, "schedule.time_budget");
+                    assert!(reason.contains("renamed schedule.reference_seconds"), "{reason}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        let renamed = Config::from_toml("[schedule]\nreference_seconds = 300\n").expect("the new name");
+        assert_eq!(renamed.schedule.reference_seconds, 300.0);
+    }
 }

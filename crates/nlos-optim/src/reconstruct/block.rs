@@ -18,12 +18,14 @@ use super::{
 };
 use crate::adam::VertexAdam;
 use crate::boundary_smoothing::BoundarySmoothing;
+use crate::data_term::RowLoss;
+use crate::data_term::counts::SensorRows;
 use crate::error::{OptimError, Result};
-use crate::params::{ReconstructParams, faces_at};
-use crate::prune::{PruneRecord, RowLoss, prune_boundary};
+use crate::params::ReconstructParams;
+use crate::prune::{PruneRecord, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{PatchNote, ResidualRecord, residual_patches};
-use crate::sensor::SensorRows;
+use crate::schedule::faces_at;
 
 /// What every block of a run shares: its settings and what was decided from them once.
 pub(super) struct RunCtx<'a> {
@@ -48,9 +50,9 @@ impl<'a> RunCtx<'a> {
         // its gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ
         // where it is.
         let scale_only = st.reflectance.is_scale_only() && params.data.solve_scale;
-        let fit_brdf = params.optimise_reflectance && !scale_only && !st.reflectance.theta().is_empty();
+        let fit_brdf = !scale_only && !st.reflectance.theta().is_empty();
         // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
-        let fit_albedo = params.optimise_reflectance && st.albedo.is_some();
+        let fit_albedo = st.albedo.is_some();
         let refl_iters = if fit_brdf || fit_albedo { sch.reflectance_iterations } else { 0 };
         let planned = u64::from(sch.max_stages)
             * u64::from(sch.max_blocks_per_stage)
@@ -127,7 +129,7 @@ pub(super) fn shape_block(
         if it == 0 {
             let area = surface_area(&st.positions, &st.triangles);
             // With counts, the regulariser is weighed against the part of the data term above its noise
-            // floor (crate::sensor, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
+            // floor (crate::data_term::counts, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
             // so a fit that has reached the floor keeps some smoothing.
             let excess = if ctx.counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
             st.reg_weight =
@@ -343,7 +345,7 @@ pub(super) fn prune_and_patch(
     if let Some(rp) = residual {
         let model: Vec<f64> = match (sensor, &response) {
             (Some(m), Some(lock)) => {
-                let a = lock.read().map_err(|_| crate::sensor::poisoned())?;
+                let a = lock.read().map_err(|_| crate::data_term::counts::poisoned())?;
                 a.iter().map(|a| scale * a + m.background).collect()
             }
             (Some(m), None) => m.expected(&rendered, scale)?,

@@ -125,7 +125,7 @@ pub enum StopReason {
     MaxStages,
     /// The next stage would exceed the face limit.
     FaceLimit,
-    /// The next stage's predicted time would exceed the time budget ([`crate::Schedule::time_budget`]).
+    /// The next stage's predicted time would exceed the time budget ([`crate::Schedule::reference_seconds`]).
     TimeBudget,
     /// The progress callback asked to stop (resume continues).
     Interrupted,

@@ -2,7 +2,7 @@
 //!
 //! Each stage fits the capture with [`crate::Schedule::rebin`] bins summed (coarse to fine in time as in
 //! space: 4, 2, 1 for Tsai et al. 2019's 1.2 mm bins; a sensor fit through the response of the summed bins,
-//! [`crate::response`]; the capture's own bins with per-bin weights), made once at its first block; the data term's normaliser is that capture's, so the data terms of
+//! [`crate::data_term::response`]; the capture's own bins with per-bin weights), made once at its first block; the data term's normaliser is that capture's, so the data terms of
 //! different stages are not comparable.
 //!
 //! Per block (see [`crate::Schedule`]):
@@ -10,10 +10,10 @@
 //!    isotropically at the stage's target length (`nlos_mesh::remeshing::uniform_remeshing`), the Adam
 //!    moments are carried to the new vertices (barycentric interpolation on the closest old face) and a new
 //!    [`Renderer`] is built. (This is "remesh after every shape block", plus once on the initial mesh.)
-//! 2. **Shape block.** Each step: forward render, data term with the closed-form scale ([`crate::loss`]),
+//! 2. **Shape block.** Each step: forward render, data term with the closed-form scale ([`crate::data_term::intensities`]),
 //!    adjoint (Proposition 1, `nlos_render`), plus `λ ·` the normal-smoothing regulariser
 //!    ([`crate::regularizer`]; λ set automatically at the first step of the block, against the data term
-//!    above its noise floor for photon counts, [`crate::sensor`]), per-vertex isotropic
+//!    above its noise floor for photon counts, [`crate::data_term::counts`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
 //! 3. **Reflectance block.** Adam steps on θ with the shape fixed (and on the albedo map's log-albedo,
 //!    [`crate::albedo`], when there is one).
@@ -61,16 +61,19 @@ use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
 use crate::regularizer::NormalSmoothing;
 use crate::residual::ResidualRecord;
-use crate::sensor::SensorModel;
 
 mod block;
 pub(crate) mod checkpoint;
+mod evaluation;
 mod log;
+mod rollback;
 mod topology;
 
 use block::{Block, RunCtx};
 use checkpoint::*;
+use evaluation::*;
 pub use log::*;
+use rollback::*;
 use topology::*;
 
 /// File name of the checkpoint inside the output directory.
@@ -333,117 +336,7 @@ fn render_params(params: &ReconstructParams, stage: u32, rng: &mut u64) -> Rende
             Sampling::Stratified { samples_per_measurement: n as u32, seed: next_u64(rng) }
         }
     };
-    RenderParams { sampling, ..params.render }
-}
-
-/// Loss pieces at the current state.
-struct Eval {
-    data: f64,
-    /// The normalised noise floor of the data term ([`crate::SensorFit::noise_floor`],
-    /// [`crate::DataTerm::noise_floor`]) when asked for and the data are counts; 0 otherwise.
-    floor: f64,
-    scale: f64,
-    grad_vertices: Vec<Vec3>,
-    grad_theta: Vec<f64>,
-    /// dE/dw_t per triangle (`nlos_render::Gradient::faces`), for the albedo map.
-    grad_faces: Vec<f32>,
-}
-
-/// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit on the stage's bins.
-struct Fit<'a> {
-    params: &'a ReconstructParams,
-    measured: &'a [f32],
-    /// The sensor fit on this stage's capture (None: the plain data term).
-    sensor: Option<&'a SensorModel>,
-    /// Normaliser of the data term.
-    norm: f64,
-}
-
-/// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
-/// noise floor (for the automatic regulariser weight).
-fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
-    let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
-    let brdf = st.reflectance.brdf()?;
-    let rendered = brdf.forward(r);
-    let mut floor = 0.0;
-    let ev = match fit.sensor {
-        Some(sensor) => {
-            let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
-            if want_floor {
-                floor = sensor.noise_floor(&a, ev.scale) / norm;
-            }
-            ev
-        }
-        None => {
-            let ev = params.data.evaluate(&rendered, measured, st.scale)?;
-            if want_floor && params.data.counts {
-                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
-            }
-            ev
-        }
-    };
-    let inv = (1.0 / norm) as f32;
-    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
-    let g = brdf.adjoint(r, &d)?;
-    Ok(Eval {
-        data: ev.value / norm,
-        floor,
-        scale: ev.scale,
-        grad_theta: st.reflectance.chain(&g.brdf),
-        grad_vertices: g.vertices,
-        grad_faces: g.faces,
-    })
-}
-
-/// A shape step's evaluation: data term and gradient, the regulariser (normal + boundary smoothing), the
-/// normal-smoothing part alone (what λ is set against), the regulariser's gradient.
-type Attempt = (Eval, f64, f64, Vec<Vec3>);
-
-/// Normaliser of the data term on `data` (the measurement a stage fits).
-fn data_normaliser(params: &ReconstructParams, data: &[f32]) -> Result<f64> {
-    let norm = match &params.sensor {
-        Some(_) => crate::sensor::SensorFit::normaliser(data),
-        None => params.data.normaliser(data),
-    };
-    norm.ok_or(OptimError::InvalidParameter {
-        name: "measured",
-        value: 0.0,
-        reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
-    })
-}
-
-/// What one stage fits: the capture with [`crate::Schedule::rebin`] bins summed (`None`: `measured` itself,
-/// for a factor of 1 or per-bin weights, which are defined on its own bins) and the sensor fit on those bins
-/// (the response of the summed bins and their background, [`SensorModel::summed`]).
-struct StageData {
-    stage: u32,
-    capture: Option<Transient>,
-    sensor: Option<SensorModel>,
-}
-
-impl StageData {
-    /// Bins summed by a stage of target edge `edge` (none with per-bin weights, defined on the capture's bins).
-    fn bins_summed(measured: &Transient, params: &ReconstructParams, edge: f64) -> usize {
-        let k = params.schedule.rebin_at(edge, measured.time().bin_width).min(measured.bins());
-        if params.data.weights.is_some() { 1 } else { k }
-    }
-
-    /// The data of stage `stage` at target edge `edge`; `background` is the sensor fit's background on the
-    /// capture's own bins.
-    fn new(measured: &Transient, params: &ReconstructParams, stage: u32, edge: f64, background: f64) -> Result<Self> {
-        let k = Self::bins_summed(measured, params, edge);
-        let capture = if k > 1 {
-            Some(measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?)
-        } else {
-            None
-        };
-        let fitted = capture.as_ref().unwrap_or(measured);
-        let sensor = match &params.sensor {
-            Some(fit) => Some(SensorModel::summed(fit, k, background, fitted.bins(), fitted.data())?),
-            None => None,
-        };
-        Ok(Self { stage, capture, sensor })
-    }
+    params.render.with_sampling(sampling)
 }
 
 /// The loop over blocks, from `st` (a new run's first state or a checkpoint's) to the end of the schedule;
@@ -593,57 +486,6 @@ fn progress(st: &State, event: ProgressEvent, planned: u64, loss: f64, target: f
 fn report(hooks: &mut Hooks<'_>, p: &Progress) -> ControlFlow<()> {
     hooks.progress.as_mut().map_or(ControlFlow::Continue(()), |cb| cb(p))
 }
-
-/// Counts a rollback (failing with [`OptimError::Diverged`] past `max_rollbacks`) and halves the learning
-/// rates: the part shared by the shape and reflectance rollbacks.
-fn count_rollback(st: &mut State, params: &ReconstructParams, what: &'static str) -> Result<()> {
-    st.log.rollbacks += 1;
-    if st.log.rollbacks > params.max_rollbacks {
-        return Err(OptimError::Diverged { iteration: st.iteration, what, rollbacks: st.log.rollbacks - 1 });
-    }
-    st.lr_scale *= 0.5;
-    Ok(())
-}
-
-/// Restores the vertex state before the last step and halves the learning rates.
-fn rollback(
-    st: &mut State,
-    good: &mut Option<(Vec<Vec3>, VertexAdam)>,
-    renderer: &mut Renderer,
-    params: &ReconstructParams,
-    what: &'static str,
-) -> Result<()> {
-    count_rollback(st, params, what)?;
-    if let Some((p, a)) = good.take() {
-        st.positions = p;
-        st.shape_adam = a;
-        renderer.set_positions(&st.positions)?;
-    }
-    Ok(())
-}
-
-/// Restores θ before the last reflectance step and halves the learning rates.
-fn rollback_refl(
-    st: &mut State,
-    good: &mut Option<GoodReflectance>,
-    renderer: &mut Renderer,
-    params: &ReconstructParams,
-    what: &'static str,
-) -> Result<()> {
-    count_rollback(st, params, what)?;
-    if let Some((r, a, map, map_adam)) = good.take() {
-        st.reflectance = r;
-        st.reflectance_adam = a;
-        st.albedo = map;
-        st.albedo_adam = map_adam;
-        set_albedo_weights(st, renderer)?;
-    }
-    Ok(())
-}
-
-/// The reflectance state a reflectance rollback restores: θ, its Adam state, the albedo map and its Adam
-/// state.
-type GoodReflectance = (Reflectance, VectorAdam, Option<AlbedoMap>, VectorAdam);
 
 /// Gives the renderer the albedo map's per-triangle factors at the current positions (nothing without a
 /// map).

@@ -56,12 +56,12 @@ use std::sync::RwLock;
 
 use rayon::prelude::*;
 
-use crate::error::{OptimError, Result};
 #[cfg(test)]
-use crate::loss::DEVIANCE_SERIES_MAX_MU;
-use crate::loss::DataEval;
-pub use crate::loss::expected_half_deviance;
-use crate::response::ResponseOp;
+use crate::data_term::intensities::DEVIANCE_SERIES_MAX_MU;
+use crate::data_term::intensities::DataEval;
+use crate::data_term::intensities::expected_half_deviance;
+use crate::data_term::response::ResponseOp;
+use crate::error::{OptimError, Result};
 
 /// Floor on expected counts (value and gradient), as in `nlos_transient::sensor::likelihood`.
 const MU_FLOOR: f64 = 1e-12;
@@ -310,7 +310,7 @@ impl SensorFit {
     /// [`SensorFit::row_value`] summed over the bins that a change of the bins `window` can reach through the
     /// timing response (`window` widened by the kernel's support on both sides, clamped to the row): two
     /// rows that differ only inside `window` differ by exactly the difference of these values
-    /// (`crate::prune::RowLoss`).
+    /// (`crate::data_term::RowLoss`).
     ///
     /// # Errors
     /// As [`SensorFit::row_value`].
@@ -417,13 +417,13 @@ impl SensorModel {
     }
 
     /// The model of stage capture with `k` bins summed: the response of the summed bins
-    /// ([`crate::response::summed_response`]) and `k` times the fine background (module docs of
-    /// [`crate::response`]).
+    /// ([`crate::data_term::response::summed_response`]) and `k` times the fine background (module docs of
+    /// [`crate::data_term::response`]).
     ///
     /// # Errors
     /// As [`SensorModel::new`].
     pub fn summed(fit: &SensorFit, k: usize, fine_background: f64, bins: usize, counts: &[f32]) -> Result<Self> {
-        let kernel = crate::response::summed_response(&fit.kernel, k)?;
+        let kernel = crate::data_term::response::summed_response(&fit.kernel, k)?;
         Self::new(SensorFit { kernel, background: fit.background }, bins, k as f64 * fine_background, counts)
     }
 
@@ -500,7 +500,7 @@ impl SensorModel {
 }
 
 /// A sensor fit's data term over a capture, histogram by histogram, as boundary pruning and growth take it
-/// ([`crate::prune::RowTerm`]).
+/// ([`crate::data_term::RowTerm`]).
 ///
 /// The term is `Σ_k d(s·(J I)_k + b; n_k)` with `J` the timing response's convolution: linear in `I` up to
 /// the deviance, so a face's share `I_f` changes `J I` by `k·J I_f` on the bins `J` carries the share to,
@@ -521,7 +521,7 @@ pub struct SensorRows<'a> {
     pub scale: f64,
     /// `J I` of the current rendering, measurement-major (None: convolved per test over the bins a share
     /// reaches). With a long response (a real capture's: hundreds of bins) that convolution is most of a
-    /// test; [`crate::prune::RowTerm::applied`] keeps this current as faces go.
+    /// test; [`crate::data_term::RowTerm::applied`] keeps this current as faces go.
     pub response: Option<&'a RwLock<Vec<f64>>>,
 }
 
@@ -567,7 +567,7 @@ impl SensorRows<'_> {
     }
 }
 
-impl crate::prune::RowTerm for SensorRows<'_> {
+impl crate::data_term::RowTerm for SensorRows<'_> {
     fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64> {
         self.fit.row_value_in(row, self.counts_row(m, row.len())?, self.background, self.scale, window)
     }
@@ -645,11 +645,11 @@ mod tests {
     }
 
     /// The share path of [`SensorRows`] (one convolution of the share, `J I` cached or not) gives the changes
-    /// that convolving each shifted row gives ([`crate::prune::RowTerm`]'s default), for responses that reach before and
+    /// that convolving each shifted row gives ([`crate::data_term::RowTerm`]'s default), for responses that reach before and
     /// after a bin and shares at either end of the row.
     #[test]
     fn sensor_rows_changes_match_the_shifted_rows() {
-        use crate::prune::RowTerm;
+        use crate::data_term::RowTerm;
         let (_, rendered, counts) = setup();
         for (first, weights) in [(-1, vec![0.2, 0.5, 0.2, 0.1]), (2, vec![0.6, 0.3, 0.1]), (-6, vec![0.1; 10])] {
             let fit = SensorFit {

@@ -167,7 +167,7 @@ impl DataTerm {
 
     /// [`DataTerm::row_value`] summed over the bins `window` of the row only (clamped to the row): the data
     /// term is a sum over bins, so two rows that differ only inside `window` differ by exactly the
-    /// difference of these values (`crate::prune::RowLoss`).
+    /// difference of these values (`crate::data_term::RowLoss`).
     ///
     /// # Errors
     /// As [`DataTerm::row_value`].
@@ -256,7 +256,7 @@ impl DataTerm {
 pub(crate) const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
 
 /// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
-/// ([`crate::sensor`]'s module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
+/// ([`crate::data_term::counts`]'s module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
 /// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
 pub fn expected_half_deviance(mu: f64) -> f64 {
     if !(mu.is_finite() && mu > 0.0) {

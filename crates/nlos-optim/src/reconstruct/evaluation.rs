@@ -1,0 +1,127 @@
+//! One evaluation of the run's data term at the current state ([`evaluate`]: value, scale, noise floor and
+//! gradients through the renderer's adjoint), its normaliser, and what each stage fits ([`StageData`]).
+
+use glam::Vec3;
+use nlos_render::Renderer;
+use nlos_transient::Transient;
+
+use super::checkpoint::State;
+use crate::data_term::counts::SensorModel;
+use crate::error::{OptimError, Result};
+use crate::params::ReconstructParams;
+
+/// Loss pieces at the current state.
+pub(super) struct Eval {
+    pub(super) data: f64,
+    /// The normalised noise floor of the data term ([`crate::SensorFit::noise_floor`],
+    /// [`crate::DataTerm::noise_floor`]) when asked for and the data are counts; 0 otherwise.
+    pub(super) floor: f64,
+    pub(super) scale: f64,
+    pub(super) grad_vertices: Vec<Vec3>,
+    pub(super) grad_theta: Vec<f64>,
+    /// dE/dw_t per triangle (`nlos_render::Gradient::faces`), for the albedo map.
+    pub(super) grad_faces: Vec<f32>,
+}
+
+/// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit on the stage's bins.
+pub(super) struct Fit<'a> {
+    pub(super) params: &'a ReconstructParams,
+    pub(super) measured: &'a [f32],
+    /// The sensor fit on this stage's capture (None: the plain data term).
+    pub(super) sensor: Option<&'a SensorModel>,
+    /// Normaliser of the data term.
+    pub(super) norm: f64,
+}
+
+/// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
+/// noise floor (for the automatic regulariser weight).
+pub(super) fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
+    let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
+    let brdf = st.reflectance.brdf()?;
+    let rendered = brdf.forward(r);
+    let mut floor = 0.0;
+    let ev = match fit.sensor {
+        Some(sensor) => {
+            let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
+            if want_floor {
+                floor = sensor.noise_floor(&a, ev.scale) / norm;
+            }
+            ev
+        }
+        None => {
+            let ev = params.data.evaluate(&rendered, measured, st.scale)?;
+            if want_floor && params.data.counts {
+                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
+            }
+            ev
+        }
+    };
+    let inv = (1.0 / norm) as f32;
+    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
+    let g = brdf.adjoint(r, &d)?;
+    Ok(Eval {
+        data: ev.value / norm,
+        floor,
+        scale: ev.scale,
+        grad_theta: st.reflectance.chain(&g.brdf),
+        grad_vertices: g.vertices,
+        grad_faces: g.faces,
+    })
+}
+
+/// A shape step's evaluation: data term and gradient, the regulariser (normal + boundary smoothing), the
+/// normal-smoothing part alone (what λ is set against), the regulariser's gradient.
+pub(super) type Attempt = (Eval, f64, f64, Vec<Vec3>);
+
+/// Normaliser of the data term on `data` (the measurement a stage fits).
+pub(super) fn data_normaliser(params: &ReconstructParams, data: &[f32]) -> Result<f64> {
+    let norm = match &params.sensor {
+        Some(_) => crate::data_term::counts::SensorFit::normaliser(data),
+        None => params.data.normaliser(data),
+    };
+    norm.ok_or(OptimError::InvalidParameter {
+        name: "measured",
+        value: 0.0,
+        reason: "the (weighted) measurement is zero everywhere: there is nothing to fit",
+    })
+}
+
+/// What one stage fits: the capture with [`crate::Schedule::rebin`] bins summed (`None`: `measured` itself,
+/// for a factor of 1 or per-bin weights, which are defined on its own bins) and the sensor fit on those bins
+/// (the response of the summed bins and their background, [`SensorModel::summed`]).
+pub(super) struct StageData {
+    pub(super) stage: u32,
+    pub(super) capture: Option<Transient>,
+    pub(super) sensor: Option<SensorModel>,
+}
+
+impl StageData {
+    /// Bins summed by a stage of target edge `edge` (none with per-bin weights, defined on the capture's bins).
+    pub(super) fn bins_summed(measured: &Transient, params: &ReconstructParams, edge: f64) -> usize {
+        let k = params.schedule.rebin_at(edge, measured.time().bin_width).min(measured.bins());
+        if params.data.weights.is_some() { 1 } else { k }
+    }
+
+    /// The data of stage `stage` at target edge `edge`; `background` is the sensor fit's background on the
+    /// capture's own bins.
+    pub(super) fn new(
+        measured: &Transient,
+        params: &ReconstructParams,
+        stage: u32,
+        edge: f64,
+        background: f64,
+    ) -> Result<Self> {
+        let k = Self::bins_summed(measured, params, edge);
+        let capture = if k > 1 {
+            Some(measured.rebin(k).map_err(|source| OptimError::Transient { context: "stage capture", source })?)
+        } else {
+            None
+        };
+        let fitted = capture.as_ref().unwrap_or(measured);
+        let sensor = match &params.sensor {
+            Some(fit) => Some(SensorModel::summed(fit, k, background, fitted.bins(), fitted.data())?),
+            None => None,
+        };
+        Ok(Self { stage, capture, sensor })
+    }
+}
