@@ -60,8 +60,8 @@ impl KernelEval {
     }
 
     /// The tent kernel's constants for the block kernels (None for the other kernels).
-    pub(crate) fn tent(&self) -> Option<crate::soa::TentAxis> {
-        (self.kind == Kernel::Tent).then_some(crate::soa::TentAxis {
+    pub(crate) fn tent(&self) -> Option<crate::render::cpu::soa::TentAxis> {
+        (self.kind == Kernel::Tent).then_some(crate::render::cpu::soa::TentAxis {
             t0: self.t0,
             inv_dt: self.inv_dt,
             last: self.bins as f32 - 1.0,

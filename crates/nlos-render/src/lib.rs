@@ -84,7 +84,7 @@
 //! (8 mm faces at 0.4 m, 1.2 mm bins, spans of about 10 bins) that is up to 64 samples per (face,
 //! measurement). The splat rule instead takes the integrand at the centroid and τ linear over the face, whose
 //! area density over τ is a hat (rising from the smallest corner value to the middle one, falling to the
-//! largest), and integrates it against the tent kernel in closed form (`splat.rs`: a piecewise cubic, its
+//! largest), and integrates it against the tent kernel in closed form (`render/cpu/splat.rs`: a piecewise cubic, its
 //! second differences are the bin weights; their derivatives with respect to the three corner path lengths
 //! are closed form too). Two first-order corrections shift the hat: τ's convexity (the face's exact mean
 //! path length for a quadratic τ) and the fall-off of the distance factor across the face. A face is cut
@@ -102,6 +102,11 @@
 //! the splat kernels below term for term; sums are deterministic without float atomics (the forward pass in
 //! 64-bit fixed point per bin, the adjoint per triangle in a fixed order), so a GPU run repeats bit for bit on
 //! its device and agrees with the CPU to f32 rounding (`tests/gpu.rs`). Timings: docs/performance.md.
+//!
+//! The source follows the backends: `render/` holds the [`Renderer`] (geometry, settings, the passes' entry
+//! points and the choice of device), `render/cpu/` the CPU backend (the passes over blocks of triangles,
+//! the sampling rules, the vector kernels, the splat rule's time integration) and `render/gpu/` the GPU
+//! backend with its shader.
 //!
 //! ## Performance
 //! Triangles are stored as structure of arrays (`f32` per coordinate), grouped by normal direction into
@@ -157,8 +162,6 @@ pub mod error;
 pub mod kernel;
 pub mod loss;
 pub mod render;
-mod soa;
-mod splat;
 mod visibility;
 
 pub use brdf::{AnyBrdf, GpuModel, RenderBrdf, gpu_supports};

@@ -9,18 +9,15 @@ use crate::brdf::RenderBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
-use crate::soa::{self, BLOCK, Isa, Soa};
+use crate::render::cpu::soa::{self, BLOCK, Isa, Soa};
 use crate::visibility::Bvh;
 
-mod adjoint;
-mod forward;
+pub(crate) mod cpu;
 #[cfg(feature = "gpu")]
 pub(crate) mod gpu;
-mod lobe;
 mod params;
-mod sampling;
 
-use lobe::Lobe;
+use cpu::lobe::Lobe;
 pub use params::*;
 
 /// Where a renderer with settings `params` runs when [`Renderer::set_device`] is given `device`, and why, in

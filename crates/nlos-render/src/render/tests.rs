@@ -1,7 +1,7 @@
 //! Unit tests of the renderer's internals (kernel instantiations, the visibility cache, block culling).
 
 use super::*;
-use crate::soa::Packed;
+use crate::render::cpu::soa::Packed;
 use nlos_brdf::{Fresnel, Ggx};
 use nlos_transient::PointSet;
 

@@ -8,12 +8,17 @@ use super::*;
 use crate::brdf::RenderBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
-use crate::soa::{self, Acc, BLOCK, Frame, Packed, Scratch, TentAxis};
-use crate::splat::{self, Knots};
+use crate::render::cpu::soa::{self, Acc, BLOCK, Packed, Scratch, TentAxis};
+use crate::render::cpu::splat::{self, Knots};
 
 impl Renderer {
     /// The adjoint pass with kernel `k` (its bin count sets the row length of `d_loss`).
-    pub(super) fn adjoint_with<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32], k: &KernelEval) -> Result<Gradient> {
+    pub(in crate::render) fn adjoint_with<B: RenderBrdf>(
+        &self,
+        brdf: &B,
+        d_loss: &[f32],
+        k: &KernelEval,
+    ) -> Result<Gradient> {
         let bins = k.bins();
         let expected = self.wall.l.len() * bins;
         if d_loss.len() != expected {
@@ -61,7 +66,8 @@ impl Renderer {
                     for (m, adj) in d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]) {
                         for (b0, b1) in blocks() {
                             let o = &mut out[b0 - r0..b1 - r0];
-                            self.adjoint_pairs(brdf, k, m, b0, b1, adj, o, &mut params, &mut sc);
+                            let row = Row { m, d: adj, d2: &[] };
+                            self.adjoint_pairs(Pass { brdf, kernel: k }, row, (b0, b1), o, &mut params, &mut sc);
                         }
                     }
                     return params;
@@ -80,6 +86,7 @@ impl Renderer {
                             continue;
                         }
                         let n = self.block_level(b0);
+                        let tile = Tile { t0: b0, pk: &pk, level: n };
                         let o = &mut out[b0 - r0..b1 - r0];
                         let slots = &pk.slots[..pk.len];
                         subtriangles(n, |sub| {
@@ -88,11 +95,13 @@ impl Renderer {
                                 match &splat {
                                     Some(axis) => {
                                         let d2 = &second[m * row_len..(m + 1) * row_len];
-                                        self.adjoint_splat(brdf, axis, m, b0, &pk, adj, d2, &sub, &mut acc, &mut sc);
+                                        let (pass, row) = (Pass { brdf, kernel: axis }, Row { m, d: adj, d2 });
+                                        self.adjoint_tile_splat(pass, tile, row, &sub, &mut acc, &mut sc);
                                     }
                                     None => {
                                         let (u, v) = sub.centroid;
-                                        self.adjoint_packed(brdf, k, m, b0, &pk, adj, (u, v, sub.w), &mut acc, &mut sc);
+                                        let (pass, row) = (Pass { brdf, kernel: k }, Row { m, d: adj, d2: &[] });
+                                        self.adjoint_tile_fixed(pass, tile, row, (u, v, sub.w), &mut acc, &mut sc);
                                     }
                                 }
                             }
@@ -119,7 +128,7 @@ impl Renderer {
     /// The gradient from the per-slot sums of the adjoint (`Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx, sign·Σ dE/dN`
     /// per storage slot) and the summed BRDF parameter terms: the edge terms and the vertex distribution, serial in
     /// slot order (deterministic), and the per-face weights' derivatives.
-    pub(super) fn distribute<B: RenderBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
+    pub(in crate::render) fn distribute<B: RenderBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
         let nt = self.tris.v0.len();
         // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
         // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
@@ -156,20 +165,16 @@ impl Renderer {
     /// active pair's closed-form gather `Σ_k r_k w_k` and `Σ_k r_k ∂w_k/∂τ_j`, split through the centring
     /// shift into corner terms and a centroid path-length term; stage 3 (vector): the centroid value's
     /// gradient and the centroid term; stage 4 (vector): the corners' path-length terms.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn adjoint_splat<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_tile_splat<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        axis: &TentAxis,
-        m: usize,
-        t0: usize,
-        pk: &Packed,
-        adj: &[f32],
-        d2: &[f32],
+        pass: Pass<'_, B, TentAxis>,
+        tile: Tile<'_>,
+        row: Row<'_>,
         sub: &soa::Sub,
         acc: &mut Acc,
         sc: &mut Scratch,
     ) {
+        let (Pass { brdf, kernel: axis }, Tile { t0, pk, .. }, Row { m, d: adj, d2 }) = (pass, tile, row);
         let fr = self.frame(m);
         if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
@@ -231,19 +236,16 @@ impl Renderer {
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
     /// the packed triangles `pk` of the block starting at slot `t0`, into `acc` (packed order).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn adjoint_packed<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_tile_fixed<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
-        m: usize,
-        t0: usize,
-        pk: &Packed,
-        adj: &[f32],
+        pass: Pass<'_, B, KernelEval>,
+        tile: Tile<'_>,
+        row: Row<'_>,
         (u, v, w): (f32, f32, f32),
         acc: &mut Acc,
         sc: &mut Scratch,
     ) {
+        let (Pass { brdf, kernel: k }, Tile { t0, pk, .. }, Row { m, d: adj, .. }) = (pass, tile, row);
         let fr = self.frame(m);
         if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
@@ -292,19 +294,16 @@ impl Renderer {
 
     /// Adjoint pass of measurement m over the triangles `t0..t1` with any sampling, pair by pair, into `out`
     /// (the per-triangle sums of [`Renderer::adjoint`]) and `params`, in f64.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn adjoint_pairs<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_pairs<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
-        m: usize,
-        t0: usize,
-        t1: usize,
-        adj: &[f32],
+        pass: Pass<'_, B, KernelEval>,
+        row: Row<'_>,
+        (t0, t1): (usize, usize),
         out: &mut [[f64; 12]],
         params: &mut [f64; 4],
         sc: &mut Scratch,
     ) {
+        let Row { m, d: adj, .. } = row;
         let fr = self.frame(m);
         let blk = self.tris.soa.block(t0, t1);
         if !self.pair_factors(m, t0, &blk, &fr, sc) {
@@ -312,8 +311,8 @@ impl Renderer {
         }
         for (i, o) in out.iter_mut().enumerate() {
             if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                let (g0, g1, g2, g_n, g_p) =
-                    self.adjoint_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], adj);
+                let pair = Pair { m, t: self.mesh_triangle(t0 + i), fr: &fr, sign: sc.sign[i], vis: sc.vis[i] };
+                let (g0, g1, g2, g_n, g_p) = self.adjoint_pair(pass, pair, adj);
                 for (k, g) in [g0, g1, g2, g_n].iter().enumerate() {
                     o[3 * k] += f64::from(g.x);
                     o[3 * k + 1] += f64::from(g.y);
@@ -328,18 +327,13 @@ impl Renderer {
 
     /// Adjoint pass of one pair (t, m) with any sampling: `(Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx,
     /// sign·Σ dE/dN, dE/d(params))` over its samples.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn adjoint_tm<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_pair<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
-        m: usize,
-        t: usize,
-        fr: &Frame,
-        sign: f32,
-        vis_c: f32,
+        pass: Pass<'_, B, KernelEval>,
+        pair: Pair<'_>,
         adj: &[f32],
     ) -> (Vec3, Vec3, Vec3, Vec3, [f32; 4]) {
+        let (Pass { brdf, kernel: k }, Pair { m, t, fr, sign, vis: vis_c }) = (pass, pair);
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let n2 = n.length_squared();

@@ -1,5 +1,5 @@
 // The splat rule (crate docs, "The optimiser's rule"; `splat.rs`) on the GPU: the forward pass and the adjoint
-// pass of the CPU renderer's `forward_tm_splat` / `adjoint_splat`, term for term, for a confocal or general scan
+// pass of the CPU renderer's (`render/cpu`) `forward_pair_splat` / `adjoint_tile_splat`, term for term, for a confocal or general scan
 // and the Lambertian or retroreflective BRDF, with cached (or no) visibility.
 //
 // Determinism without float atomics:
@@ -10,9 +10,10 @@
 // - adjoint: one thread per (triangle, range of measurements) sums its own terms in a fixed order; a second
 //   kernel adds the ranges in order.
 //
-// `HB` (the histogram capacity of a workgroup, in bins) is substituted by the host.
+// `HB` (the histogram capacity of a workgroup, in bins) is a pipeline-overridable constant the host sets from
+// the device's workgroup memory and the capture's bins.
 
-const HB: u32 = 1024u;
+override HB: u32 = 1024u;
 const WG: u32 = 256u;
 const PI_INV: f32 = 0.31830988618379067;
 

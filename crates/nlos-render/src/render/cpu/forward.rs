@@ -8,12 +8,12 @@ use super::*;
 use crate::brdf::RenderBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
-use crate::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
-use crate::splat::{self, Knots};
+use crate::render::cpu::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
+use crate::render::cpu::splat::{self, Knots};
 
 impl Renderer {
     /// The forward pass with kernel `k` (its bin count sets the histogram length).
-    pub(super) fn forward_with<B: RenderBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
+    pub(in crate::render) fn forward_with<B: RenderBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
         let bins = k.bins();
         let nt = self.tris.v0.len();
         let mut data = vec![0.0f32; self.wall.l.len() * bins];
@@ -34,23 +34,25 @@ impl Renderer {
                 if packed {
                     // Fixed and splat rules: the tile's potentially active triangles of the block packed once,
                     // then swept over its measurements.
-                    let n = self.block_level(t0);
                     let (hists, row_len) = if pad == 1 { (&mut local[..], bins + 2) } else { (&mut out[..], bins) };
                     if self.pack(&ms, t0, t1, &mut pk) {
+                        let tile = Tile { t0, pk: &pk, level: self.block_level(t0) };
                         for (&m, hist) in ms.iter().zip(hists.chunks_mut(row_len)) {
                             match &splat {
-                                Some(axis) => self.forward_splat(brdf, axis, n, m, t0, &pk, hist, &mut sc),
-                                None => self.forward_packed(brdf, k, n, m, t0, &pk, hist, &mut sc),
+                                Some(axis) => {
+                                    self.forward_tile_splat(Pass { brdf, kernel: axis }, tile, m, hist, &mut sc)
+                                }
+                                None => self.forward_tile_fixed(Pass { brdf, kernel: k }, tile, m, hist, &mut sc),
                             }
                         }
                     }
                 } else if pad == 1 {
                     for (j, hist) in local.chunks_mut(bins + 2).enumerate() {
-                        self.forward_block(brdf, k, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                        self.forward_pairs(Pass { brdf, kernel: k }, c * M_CHUNK + j, (t0, t1), hist, &mut sc);
                     }
                 } else {
                     for (j, hist) in out.chunks_mut(bins).enumerate() {
-                        self.forward_block(brdf, k, c * M_CHUNK + j, t0, t1, hist, &mut sc);
+                        self.forward_pairs(Pass { brdf, kernel: k }, c * M_CHUNK + j, (t0, t1), hist, &mut sc);
                     }
                 }
             }
@@ -97,13 +99,14 @@ impl Renderer {
             if vis == 0.0 {
                 continue;
             }
+            let pair = Pair { m, t: triangle, fr: &fr, sign, vis };
             // The bins written: all of them for a general kernel, those the splat rule reports for the tent.
             // Scanning and clearing only those keeps a face's share proportional to its own extent in time
             // rather than to the histogram's length (boundary pruning renders thousands of shares per block).
             let written = match self.splat_axis(&self.kernel) {
-                Some(axis) => self.forward_tm_splat(brdf, &axis, triangle, &fr, sign, vis, &mut hist),
+                Some(axis) => self.forward_pair_splat(Pass { brdf, kernel: &axis }, pair, &mut hist),
                 None => {
-                    self.forward_tm(brdf, &self.kernel, m, triangle, &fr, sign, vis, &mut hist);
+                    self.forward_pair(Pass { brdf, kernel: &self.kernel }, pair, &mut hist);
                     bins.checked_sub(1).map(|last| (0, last))
                 }
             };
@@ -123,7 +126,14 @@ impl Renderer {
     /// pair of the block needs work (the block faces away as a whole, or every triangle faces away or is
     /// hidden in the cache), and then the buffers are not filled.
     #[inline(always)]
-    pub(super) fn pair_factors(&self, m: usize, t0: usize, blk: &Block<'_>, fr: &Frame, sc: &mut Scratch) -> bool {
+    pub(in crate::render) fn pair_factors(
+        &self,
+        m: usize,
+        t0: usize,
+        blk: &Block<'_>,
+        fr: &Frame,
+        sc: &mut Scratch,
+    ) -> bool {
         let len = blk.len;
         if !self.params.two_sided && self.tris.soa.culled(t0, fr) {
             return false;
@@ -151,18 +161,15 @@ impl Renderer {
     /// padded histogram (bin k at k + 1), splat rule of level n: per sub-triangle, the vector kernel gives
     /// each triangle's centroid value and corner path lengths, then each active pair's closed-form tent
     /// weights are added over the bins it spans.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn forward_splat<B: RenderBrdf>(
+    pub(in crate::render) fn forward_tile_splat<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        axis: &TentAxis,
-        n: u32,
+        pass: Pass<'_, B, TentAxis>,
+        tile: Tile<'_>,
         m: usize,
-        t0: usize,
-        pk: &Packed,
         hist: &mut [f32],
         sc: &mut Scratch,
     ) {
+        let (Pass { brdf, kernel: axis }, Tile { t0, pk, level: n }) = (pass, tile);
         let fr = self.frame(m);
         if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
@@ -215,19 +222,15 @@ impl Renderer {
     }
 
     /// The splat rule for one pair (t, m) into an unpadded histogram (the per-triangle forward pass): the same
-    /// sub-triangles, values and weights as [`Renderer::forward_splat`]. Returns the range of bins written
+    /// sub-triangles, values and weights as [`Renderer::forward_tile_splat`]. Returns the range of bins written
     /// (`None`: none).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn forward_tm_splat<B: RenderBrdf>(
+    pub(in crate::render) fn forward_pair_splat<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        axis: &TentAxis,
-        t: usize,
-        fr: &Frame,
-        sign: f32,
-        vis_c: f32,
+        pass: Pass<'_, B, TentAxis>,
+        pair: Pair<'_>,
         hist: &mut [f32],
     ) -> Option<(usize, usize)> {
+        let (Pass { brdf, kernel: axis }, Pair { t, fr, sign, vis: vis_c, .. }) = (pass, pair);
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let inv_2n = 0.5 / n.length();
@@ -263,15 +266,12 @@ impl Renderer {
     }
 
     /// Forward pass of measurement m over the triangles `t0..t1` into its histogram, pair by pair (any
-    /// sampling but the fixed rule, which runs [`Renderer::forward_packed`]).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn forward_block<B: RenderBrdf>(
+    /// sampling but the fixed rule, which runs [`Renderer::forward_tile_fixed`]).
+    pub(in crate::render) fn forward_pairs<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
+        pass: Pass<'_, B, KernelEval>,
         m: usize,
-        t0: usize,
-        t1: usize,
+        (t0, t1): (usize, usize),
         hist: &mut [f32],
         sc: &mut Scratch,
     ) {
@@ -282,7 +282,8 @@ impl Renderer {
         }
         for i in 0..blk.len {
             if sc.sign[i] != 0.0 && sc.vis[i] != 0.0 {
-                self.forward_tm(brdf, k, m, self.mesh_triangle(t0 + i), &fr, sc.sign[i], sc.vis[i], hist);
+                let pair = Pair { m, t: self.mesh_triangle(t0 + i), fr: &fr, sign: sc.sign[i], vis: sc.vis[i] };
+                self.forward_pair(pass, pair, hist);
             }
         }
     }
@@ -290,7 +291,7 @@ impl Renderer {
     /// Packs into `pk` the triangles of the block `t0..t1` that may reflect for some measurement of `ms`
     /// (see [`Packed::pack`]; measurements for which the whole block faces away are left out of the spot
     /// boxes). False when none may.
-    pub(super) fn pack(&self, ms: &[usize], t0: usize, t1: usize, pk: &mut Packed) -> bool {
+    pub(in crate::render) fn pack(&self, ms: &[usize], t0: usize, t1: usize, pk: &mut Packed) -> bool {
         pk.len = 0;
         let mut boxes: Option<(SpotBox, SpotBox)> = None;
         for &m in ms {
@@ -309,7 +310,14 @@ impl Renderer {
     /// Orientation sign and cached visible fraction of every packed triangle of `pk` (block starting at slot
     /// `t0`) for measurement m; false when none of them needs work.
     #[inline(always)]
-    pub(super) fn packed_factors(&self, m: usize, t0: usize, pk: &Packed, fr: &Frame, sc: &mut Scratch) -> bool {
+    pub(in crate::render) fn packed_factors(
+        &self,
+        m: usize,
+        t0: usize,
+        pk: &Packed,
+        fr: &Frame,
+        sc: &mut Scratch,
+    ) -> bool {
         if !self.params.two_sided && self.tris.soa.culled(t0, fr) {
             return false;
         }
@@ -334,18 +342,15 @@ impl Renderer {
 
     /// Forward pass of measurement m over the packed triangles `pk` of the block starting at slot `t0` into
     /// its histogram (padded by one bin at each end on the tent fast path), fixed rule of level n.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn forward_packed<B: RenderBrdf>(
+    pub(in crate::render) fn forward_tile_fixed<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
-        n: u32,
+        pass: Pass<'_, B, KernelEval>,
+        tile: Tile<'_>,
         m: usize,
-        t0: usize,
-        pk: &Packed,
         hist: &mut [f32],
         sc: &mut Scratch,
     ) {
+        let (Pass { brdf, kernel: k }, Tile { t0, pk, level: n }) = (pass, tile);
         let fr = self.frame(m);
         if !self.packed_factors(m, t0, pk, &fr, sc) {
             return;
@@ -390,20 +395,14 @@ impl Renderer {
         });
     }
 
-    /// Forward pass of one pair (t, m) with any sampling (`sign` its orientation, `vis_c` its cached visible
-    /// fraction, both non-zero).
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn forward_tm<B: RenderBrdf>(
+    /// Forward pass of one pair (t, m) with any sampling.
+    pub(in crate::render) fn forward_pair<B: RenderBrdf>(
         &self,
-        brdf: &B,
-        k: &KernelEval,
-        m: usize,
-        t: usize,
-        fr: &Frame,
-        sign: f32,
-        vis_c: f32,
+        pass: Pass<'_, B, KernelEval>,
+        pair: Pair<'_>,
         hist: &mut [f32],
     ) {
+        let (Pass { brdf, kernel: k }, Pair { m, t, fr, sign, vis: vis_c }) = (pass, pair);
         let live = self.params.visibility == Visibility::Live;
         let n = sign * self.tris.n[t];
         let inv_2n = 0.5 / n.length();

@@ -6,17 +6,17 @@ use super::*;
 /// normals `m ~ D(m)(m·n)` about the oriented unit normal `n`, mapped to the plane through the ray from `l`
 /// along `−m`.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Lobe {
-    pub(super) alpha2: f32,
-    pub(super) n: Vec3,
+pub(in crate::render) struct Lobe {
+    pub(in crate::render) alpha2: f32,
+    pub(in crate::render) n: Vec3,
     /// Tangent frame of n.
-    pub(super) t1: Vec3,
-    pub(super) t2: Vec3,
-    pub(super) l: Vec3,
+    pub(in crate::render) t1: Vec3,
+    pub(in crate::render) t2: Vec3,
+    pub(in crate::render) l: Vec3,
 }
 
 impl Lobe {
-    pub(super) fn new(alpha: f32, n_raw: Vec3, l: Vec3) -> Self {
+    pub(in crate::render) fn new(alpha: f32, n_raw: Vec3, l: Vec3) -> Self {
         let a = alpha.max(1e-3);
         let n = n_raw.normalize_or_zero();
         let (t1, t2) = n.any_orthonormal_pair();
@@ -25,7 +25,7 @@ impl Lobe {
 
     /// GGX `D(m)` at `cos θ_m = c`: `α²/(π (c²(α² − 1) + 1)²)`.
     #[inline(always)]
-    pub(super) fn d(&self, c: f32) -> f32 {
+    pub(in crate::render) fn d(&self, c: f32) -> f32 {
         let k = c * c * (self.alpha2 - 1.0) + 1.0;
         self.alpha2 / (std::f32::consts::PI * k * k)
     }
@@ -33,7 +33,7 @@ impl Lobe {
     /// The lobe's density at x per unit area of the plane: `D(m)(n·m)²/|x − l|²`, `m = (l − x)/|l − x|`
     /// (0 behind the plane).
     #[inline(always)]
-    pub(super) fn pdf(&self, x: Vec3) -> f32 {
+    pub(in crate::render) fn pdf(&self, x: Vec3) -> f32 {
         let d = self.l - x;
         let r2 = d.length_squared();
         let c = self.n.dot(d) / r2.sqrt();
@@ -46,7 +46,7 @@ impl Lobe {
     /// The barycentric coordinates (u along e1, v along e2) of the lobe sample for uniforms `(r1, r2)`, or
     /// None when the ray misses the plane or the point is outside the triangle.
     #[inline(always)]
-    pub(super) fn sample(&self, r1: f32, r2: f32, v0: Vec3, e1: Vec3, e2: Vec3) -> Option<(f32, f32)> {
+    pub(in crate::render) fn sample(&self, r1: f32, r2: f32, v0: Vec3, e1: Vec3, e2: Vec3) -> Option<(f32, f32)> {
         // tan²θ = α² r1/(1 − r1) samples D(m) cos θ_m.
         let tan2 = self.alpha2 * r1 / (1.0 - r1);
         let cos = 1.0 / (1.0 + tan2).sqrt();

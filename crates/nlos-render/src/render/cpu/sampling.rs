@@ -6,24 +6,24 @@ use glam::Vec3;
 
 use super::*;
 use crate::kernel::KernelEval;
-use crate::soa::{BLOCK, Frame, TentAxis};
+use crate::render::cpu::soa::{BLOCK, Frame, TentAxis};
 use nlos_transient::rng::SplitMix64;
 
 impl Renderer {
     #[inline(always)]
-    pub(super) fn frame(&self, m: usize) -> Frame {
+    pub(in crate::render) fn frame(&self, m: usize) -> Frame {
         Frame { l: self.wall.l[m], n_l: self.wall.n_l[m], s: self.wall.s[m], n_s: self.wall.n_s[m] }
     }
 
     #[inline(always)]
-    pub(super) fn point(&self, t: usize, u: f32, v: f32) -> Vec3 {
+    pub(in crate::render) fn point(&self, t: usize, u: f32, v: f32) -> Vec3 {
         self.tris.v0[t] + u * self.tris.e1[t] + v * self.tris.e2[t]
     }
 
     /// +1 when l and s are both on the front side of triangle t, −1 when both behind and two-sided, else
     /// None. Exact for the whole face: N·(l − x) does not depend on x in the plane.
     #[inline(always)]
-    pub(super) fn orientation(&self, t: usize, fr: &Frame) -> Option<f32> {
+    pub(in crate::render) fn orientation(&self, t: usize, fr: &Frame) -> Option<f32> {
         if !self.tris.valid[t] {
             return None;
         }
@@ -39,7 +39,7 @@ impl Renderer {
     }
 
     #[inline(always)]
-    pub(super) fn visible_live(&self, x: Vec3, t: usize, fr: &Frame) -> bool {
+    pub(in crate::render) fn visible_live(&self, x: Vec3, t: usize, fr: &Frame) -> bool {
         match &self.bvh {
             None => true,
             Some(b) => b.visible(x, fr.l, t as u32) && (self.wall.confocal || b.visible(x, fr.s, t as u32)),
@@ -49,13 +49,13 @@ impl Renderer {
     /// Calls `f(u, v, w)` for the `n²` sub-triangle centroids of level n (barycentric coordinates u along
     /// e1, v along e2; weight `w = 1/n²`, the fraction of the triangle's area).
     #[inline(always)]
-    pub(super) fn centroids(&self, n: u32, mut f: impl FnMut(f32, f32, f32)) {
+    pub(in crate::render) fn centroids(&self, n: u32, mut f: impl FnMut(f32, f32, f32)) {
         subtriangles(n, |s| f(s.centroid.0, s.centroid.1, s.w));
     }
 
     /// Deterministic level for (t, m): see [`DeterministicRule`].
     #[inline(always)]
-    pub(super) fn level(&self, rule: &DeterministicRule, t: usize, fr: &Frame) -> u32 {
+    pub(in crate::render) fn level(&self, rule: &DeterministicRule, t: usize, fr: &Frame) -> u32 {
         if rule.min_level >= rule.max_level {
             return rule.max_level;
         }
@@ -81,7 +81,7 @@ impl Renderer {
     /// triangle's area (the estimator of `∫_t h dA` is `A_t Σ w h(x)`). `lobe`: the BRDF's lobe roughness
     /// (see [`Renderer::set_lobe_sampling`]); `sign`: the pair's orientation.
     #[inline(always)]
-    pub(super) fn samples(
+    pub(in crate::render) fn samples(
         &self,
         m: usize,
         t: usize,
@@ -167,14 +167,14 @@ impl Renderer {
 
     /// The mesh triangle at storage slot `slot` of the block kernels' layout.
     #[inline(always)]
-    pub(super) fn mesh_triangle(&self, slot: usize) -> usize {
+    pub(in crate::render) fn mesh_triangle(&self, slot: usize) -> usize {
         self.tris.soa.order[slot] as usize
     }
 
     /// The fixed level when the sampling is the deterministic rule with `min_level = max_level` (the block
     /// kernels' case), else None.
     #[inline(always)]
-    pub(super) fn fixed_level(&self) -> Option<u32> {
+    pub(in crate::render) fn fixed_level(&self) -> Option<u32> {
         match self.params.sampling {
             Sampling::Deterministic(rule) if rule.min_level >= rule.max_level => Some(rule.max_level),
             _ => None,
@@ -183,13 +183,13 @@ impl Renderer {
 
     /// Whether the sampling runs the packed block kernels: the fixed deterministic rule and the splat rule.
     #[inline(always)]
-    pub(super) fn packed_rule(&self) -> bool {
+    pub(in crate::render) fn packed_rule(&self) -> bool {
         self.fixed_level().is_some() || matches!(self.params.sampling, Sampling::Splat(_))
     }
 
     /// The subdivision level of the block starting at slot `t0` for the packed rules (1 for the others).
     #[inline(always)]
-    pub(super) fn block_level(&self, t0: usize) -> u32 {
+    pub(in crate::render) fn block_level(&self, t0: usize) -> u32 {
         match self.params.sampling {
             Sampling::Splat(_) => self.block_levels.get(t0 / BLOCK).copied().unwrap_or(1),
             _ => self.fixed_level().unwrap_or(1),
@@ -198,7 +198,7 @@ impl Renderer {
 
     /// The tent kernel's constants when the splat rule applies (splat sampling and the tent kernel `k`).
     #[inline(always)]
-    pub(super) fn splat_axis(&self, k: &KernelEval) -> Option<TentAxis> {
+    pub(in crate::render) fn splat_axis(&self, k: &KernelEval) -> Option<TentAxis> {
         match self.params.sampling {
             Sampling::Splat(_) => k.tent(),
             _ => None,
@@ -207,7 +207,7 @@ impl Renderer {
 
     /// The tent kernel's block constants when the fast path applies (fixed deterministic rule, tent kernel).
     #[inline(always)]
-    pub(super) fn tent_path(&self, k: &KernelEval) -> Option<TentAxis> {
+    pub(in crate::render) fn tent_path(&self, k: &KernelEval) -> Option<TentAxis> {
         self.fixed_level().and(k.tent())
     }
 }

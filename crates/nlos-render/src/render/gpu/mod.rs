@@ -1,6 +1,6 @@
 //! The splat rule on a GPU (feature `gpu`): [`GpuRenderer`] runs [`Renderer::forward`] and
 //! [`Renderer::adjoint`] of a [`Renderer`] through wgpu compute shaders (Vulkan, Metal, DX12), term for term the
-//! arithmetic of the CPU's splat kernels (`gpu.wgsl` names the functions it follows).
+//! arithmetic of the CPU's splat kernels (`shader.wgsl` names the functions it follows).
 //!
 //! What it covers: [`Sampling::Splat`] with the tent kernel (the optimiser's rule), visibility
 //! [`Visibility::Off`] or [`Visibility::Cached`] (the cache is computed on the CPU and uploaded when it changes),
@@ -358,12 +358,13 @@ impl GpuRenderer {
         if self.pipelines.as_ref().is_some_and(|p| p.hb == hb) {
             return Ok(());
         }
-        let source = include_str!("gpu.wgsl").replacen("const HB: u32 = 1024u;", &format!("const HB: u32 = {hb}u;"), 1);
         let scopes = Scopes::push(&self.device);
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("gpu.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
+            label: Some("shader.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
         });
+        // The histogram capacity, the shader's overridable `HB`.
+        let constants = [("HB", f64::from(hb))];
         let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: None,
             bind_group_layouts: &[Some(&self.layout)],
@@ -375,7 +376,10 @@ impl GpuRenderer {
                 layout: Some(&layout),
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..wgpu::PipelineCompilationOptions::default()
+                },
                 cache: None,
             })
         };
