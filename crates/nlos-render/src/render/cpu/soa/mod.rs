@@ -7,6 +7,8 @@
 
 use glam::Vec3;
 
+pub(crate) use crate::kernel::TentAxis;
+
 /// Triangles per block of the tiled loops: a block's geometry (13 arrays), per-pair buffers and adjoint
 /// accumulators (16 arrays) take about 40 KiB, so they stay in L1/L2 while the measurements stream past.
 pub(crate) const BLOCK: usize = 256;
@@ -550,37 +552,6 @@ macro_rules! kernel {
 #[inline(never)]
 pub(crate) fn orientation_dispatch(isa: Isa, b: &Block<'_>, fr: &Frame, two_sided: bool, sign: &mut [f32]) {
     dispatch!(isa, orientation(b, fr, two_sided, sign))
-}
-
-/// The tent kernel's bin arithmetic in the block kernels (the same expressions as `KernelEval::weights`):
-/// `c = (τ − t0)/Δ − ½`, lower bin `k0 = ⌊c⌋`, weights `1 − (c − k0)` and `c − k0`. Histograms and adjoint
-/// rows are padded by one zero bin at each end (bin k at index k + 1), so a pair whose lower bin is in
-/// `−1..bins` needs no bounds logic; other pairs have no bin in range and get weight 0.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TentAxis {
-    pub(crate) t0: f32,
-    pub(crate) inv_dt: f32,
-    /// `bins − 1`, the largest valid lower bin.
-    pub(crate) last: f32,
-}
-
-impl TentAxis {
-    /// `(padded index of the lower bin, fraction c − k0, whether any bin is in range)`. Branch-free and free
-    /// of float → int conversions (Rust's saturating casts do not vectorise): c is clamped to
-    /// `[−2, bins]` (NaN → −2, out of range), rounded with the 1.5·2²³ trick (exact round-to-nearest for
-    /// |c| < 2²², no fast-math here), stepped down to the floor, and the integer read from the bits.
-    #[inline(always)]
-    fn bin(&self, tau: f32) -> (u32, f32, bool) {
-        const MAGIC: f32 = 12_582_912.0; // 1.5 · 2²³: ulp 1 over [2²³, 2²⁴)
-        let c = ((tau - self.t0) * self.inv_dt - 0.5).max(-2.0).min(self.last + 1.0);
-        let r = (c + MAGIC) - MAGIC;
-        let kf = if r > c { r - 1.0 } else { r };
-        let frac = c - kf;
-        let in_range = (kf >= -1.0) & (kf <= self.last);
-        // kf + 1 ∈ [−1, bins + 1] is an integer: MAGIC + it has it in the low mantissa bits.
-        let p = (kf.max(-1.0).min(self.last) + 1.0 + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits());
-        (p, frac, in_range)
-    }
 }
 
 mod point;
