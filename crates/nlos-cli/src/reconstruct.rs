@@ -356,8 +356,9 @@ impl Reporter {
     }
 }
 
-/// One block's line for a log: stage, block, faces, loss, elapsed time and the time left at the pace so far
-/// (an upper bound: the plan's iterations are a maximum).
+/// One block's line for a log: stage, block, faces, loss, elapsed time, and the time the planned iterations
+/// left would take at the pace so far — an estimate, low while stages still refine (a finer stage's faces
+/// cost more per step) and high when a stage ends early.
 fn progress_line(p: &Progress) -> String {
     let left = if p.iteration > 0 && p.iterations_planned > p.iteration {
         p.elapsed_s * (p.iterations_planned - p.iteration) as f64 / p.iteration as f64
@@ -365,7 +366,7 @@ fn progress_line(p: &Progress) -> String {
         0.0
     };
     format!(
-        "progress: stage {}/{} · block {} · {} faces · loss {:.4e} · {} elapsed · at most {} left",
+        "progress: stage {}/{} · block {} · {} faces · loss {:.4e} · {} elapsed · about {} left at this pace",
         p.stage + 1,
         p.max_stages,
         p.blocks_done,
