@@ -356,12 +356,14 @@ impl<'a> Panel<'a> {
                 }
             }
             PanelContent::Line { x, y, color, .. } => {
-                polyline(&mut img, (px0, py0), (w, h), (&xn, &yn), self.y_direction, (x, y), *color, false);
+                let area = Area { origin: (px0, py0), size: (w, h), axes: (&xn, &yn), dir: self.y_direction };
+                polyline(&mut img, &area, (x, y), *color, false);
             }
             PanelContent::Lines { series, y_scale } => {
                 let log = matches!(y_scale, Scale::Log { .. });
+                let area = Area { origin: (px0, py0), size: (w, h), axes: (&xn, &yn), dir: self.y_direction };
                 for sr in series {
-                    polyline(&mut img, (px0, py0), (w, h), (&xn, &yn), self.y_direction, (sr.x, sr.y), sr.color, log);
+                    polyline(&mut img, &area, (sr.x, sr.y), sr.color, log);
                 }
                 // Legend: a boxed list of colour swatches and labels in the top-right corner.
                 let listed: Vec<&Series<'_>> = series.iter().filter(|sr| !sr.label.is_empty()).collect();
@@ -489,19 +491,19 @@ fn line_axes(curves: &[(&[f64], &[f64])], y_scale: Scale) -> Result<(Norm, Norm)
     Ok((xn, yn))
 }
 
-/// Draws the curve `(x, y)` in the plot area at `origin` of `size` pixels; non-finite points (and, with
-/// `skip_nonpositive`, points with y ≤ 0) break it.
-#[allow(clippy::too_many_arguments)]
-fn polyline(
-    img: &mut RgbImage,
+/// A panel's plot area: its top-left pixel, its size in pixels, the axes' maps from data to `[0, 1]` and the
+/// direction of y.
+struct Area<'a> {
     origin: (i64, i64),
     size: (usize, usize),
-    axes: (&Norm, &Norm),
+    axes: (&'a Norm, &'a Norm),
     dir: YDirection,
-    (x, y): (&[f64], &[f64]),
-    color: Rgb,
-    skip_nonpositive: bool,
-) {
+}
+
+/// Draws the curve `(x, y)` in the plot area `area`; non-finite points (and, with `skip_nonpositive`, points
+/// with y ≤ 0) break it.
+fn polyline(img: &mut RgbImage, area: &Area<'_>, (x, y): (&[f64], &[f64]), color: Rgb, skip_nonpositive: bool) {
+    let Area { origin, size, axes, dir } = *area;
     let mut prev: Option<(i64, i64)> = None;
     for (&a, &b) in x.iter().zip(y.iter()) {
         if !(a.is_finite() && b.is_finite()) || (skip_nonpositive && b <= 0.0) {
