@@ -96,7 +96,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     match gated.sensor_grid() {
         Some((nx, ny)) => {
             let iy = args.row.unwrap_or(ny / 2);
-            grid_figure(&gated, &name, nx, ny, iy, gate, &gate_note, &args.out)
+            grid_figure(&gated, &name, (nx, ny), iy, (gate, &gate_note), &args.out)
         }
         None => list_figure(&gated, &name, gate, &gate_note, &args.out),
     }
@@ -111,15 +111,15 @@ fn grid_extents(t: &Transient, nx: usize, ny: usize) -> Result<(Extent, Extent),
     Ok((ex, ey))
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The preview of a capture on an `nx × ny` sensor grid: its time-summed image and the x–t slice of grid row
+/// `iy`, titled with `name`; `gate` is the path length before which bins were zeroed (marked on the slice) and
+/// the note saying how it was chosen.
 fn grid_figure(
     t: &Transient,
     name: &str,
-    nx: usize,
-    ny: usize,
+    (nx, ny): (usize, usize),
     iy: usize,
-    gate: Option<f64>,
-    gate_note: &str,
+    (gate, gate_note): (Option<f64>, &str),
     out: &Path,
 ) -> Result<(), CliError> {
     let image = t.time_summed_image().map_err(CliError::input)?;
