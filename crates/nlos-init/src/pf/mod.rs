@@ -215,14 +215,14 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
             ),
         });
     }
-    let sigma = params.cycles * wavelength / 6.0;
+    let pulse = Pulse { wavelength, sigma: params.cycles * wavelength / 6.0 };
     let z = Axis { start: 0.5 * dz, step: dz };
     if let Some(plan) = Planar::of(t, &columns).filter(|_| planar) {
         let window = Window { t0: time.t0, delta: time.bin_width, first, len: last - first };
-        let data = plan.focus(t, &window, wavelength, sigma, params.reflectance, z, nz)?;
+        let data = plan.focus(t, &window, pulse, params.reflectance, z, nz)?;
         return Ok(Volume { nx: columns.nx, ny: columns.ny, nz, x: columns.x, y: columns.y, z, data });
     }
-    let filtered = filter(t, first, last, wavelength, sigma)?;
+    let filtered = filter(t, first, last, pulse)?;
     let groups = laser_groups(t);
     let power = params.reflectance.distance_power() as i32 / 2;
     let window = Window { t0: time.t0, delta: time.bin_width, first, len: last - first };
@@ -331,6 +331,13 @@ fn focus_column(
     }
 }
 
+/// The virtual pulse (module docs): its wavelength λ and its Gaussian envelope's width σ, metres of path.
+#[derive(Debug, Clone, Copy)]
+struct Pulse {
+    wavelength: f64,
+    sigma: f64,
+}
+
 /// The length of the time FFT for `len` bins of `delta` metres: room for the pulse's tails (±4σ) so that the
 /// circular convolution does not wrap, rounded up to a power of two.
 fn fft_len(len: usize, sigma: f64, delta: f64) -> usize {
@@ -346,7 +353,8 @@ fn pulse_spectrum(f: f64, fc: f64, sigma: f64) -> f64 {
 /// Each measurement's bins `first..last` convolved with the virtual pulse (module docs), by FFT: the
 /// pulse's spectrum `σ√(2π)·exp(−2π²σ²(f − 1/λ)²)` is one-sided, so the result is the analytic (complex)
 /// signal of the band-passed histogram.
-fn filter(t: &Transient, first: usize, last: usize, wavelength: f64, sigma: f64) -> Result<Vec<Complex32>> {
+fn filter(t: &Transient, first: usize, last: usize, pulse: Pulse) -> Result<Vec<Complex32>> {
+    let Pulse { wavelength, sigma } = pulse;
     let len = last - first;
     let delta = t.time().bin_width;
     let n = fft_len(len, sigma, delta);

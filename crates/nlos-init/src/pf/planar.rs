@@ -32,7 +32,7 @@ use rustfft::{Fft, FftPlanner};
 
 use nlos_transient::{Layout, Transient};
 
-use super::{Columns, Window, fft_len, pulse_spectrum};
+use super::{Columns, Pulse, Window, fft_len, pulse_spectrum};
 use crate::error::{InitError, Result};
 use crate::volume::Axis;
 use nlos_brdf::Model;
@@ -92,13 +92,11 @@ impl Planar {
     }
 
     /// The volume's magnitudes, `data[(ix + nx·iy)·nz + iz]`.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn focus(
         &self,
         t: &Transient,
         w: &Window,
-        wavelength: f64,
-        sigma: f64,
+        pulse: Pulse,
         reflectance: Model,
         z: Axis,
         nz: usize,
@@ -106,7 +104,7 @@ impl Planar {
         let (nx, ny) = (self.nx, self.ny);
         let n_sparse = self.sparse.len().max(1);
         let (px, py) = (fft_size(2 * nx), fft_size(2 * ny));
-        let band = Band::new(w, wavelength, sigma);
+        let band = Band::new(w, pulse);
         let fields = self.wall_fields(t, w, &band, reflectance, px, py)?;
         let mut planner = FftPlanner::<f32>::new();
         let ffts = Ffts { x: planner.plan_fft_inverse(px), y: planner.plan_fft_inverse(py) };
@@ -126,7 +124,8 @@ impl Planar {
                 for (j, &f) in freqs.iter().enumerate() {
                     let jb = c * chunk + j;
                     let g = &fields[jb * n_sparse * px * py..(jb + 1) * n_sparse * px * py];
-                    self.focus_frequency(f, band.tau0, g, &ffts, (px, py), z, phases.as_ref(), &mut acc);
+                    let wave = Wave { f, tau0: band.tau0, fields: g, phases: phases.as_ref() };
+                    self.focus_frequency(&wave, &ffts, (px, py), z, &mut acc);
                     if let Some(p) = phases.as_mut() {
                         p.advance();
                     }
@@ -176,20 +175,10 @@ impl Planar {
         Phases { cur, step }
     }
 
-    /// Adds frequency `f`'s focused wave at every depth to `acc` (plane-major, `acc[iz·columns + c]`);
-    /// `phases` holds the sparse points' phases at `f` (else they are computed here).
-    #[allow(clippy::too_many_arguments)]
-    fn focus_frequency(
-        &self,
-        f: f64,
-        tau0: f64,
-        g: &[Complex32],
-        ffts: &Ffts,
-        (px, py): (usize, usize),
-        z: Axis,
-        phases: Option<&Phases>,
-        acc: &mut [Complex32],
-    ) {
+    /// Adds frequency `wave.f`'s focused wave at every depth to `acc` (plane-major, `acc[iz·columns + c]`);
+    /// `wave.phases` holds the sparse points' phases at `f` (else they are computed here).
+    fn focus_frequency(&self, wave: &Wave<'_>, ffts: &Ffts, (px, py): (usize, usize), z: Axis, acc: &mut [Complex32]) {
+        let Wave { f, tau0, fields: g, phases } = *wave;
         let (nx, ny) = (self.nx, self.ny);
         let columns = nx * ny;
         let nz = acc.len() / columns;
@@ -396,6 +385,16 @@ struct Ffts {
     y: Arc<dyn Fft<f32>>,
 }
 
+/// One frequency of the virtual wave as [`Planar::focus`] sums it: the frequency `f` (cycles per metre of
+/// path), the band's time origin `tau0`, its fields on the wall (`n_sparse × px × py`) and, where tabulated,
+/// the sparse points' phases at `f`.
+struct Wave<'a> {
+    f: f64,
+    tau0: f64,
+    fields: &'a [Complex32],
+    phases: Option<&'a Phases>,
+}
+
 /// The frequencies of the virtual pulse's band on the time FFT's grid.
 struct Band {
     /// The time FFT's length.
@@ -413,7 +412,8 @@ struct Band {
 }
 
 impl Band {
-    fn new(w: &Window, wavelength: f64, sigma: f64) -> Self {
+    fn new(w: &Window, pulse: Pulse) -> Self {
+        let Pulse { wavelength, sigma } = pulse;
         let n = fft_len(w.len, sigma, w.delta);
         let fc = 1.0 / wavelength;
         let (mut bins, mut freqs, mut gain) = (Vec::new(), Vec::new(), Vec::new());
