@@ -90,7 +90,7 @@ impl Renderer {
     #[pyo3(signature = (vertices, faces, setup, *, brdf = "lambert", albedo = 1.0, alpha = 0.3, specular = 1.0,
         kernel = "tent", sampling = "splat", visibility = "cached", vis_level = 1, two_sided = false,
         device = "cpu"))]
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)] // one per Python keyword argument
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
@@ -255,7 +255,7 @@ impl Renderer {
 #[pyfunction]
 #[pyo3(signature = (vertices, faces, setup = None, *, brdf = "lambert", alpha = 0.3, visibility = "cached",
     vis_level = 2, two_sided = false, photons = None, seed = 0))]
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // one per Python keyword argument
 pub(crate) fn render(
     py: Python<'_>,
     vertices: &Bound<'_, PyAny>,

@@ -516,20 +516,20 @@ macro_rules! kernel {
     ) => {
         $(#[$attr])*
         #[inline(always)]
-        #[allow(clippy::too_many_arguments)]
+        #[allow(clippy::too_many_arguments)] // separate `&mut` parameters by design (the macro's docs)
         fn $body $($generics)* ($($arg: $ty),*) $code
 
         #[doc = concat!("[`", stringify!($body), "`] compiled for AVX2 + FMA.")]
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2,fma")]
-        #[allow(clippy::too_many_arguments)]
+        #[allow(clippy::too_many_arguments)] // as `$body`
         fn $avx2 $($generics)* ($($arg: $ty),*) {
             $body $($turbofish)* ($($arg),*)
         }
 
         #[doc = concat!("[`", stringify!($body), "`], compiled for the best instruction set `isa` has.")]
         #[inline(always)]
-        #[allow(clippy::too_many_arguments)]
+        #[allow(clippy::too_many_arguments)] // as `$body`, and `isa`
         fn $best $($generics)* (isa: Isa, $($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             if isa.avx2 {

@@ -223,7 +223,6 @@ impl Acc {
 /// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
 /// `(A_val, A_der)` (see the crate docs), accumulated into `acc` (index i for triangle i of `b`) where
 /// `a_val[i]` or `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
@@ -245,7 +244,7 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: 
 }
 
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // the accumulator streams as separate `&mut` slices (comment below)
 fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
     brdf: &B,

@@ -194,7 +194,6 @@ fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
 /// (as [`adjoint_lengths`] without a kernel), the corner path lengths `kn` (node units) and their gradients
 /// `dir` with respect to the corner positions.
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn splat_lengths<const CONFOCAL: bool>(
     isa: Isa,
     b: &Block<'_>,
@@ -339,7 +338,7 @@ pub(crate) fn splat_corner_terms(isa: Isa, len: usize, sc: &Scratch, acc: &mut A
 }
 
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // separate slices: the three output streams alias nothing, so the loop vectorises
 fn corner_terms_body(
     hs: &[f32],
     ct: &[f32],
