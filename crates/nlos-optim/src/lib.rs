@@ -70,7 +70,7 @@ pub use reconstruct::{
 pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{
-    LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,
+    LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchFit, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,
     residual_patches,
 };
 pub use schedule::{PHASOR_START_BLOCKS, Schedule, faces_at};

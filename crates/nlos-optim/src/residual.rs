@@ -188,30 +188,50 @@ pub struct Patches {
     pub notes: Vec<PatchNote>,
 }
 
+/// The fit a patch is tested against ([`residual_patches`]): the renderer's settings and the BRDF that render
+/// a patch's share, the mesh's forward pass `rendered` (updated in place with the accepted patches' shares),
+/// and `row_loss`, the data term of histogram `m` ([`RowLoss`]) at the block's scale; a term that keeps
+/// something of the rendering ([`crate::RowTerm::applied`]) must hold `rendered`'s, and is told of every share
+/// tried and taken back.
+pub struct PatchFit<'a> {
+    /// The renderer's settings for the patches' shares.
+    pub render: RenderParams,
+    /// The reflectance of the patches.
+    pub brdf: &'a AnyBrdf,
+    /// The mesh's forward pass, one value per measurement and bin.
+    pub rendered: &'a mut [f32],
+    /// The data term, one histogram at a time.
+    pub row_loss: &'a RowLoss<'a>,
+}
+
+impl std::fmt::Debug for PatchFit<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PatchFit")
+            .field("render", &self.render)
+            .field("brdf", self.brdf)
+            .field("rendered", &self.rendered.len())
+            .finish_non_exhaustive()
+    }
+}
+
 /// Proposes new surface from the residual of the fit (module docs).
 ///
 /// `positions`/`triangles` are the current mesh, `measured` the measurement (for its scan and time axis),
-/// `residual` the measurement minus the data term's model (one value per measurement and bin), `rendered`
-/// the mesh's forward pass with `brdf` (updated in place with the accepted patches' shares) and
-/// `row_loss` the data term of histogram `m` ([`RowLoss`]) at the block's scale; a term that keeps something
-/// of the rendering ([`crate::RowTerm::applied`]) must hold `rendered`'s, and is told of every share tried
-/// and taken back.
+/// `residual` the measurement minus the data term's model (one value per measurement and bin), and `fit` what
+/// a patch is tested against ([`PatchFit`]).
 ///
 /// # Errors
 /// Invalid parameters, a residual of the wrong length, and renderer or volume failures other than an
 /// unsupported scan (one the volume cannot take returns empty [`Patches`] with [`Patches::skipped`] set).
-#[allow(clippy::too_many_arguments)]
 pub fn residual_patches(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     measured: &Transient,
     residual: Vec<f32>,
-    render: RenderParams,
-    brdf: &AnyBrdf,
-    rendered: &mut [f32],
-    row_loss: &RowLoss<'_>,
+    fit: PatchFit<'_>,
     params: &ResidualParams,
 ) -> Result<Patches> {
+    let PatchFit { render, brdf, rendered, row_loss } = fit;
     params.validate()?;
     let bins = measured.bins();
     let n = measured.data().len();

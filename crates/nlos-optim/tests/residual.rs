@@ -8,7 +8,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
-use nlos_optim::{DataTerm, LOCALISED_CONTRAST, ResidualParams, localisation, residual_patches};
+use nlos_optim::{DataTerm, LOCALISED_CONTRAST, PatchFit, ResidualParams, localisation, residual_patches};
 use nlos_render::RowSpan;
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -77,10 +77,7 @@ fn run(s: &Setup, mesh: &(Vec<Vec3>, Vec<[u32; 3]>), measured: &[f32]) -> (nlos_
         &mesh.1,
         &t,
         residual,
-        s.render,
-        &brdf(),
-        &mut rendered,
-        &row_loss,
+        PatchFit { render: s.render, brdf: &brdf(), rendered: &mut rendered, row_loss: &row_loss },
         &ResidualParams::default(),
     )
     .unwrap();
@@ -164,10 +161,7 @@ fn a_residual_of_the_wrong_length_is_a_typed_error() {
         &mesh.1,
         &t,
         vec![0.0; 7],
-        s.render,
-        &brdf(),
-        &mut rendered,
-        &row_loss,
+        PatchFit { render: s.render, brdf: &brdf(), rendered: &mut rendered, row_loss: &row_loss },
         &ResidualParams::default(),
     );
     assert!(matches!(e, Err(nlos_optim::OptimError::LengthMismatch { what: "residual", .. })), "{e:?}");

@@ -24,7 +24,7 @@ use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
-use crate::residual::{PatchNote, ResidualRecord, residual_patches};
+use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_patches};
 use crate::schedule::faces_at;
 
 /// What every block of a run shares: its settings and what was decided from them once.
@@ -357,10 +357,7 @@ pub(super) fn prune_and_patch(
             &st.triangles,
             b.measured,
             res,
-            *b.renderer.params(),
-            &brdf,
-            &mut rendered,
-            row_loss,
+            PatchFit { render: *b.renderer.params(), brdf: &brdf, rendered: &mut rendered, row_loss },
             rp,
         )?;
         if !p.triangles.is_empty() {
