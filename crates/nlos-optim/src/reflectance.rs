@@ -59,15 +59,6 @@ impl Reflectance {
         })
     }
 
-    /// The model, by name.
-    pub fn model(&self) -> Model {
-        match self {
-            Reflectance::Lambertian { .. } => Model::Lambert,
-            Reflectance::Ggx { .. } => Model::Ggx,
-            Reflectance::Retroreflective { .. } => Model::Retroreflective,
-        }
-    }
-
     /// From a Lambertian BRDF.
     pub fn from_lambertian(b: &Lambertian<f32>) -> Self {
         Reflectance::Lambertian { theta: f64::from(LambertianTheta::from_lambertian(b).albedo) }

@@ -175,11 +175,6 @@ impl AnyBrdf {
         Self::new(model, albedo, 1.0, alpha)
     }
 
-    /// The model, by name.
-    pub fn model(&self) -> Model {
-        with_brdf!(self, b => model_of(b))
-    }
-
     /// Parameter names, in the order of [`AnyBrdf::params`] and of [`crate::Gradient::brdf`].
     pub fn param_names(&self) -> &'static [&'static str] {
         with_brdf!(self, b => param_names_of(b))
@@ -225,10 +220,6 @@ impl AnyBrdf {
     pub fn adjoint(&self, r: &crate::Renderer, d_loss: &[f32]) -> Result<crate::Gradient> {
         with_brdf!(self, b => r.adjoint(b, d_loss))
     }
-}
-
-fn model_of<B: RenderBrdf>(_: &B) -> Model {
-    B::MODEL
 }
 
 fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {

@@ -25,17 +25,20 @@ pub use params::*;
 /// where none can run, `none: …` and the reason `set_device` reports. Opens the process's GPU as
 /// `set_device` does (once per process; the passes' BRDF is checked per call, not here).
 pub fn describe_device(device: Device, params: &RenderParams) -> String {
+    if device == Device::Cpu {
+        return "the CPU (render.device = \"cpu\")".into();
+    }
     #[cfg(feature = "gpu")]
     {
-        gpu::describe(device, params)
+        gpu::describe(device == Device::Gpu, params)
     }
     #[cfg(not(feature = "gpu"))]
     {
         let _ = params;
-        match device {
-            Device::Cpu => "the CPU (render.device = \"cpu\")".into(),
-            Device::Auto => "the CPU (render.device = \"auto\": this build has no GPU backend)".into(),
-            Device::Gpu => "none: render.device = \"gpu\", but this build has no GPU backend".into(),
+        if device == Device::Gpu {
+            "none: render.device = \"gpu\", but this build has no GPU backend".into()
+        } else {
+            "the CPU (render.device = \"auto\": this build has no GPU backend)".into()
         }
     }
 }

@@ -567,17 +567,17 @@ pub(super) fn supported(p: &RenderParams) -> std::result::Result<(), String> {
     Ok(())
 }
 
-/// Where a renderer with settings `p` runs for `device`, and why ([`super::describe_device`]).
-pub(super) fn describe(device: Device, p: &RenderParams) -> String {
+/// Where a renderer with settings `p` runs for `render.device = "gpu"` (`required`) or `"auto"`, and why
+/// ([`super::describe_device`]).
+pub(super) fn describe(required: bool, p: &RenderParams) -> String {
     let name = |g: &Arc<Mutex<GpuRenderer>>| g.lock().map_or_else(|_| "a GPU".to_string(), |g| g.adapter.clone());
-    match device {
-        Device::Cpu => "the CPU (render.device = \"cpu\")".into(),
-        Device::Gpu => match (supported(p), shared()) {
+    match required {
+        true => match (supported(p), shared()) {
             (Err(why), _) => format!("none: render.device = \"gpu\", but {why}"),
             (Ok(()), Err(e)) => format!("none: render.device = \"gpu\", but {e}"),
             (Ok(()), Ok((g, _))) => format!("the GPU {} (render.device = \"gpu\")", name(&g)),
         },
-        Device::Auto => match (supported(p), shared()) {
+        false => match (supported(p), shared()) {
             (Err(why), _) => format!("the CPU (render.device = \"auto\": {why})"),
             (Ok(()), Err(e)) => format!("the CPU (render.device = \"auto\": {e})"),
             (Ok(()), Ok((g, false))) => format!(
