@@ -223,7 +223,7 @@ impl Acc {
 /// Adjoint, stage 3 of one sample `(u, v, w)` per triangle: the gradient of `w·vis·f_s·Q` against
 /// `(A_val, A_der)` (see the crate docs), accumulated into `acc` (index i for triangle i of `b`) where
 /// `a_val[i]` or `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
-#[inline(always)]
+#[inline(never)]
 pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
     brdf: &B,
@@ -236,31 +236,13 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: 
     let [gx0, gx1, gx2] = &mut acc.gx;
     let [gn0, gn1, gn2] = &mut acc.gn;
     let [p0, p1, p2, p3] = &mut acc.p;
-    let g = [&mut gx0[..], &mut gx1[..], &mut gx2[..], &mut gn0[..], &mut gn1[..], &mut gn2[..]];
-    let p = [&mut p0[..], &mut p1[..], &mut p2[..], &mut p3[..]];
     let mut hs = std::mem::take(&mut sc.hs);
-    adjoint_samples_acc::<B, CONFOCAL, SPLAT>(isa, brdf, b, fr, uvw, sc, g, p, &mut hs);
-    sc.hs = hs;
-}
-
-#[inline(never)]
-#[allow(clippy::too_many_arguments)] // the accumulator streams as separate `&mut` slices (comment below)
-fn adjoint_samples_acc<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
-    isa: Isa,
-    brdf: &B,
-    b: &Block<'_>,
-    fr: &Frame,
-    uvw: (f32, f32, f32),
-    sc: &Scratch,
-    [gx0, gx1, gx2, gn0, gn1, gn2]: [&mut [f32]; 6],
-    [p0, p1, p2, p3]: [&mut [f32]; 4],
-    hs: &mut [f32],
-) {
-    // Separate `&mut` arguments: the compiler knows the 10 accumulator streams alias nothing, so the loop
+    // Separate `&mut` arguments: the compiler knows the 11 output streams alias nothing, so the loop
     // vectorises without runtime overlap checks (`kernel!`).
     adjoint_samples_best::<B, CONFOCAL, SPLAT>(
-        isa, brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3, hs,
-    )
+        isa, brdf, b, fr, uvw, sc, gx0, gx1, gx2, gn0, gn1, gn2, p0, p1, p2, p3, &mut hs,
+    );
+    sc.hs = hs;
 }
 
 kernel! {

@@ -333,23 +333,16 @@ pub(crate) fn splat_corner_terms(isa: Isa, len: usize, sc: &Scratch, acc: &mut A
         let [gx, gy, gz] = &mut acc.gc[3 * j..3 * j + 3] else { return };
         let (dx, dy, dz) = (&sc.dir[3 * j][..len], &sc.dir[3 * j + 1][..len], &sc.dir[3 * j + 2][..len]);
         let (ct, hs) = (&sc.ct[j][..len], &sc.hs[..len]);
-        dispatch!(isa, corner_terms_body(hs, ct, dx, dy, dz, &mut gx[..len], &mut gy[..len], &mut gz[..len]));
+        dispatch!(isa, corner_terms_body(hs, ct, [dx, dy, dz], &mut gx[..len], &mut gy[..len], &mut gz[..len]));
     }
 }
 
+/// `g += hs · ct · d`, per component. The three outputs are separate `&mut` slices (they alias nothing,
+/// so the loop vectorises); the read-only direction streams `d` may share one argument.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)] // separate slices: the three output streams alias nothing, so the loop vectorises
-fn corner_terms_body(
-    hs: &[f32],
-    ct: &[f32],
-    dx: &[f32],
-    dy: &[f32],
-    dz: &[f32],
-    gx: &mut [f32],
-    gy: &mut [f32],
-    gz: &mut [f32],
-) {
+fn corner_terms_body(hs: &[f32], ct: &[f32], d: [&[f32]; 3], gx: &mut [f32], gy: &mut [f32], gz: &mut [f32]) {
     let len = hs.len();
+    let [dx, dy, dz] = d;
     let (ct, dx, dy, dz) = (&ct[..len], &dx[..len], &dy[..len], &dz[..len]);
     let (gx, gy, gz) = (&mut gx[..len], &mut gy[..len], &mut gz[..len]);
     for i in 0..len {
