@@ -47,6 +47,7 @@
 
 mod broad;
 pub mod ccd;
+pub(crate) mod guard;
 pub mod improve;
 mod resolve;
 
