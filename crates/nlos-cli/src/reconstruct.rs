@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use nlos_brdf::Model;
 use nlos_mesh::SurfaceMesh;
 use nlos_optim::pipeline::{self, Config, InitMethod, Prepared, SensorChoice, Start};
-use nlos_optim::{Hooks, Progress, ProgressEvent, ReconstructParams, StopReason};
+use nlos_optim::{Hooks, IntersectionCheck, Progress, ProgressEvent, ReconstructParams, StopReason};
 use nlos_report::ReportOptions;
 
 use crate::CliError;
@@ -234,6 +234,21 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
              the 2-core reference machine, predicted from face counts)",
             coarsened.join(", "),
             params.schedule.reference_seconds
+        );
+    }
+    // Collision handling should leave the checks after the start nothing to find (nlos_optim::reconstruct).
+    let found: Vec<String> = outcome
+        .log
+        .intersections
+        .iter()
+        .filter(|r| r.check != IntersectionCheck::Start && r.pairs > 0)
+        .map(|r| format!("stage {} block {}: {} pairs", r.stage + 1, r.block + 1, r.pairs))
+        .collect();
+    if !found.is_empty() {
+        eprintln!(
+            "warning: the surface intersected itself after the start ({}); the faces were deleted \
+             (run_log.json \"intersections\")",
+            found.join(", ")
         );
     }
     if outcome.stop != StopReason::Interrupted && !args.no_report {

@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use crate::bvh::{ClosestPoint, TriangleBvh, closest_point_on_triangle};
 use crate::curvature::max_abs_curvature;
 use crate::error::MeshError;
+use crate::evolve::guard::{CollisionGuard, MoveScratch, face_box};
 use crate::handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 use crate::surface_mesh::SurfaceMesh;
 
@@ -67,6 +68,14 @@ pub struct RemeshParams {
     /// directions of the Hausdorff distance are thus controlled at the cost of edges shorter than 0.8·L
     /// where the input has features smaller than L (thin rims). `None` (the default) disables it.
     pub max_error: Option<f32>,
+    /// Never create a self-intersection (El Topo's promise, Brochu & Bridson 2009): every collapse and flip
+    /// is refused when a face it creates would meet another face (exact static test), and every vertex
+    /// move (relaxation, projection onto the input, a boundary split's projection onto the boundary curve)
+    /// when the vertex's straight-line motion would meet anything (continuous test); splits at the edge
+    /// midpoint change no geometry. A refused move leaves the vertex where it was. Given an input free of
+    /// self-intersections, the output has none. Default false (pmp's remeshing has no such test); the
+    /// optimiser turns it on. Refusals are counted in [`RemeshReport::refused_intersections`].
+    pub avoid_intersections: bool,
 }
 
 impl RemeshParams {
@@ -81,6 +90,7 @@ impl RemeshParams {
             remove_caps: true,
             feature_angle: None,
             max_error: None,
+            avoid_intersections: false,
         }
     }
     /// A quicker setting for use inside an optimisation loop: 5 rounds, 3 relaxation passes.
@@ -143,6 +153,9 @@ pub struct RemeshReport {
     pub flips: usize,
     /// Collapses refused because they would flip a face normal.
     pub refused_normal_flips: usize,
+    /// Operations (collapses, flips, vertex moves) refused because they would make the surface intersect
+    /// itself ([`RemeshParams::avoid_intersections`]).
+    pub refused_intersections: usize,
 }
 
 /// Uniform isotropic remeshing to target edge length `target_edge_length` (metres). The mesh is
@@ -257,6 +270,9 @@ struct Remesher<'a> {
     near_error: Vec<bool>,
     reference: Reference,
     report: RemeshReport,
+    /// The collision tests of [`RemeshParams::avoid_intersections`] (None when off).
+    guard: Option<CollisionGuard>,
+    scratch: MoveScratch,
 }
 
 impl<'a> Remesher<'a> {
@@ -358,6 +374,13 @@ impl<'a> Remesher<'a> {
             };
         }
         let points = mesh.vertices().map(|v| mesh.position(v)).collect();
+        let guard = params.avoid_intersections.then(|| {
+            // Cells of about two edges; contact within 1e-7 of the longest edge allowed (as `improve()`).
+            let live: Vec<f32> = mesh.vertices().map(|v| sizing[v.idx()]).collect();
+            let mean = live.iter().sum::<f32>() / live.len().max(1) as f32;
+            let longest = live.iter().fold(0.0f32, |m, &x| m.max(x)) * 4.0 / 3.0;
+            CollisionGuard::new(mesh, 2.0 * mean, 1e-7 * f64::from(longest).max(1e-30))
+        });
         Ok(Self {
             mesh,
             params: *params,
@@ -371,6 +394,8 @@ impl<'a> Remesher<'a> {
             efeature,
             reference: Reference { bvh, normals: rn, face_normals: rf, sizing: rs, boundary, points },
             report: RemeshReport::default(),
+            guard,
+            scratch: MoveScratch::default(),
         })
     }
 
@@ -431,6 +456,48 @@ impl<'a> Remesher<'a> {
         self.near_error = near_error;
         self.vfeature = vfeature;
         self.efeature = efeature;
+        if let Some(g) = &mut self.guard {
+            g.rebuild(self.mesh);
+        }
+    }
+
+    // --- collision guard ([`RemeshParams::avoid_intersections`]) ---------------------------------------
+
+    /// Faces around `v` were created or reshaped by a topological operation: the guard's grid learns them.
+    fn faces_changed(&mut self, v: VertexId) {
+        if let Some(g) = &mut self.guard {
+            for f in self.mesh.vertex_faces(v) {
+                g.inserted(self.mesh, f);
+            }
+        }
+    }
+
+    /// Whether the faces `new` (vertex ids and positions) that an operation would create in place of `old`
+    /// meet any other face (always false without the guard); a refusal is counted.
+    fn creates_intersection(&mut self, new: &[([u32; 3], [Vec3; 3])], old: &[FaceId]) -> bool {
+        let Some(g) = &mut self.guard else { return false };
+        let hit = g.new_faces_intersect(self.mesh, new, old);
+        self.report.refused_intersections += usize::from(hit);
+        hit
+    }
+
+    /// Moves `v` to `to` unless its straight-line motion would meet the surface (with the guard); returns
+    /// whether it moved. A refusal is counted.
+    fn move_vertex(&mut self, v: VertexId, to: Vec3) -> bool {
+        let Some(g) = &mut self.guard else {
+            self.mesh.set_position(v, to);
+            return true;
+        };
+        if g.move_collides(self.mesh, v, to, &mut self.scratch) {
+            self.report.refused_intersections += 1;
+            return false;
+        }
+        let old: Vec<(FaceId, [Vec3; 2])> = self.mesh.vertex_faces(v).map(|f| (f, face_box(self.mesh, f))).collect();
+        self.mesh.set_position(v, to);
+        for (f, b) in old {
+            g.moved(self.mesh, f, b);
+        }
+        true
     }
 
     /// Target length of edge (a, b): the mean of the endpoint sizes.
@@ -488,6 +555,7 @@ impl<'a> Remesher<'a> {
         let feature = self.efeature[e.idx()];
         let p = (self.mesh.position(a) + self.mesh.position(b)) * 0.5;
         let v = self.mesh.split_edge(e, p);
+        self.faces_changed(v);
         self.efeature.resize(self.mesh.edges_size(), false);
         self.vfeature.push(feature);
         if feature {
@@ -731,6 +799,22 @@ impl<'a> Remesher<'a> {
                 }
             }
         }
+        if self.guard.is_some() {
+            // The one-ring of the merged vertex at `target` (v0 renamed v1), against every other face.
+            let at = |v: VertexId| if v == v0 || v == v1 { target } else { m.position(v) };
+            let mut old: Vec<FaceId> = m.vertex_faces(v0).chain(m.vertex_faces(v1)).collect();
+            old.sort_unstable_by_key(|f| f.idx());
+            old.dedup();
+            let new: Vec<([u32; 3], [Vec3; 3])> = old
+                .iter()
+                .map(|&f| m.face_vertices(f))
+                .filter(|vs| !(vs.contains(&v0) && vs.contains(&v1)))
+                .map(|vs| (vs.map(|v| if v == v0 { v1.0 } else { v.0 }), vs.map(at)))
+                .collect();
+            if self.creates_intersection(&new, &old) {
+                return false;
+            }
+        }
         true
     }
 
@@ -784,6 +868,7 @@ impl<'a> Remesher<'a> {
                         }
                     }
                     self.mesh.set_position(keep, target);
+                    self.faces_changed(keep);
                     self.dirty[keep.idx()] = true;
                     self.normal[keep.idx()] =
                         (self.normal[keep.idx()] + self.normal[gone.idx()]).normalize_or(self.normal[keep.idx()]);
@@ -832,10 +917,12 @@ impl<'a> Remesher<'a> {
                     || !m.is_flip_ok(e)
                     || !self.flip_keeps_orientation(v0, v1, v2, v3)
                     || !self.flip_keeps_error(v0, v1, v2, v3)
+                    || self.flip_intersects(e, [v0, v1, v2, v3])
                 {
                     continue;
                 }
                 self.mesh.flip(e);
+                self.faces_changed(v2);
                 valence[v0.idx()] -= 1;
                 valence[v1.idx()] -= 1;
                 valence[v2.idx()] += 1;
@@ -861,6 +948,18 @@ impl<'a> Remesher<'a> {
         let nb = (p1 - p2).cross(p3 - p2); // (v2, v1, v3)
         // Guard: reject flips creating (near-)degenerate or folded triangles.
         na.dot(n_old) > 0.0 && nb.dot(n_old) > 0.0 && na.dot(nb) > 0.0
+    }
+
+    /// With the guard, whether the two faces flipping `e` creates, (v3, v0, v2) and (v2, v1, v3), would meet
+    /// another face.
+    fn flip_intersects(&mut self, e: EdgeId, [v0, v1, v2, v3]: [VertexId; 4]) -> bool {
+        if self.guard.is_none() {
+            return false;
+        }
+        let m = &*self.mesh;
+        let old = [m.face(e.halfedge(0)), m.face(e.halfedge(1))];
+        let new = [[v3, v0, v2], [v2, v1, v3]].map(|t| (t.map(|v| v.0), t.map(|v| m.position(v))));
+        self.creates_intersection(&new, &old)
     }
 
     /// With [`RemeshParams::max_error`], whether the two faces a flip creates, (v3, v0, v2) and
@@ -912,7 +1011,7 @@ impl<'a> Remesher<'a> {
                 if *u != Vec3::ZERO && !self.mesh.is_deleted_vertex(vid) {
                     let to = self.mesh.position(vid) + *u;
                     if self.move_keeps_orientation(vid, to) {
-                        self.mesh.set_position(vid, to);
+                        self.move_vertex(vid, to);
                     }
                 }
             }
@@ -1039,7 +1138,9 @@ impl<'a> Remesher<'a> {
         let b = cp.barycentric;
         let [n0, n1, n2] = self.reference.normals[t];
         let n = (n0 * b.x + n1 * b.y + n2 * b.z).normalize_or_zero();
-        self.mesh.set_position(v, cp.point);
+        if !self.move_vertex(v, cp.point) {
+            return;
+        }
         if n != Vec3::ZERO {
             self.normal[v.idx()] = n;
         }
@@ -1056,7 +1157,7 @@ impl<'a> Remesher<'a> {
         let Some(bb) = &self.reference.boundary else { return };
         let cp = bb.closest_point(self.mesh.position(v));
         if cp.triangle != u32::MAX {
-            self.mesh.set_position(v, cp.point);
+            self.move_vertex(v, cp.point);
         }
     }
 
@@ -1087,10 +1188,18 @@ impl<'a> Remesher<'a> {
             let (a, b, c, d) = (m.position(v0), m.position(v2), m.position(v1), m.position(v3));
             let cos_at = |apex: Vec3| (a - apex).normalize_or_zero().dot((c - apex).normalize_or_zero());
             let amin = cos_at(b).min(cos_at(d));
-            if amin < limit && self.flip_keeps_orientation(v0, v1, v2, v3) && self.flip_keeps_error(v0, v1, v2, v3) {
+            if amin < limit
+                && self.flip_keeps_orientation(v0, v1, v2, v3)
+                && self.flip_keeps_error(v0, v1, v2, v3)
+                && !self.flip_intersects(e, [v0, v1, v2, v3])
+            {
                 self.mesh.flip(e);
+                self.faces_changed(v2);
                 self.report.flips += 1;
             }
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -152,6 +152,24 @@ pub enum OptimError {
         /// Positions returned.
         got: usize,
     },
+    /// A self-intersection check after the start found intersecting faces, and the environment asks for
+    /// none (`NLOS_REQUIRE_NO_INTERSECTIONS=1`, the test suite's strictness). Without it the faces are
+    /// deleted and the run goes on.
+    #[error(
+        "the surface intersects itself at the {check} check of stage {stage}, block {block}: {pairs} face pairs \
+         (NLOS_REQUIRE_NO_INTERSECTIONS=1 makes this an error; collision handling should have prevented it: \
+         please report it with the run's run_log.json)"
+    )]
+    SelfIntersecting {
+        /// Stage.
+        stage: u32,
+        /// Block within the stage.
+        block: u32,
+        /// Which check (`remeshed`, `block_end`).
+        check: &'static str,
+        /// Intersecting face pairs found.
+        pairs: usize,
+    },
 }
 
 /// Result alias of the crate.

@@ -127,17 +127,18 @@ pub struct ReconstructParams {
     /// Sampling schedule.
     pub sampling: SamplingSchedule,
     /// Remeshing after every shape block (default: `RemeshParams::fast()` with the boundary remeshed along
-    /// itself, so boundary edges follow the target length too).
+    /// itself, so boundary edges follow the target length too, and every operation tested for collisions,
+    /// `avoid_intersections`).
     pub remesh: RemeshParams,
-    /// Collision-aware evolution (El Topo, [`nlos_mesh::evolve::evolve`]) of each shape block's
-    /// accumulated displacement, from the block's starting positions, before the reflectance block and the
-    /// next remeshing (default `Some` with `improve: false` and `edge_length: None` → the stage's target
-    /// length; `None` applies the displacements as they are). `improve` is always treated as false: the
-    /// remeshing that follows improves the mesh, and the Adam state needs fixed connectivity. The loop
+    /// Collision-aware evolution (El Topo, [`nlos_mesh::evolve::evolve`]) of every shape step's
+    /// displacement, so that no step makes the surface intersect itself (default `Some` with
+    /// `edge_length: None` → the stage's target length; `None` applies the displacements as they are).
+    /// `improve` and `check_input` are always treated as false: the remeshing that follows improves the mesh,
+    /// the Adam state needs fixed connectivity, and the block's mesh was checked where it started. The loop
     /// deletes the faces of any self-intersection found in the start, after a remeshing or at the end of a
-    /// block (`RunLog::intersections`), so each block starts intersection-free; should that repair fail (no
-    /// deletion keeps the mesh manifold), the block is evolved with `check_input: false` and only new
-    /// intersections are prevented.
+    /// block (`RunLog::intersections`; after the start, with the default settings, there are none); should
+    /// that repair fail (no deletion keeps the mesh manifold), the old intersections stay and only new ones
+    /// are prevented.
     pub collision: Option<EvolveParams>,
     /// Loss-driven boundary pruning after every block ([`crate::prune`]): boundary faces whose deletion
     /// lowers the data term by more than the margin are deleted (default `Some(PruneParams::default())`:
@@ -180,7 +181,7 @@ impl Default for ReconstructParams {
             render: RenderSettings::default(),
             device: Device::Auto,
             sampling: SamplingSchedule::default(),
-            remesh: RemeshParams { boundary: BoundaryMode::Remesh, ..RemeshParams::fast() },
+            remesh: RemeshParams { boundary: BoundaryMode::Remesh, avoid_intersections: true, ..RemeshParams::fast() },
             collision: Some(EvolveParams { improve: false, ..EvolveParams::default() }),
             prune: Some(PruneParams::default()),
             residual: Some(ResidualParams::default()),

@@ -143,6 +143,9 @@ pub struct PatchNote {
     pub contrast: Option<f64>,
     /// Whether it was added to the mesh.
     pub kept: bool,
+    /// Faces of its region (in the chosen orientation) left out because they would cross the surface.
+    #[serde(default)]
+    pub crossing: usize,
 }
 
 /// What one call of [`residual_patches`] did (one per stage in the run's checkpoint).
@@ -281,6 +284,8 @@ pub fn residual_patches(
     let (regions, neighbours) = regions_of(&surface.mesh);
     let mut out = Patches { columns, regions: regions.len(), ..Patches::default() };
     let n_old = positions.len() as u32;
+    // The accepted patches' faces (a new patch may not cross them either).
+    let mut out_faces: Vec<[Vec3; 3]> = Vec::new();
     for faces in &regions {
         // The region's own vertices and faces.
         let mut verts: Vec<u32> = faces.iter().flat_map(|&f| patch_tri[f]).collect();
@@ -308,6 +313,17 @@ pub fn residual_patches(
                 .into_par_iter()
                 .map(|f| brdf.forward_triangle(&r, f))
                 .collect::<nlos_render::Result<_>>()?;
+            // A face that would cross the surface (the mesh, or a patch accepted before) is no candidate: the
+            // surface never intersects itself (El Topo's promise; crate::reconstruct's checks).
+            let mut shares = shares;
+            let mut crossing = 0;
+            for (f, share) in shares.iter_mut().enumerate() {
+                let face = tri[f].map(|v| turned[v as usize]);
+                if crosses(face, &bvh, &out_faces) {
+                    share.clear();
+                    crossing += 1;
+                }
+            }
             let mut trial = rendered.to_vec();
             let (chosen, change) = grow_connected(&shares, &adjacency, &mut trial, bins, row_loss, params.margin)?;
             // Back to `rendered` for a term that keeps something of the rendering (RowTerm::applied).
@@ -315,16 +331,16 @@ pub fn residual_patches(
                 row_loss.applied(&shares[f], false)?;
             }
             if chosen.len() >= params.min_faces && best.as_ref().is_none_or(|b| change < b.0) {
-                best = Some((change, turned, chosen, shares));
+                best = Some((change, turned, chosen, shares, crossing));
             }
         }
-        let Some((change, turned, chosen, shares)) = best else { continue };
+        let Some((change, turned, chosen, shares, crossing)) = best else { continue };
         let contrast =
             localisation(chosen.iter().map(|&f| shares[f].as_slice()), t.data(), bins, measured.time().bin_width);
         let depth = f64::from(turned.iter().map(|p| p.z).sum::<f32>()) / turned.len() as f64;
         let kept = contrast >= LOCALISED_CONTRAST;
         let contrast = contrast.is_finite().then_some(contrast);
-        out.notes.push(PatchNote { faces: chosen.len(), depth, data_change: change, contrast, kept });
+        out.notes.push(PatchNote { faces: chosen.len(), depth, data_change: change, contrast, kept, crossing });
         if !kept {
             continue;
         }
@@ -335,6 +351,7 @@ pub fn residual_patches(
         out.accepted += 1;
         out.data_change += change;
         let (p, t) = patch_mesh(&turned, &tri, &chosen)?;
+        out_faces.extend(t.iter().map(|f| f.map(|v| p[v as usize])));
         let offset = n_old + out.positions.len() as u32;
         out.positions.extend(p);
         out.triangles.extend(t.into_iter().map(|t| t.map(|v| v + offset)));
@@ -409,7 +426,9 @@ pub fn localisation<'a>(
 /// of a vertex per fan where the choice touches itself at a vertex only (faces joined through an edge
 /// chain around a vertex whose fan they do not fill). Such a pinched vertex is non-manifold, and the
 /// run's next `SurfaceMesh` of the whole mesh would refuse it (it stopped `data_resolution_chart_40cm`
-/// at the end of stage 0).
+/// at the end of stage 0). The copies would still touch there, which is a self-intersection (two faces
+/// meeting where they share no vertex): each copy is pulled into its own fan by [`PINCH_PULL`] of the way
+/// to its neighbours' mean, so that the fans are apart.
 fn patch_mesh(positions: &[Vec3], triangles: &[[u32; 3]], chosen: &[usize]) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
     let mut used: Vec<u32> = chosen.iter().flat_map(|&f| triangles[f]).collect();
     used.sort_unstable();
@@ -418,14 +437,66 @@ fn patch_mesh(positions: &[Vec3], triangles: &[[u32; 3]], chosen: &[usize]) -> R
     let pos: Vec<Vec3> = used.iter().map(|&v| positions[v as usize]).collect();
     let tri: Vec<[u32; 3]> = chosen.iter().map(|&f| triangles[f].map(local)).collect();
     let mesh = SurfaceMesh::from_triangles_with(&pos, &tri, BuildOptions { split_non_manifold_vertices: true })?;
-    Ok(mesh.to_triangles())
+    let (mut p, t) = mesh.to_triangles();
+    // Vertices sharing a position: the copies of a pinched vertex.
+    let mut at: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    for q in &p {
+        *at.entry(q.to_array().map(f32::to_bits)).or_default() += 1;
+    }
+    let pinched: Vec<bool> = p.iter().map(|q| at[&q.to_array().map(f32::to_bits)] > 1).collect();
+    if pinched.contains(&true) {
+        let mut sum = vec![(Vec3::ZERO, 0u32); p.len()];
+        for f in &t {
+            for k in 0..3 {
+                let (v, a, b) = (f[k] as usize, f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
+                if pinched[v] {
+                    sum[v].0 += p[a] + p[b];
+                    sum[v].1 += 2;
+                }
+            }
+        }
+        for (v, (s, n)) in sum.into_iter().enumerate() {
+            if pinched[v] && n > 0 {
+                let pull = PINCH_PULL * (s / n as f32 - p[v]);
+                p[v] += pull;
+            }
+        }
+    }
+    Ok((p, t))
 }
+
+/// How far a copy of a pinched vertex moves into its own fan ([`patch_mesh`]): this share of the way to the
+/// mean of its neighbours (a hundredth of an edge or so, far below the data's resolution).
+const PINCH_PULL: f32 = 0.01;
 
 /// Stale tests of [`grow_connected`]'s queue repeated together (in parallel).
 const RETEST_BATCH: usize = 8;
 
-/// One orientation's choice: `Σ ΔE`, the turned region's positions, the chosen faces, every face's share.
-type Candidate = (f64, Vec<Vec3>, Vec<usize>, Vec<Vec<RowSpan>>);
+/// One orientation's choice: `Σ ΔE`, the turned region's positions, the chosen faces, every face's share
+/// (empty for the faces that would cross the surface), and how many faces would.
+type Candidate = (f64, Vec<Vec3>, Vec<usize>, Vec<Vec<RowSpan>>, usize);
+
+/// Whether the triangle `face` meets a face of the mesh in `bvh` or one of `others` (closed triangles, exact:
+/// [`nlos_mesh::intersect::triangles_intersect`]; touching counts). Degenerate triangles never cross.
+fn crosses(face: [Vec3; 3], bvh: &TriangleBvh, others: &[[Vec3; 3]]) -> bool {
+    use nlos_mesh::intersect::{is_degenerate_triangle, triangles_intersect};
+    let [a, b, c] = face;
+    if is_degenerate_triangle(a, b, c) {
+        return false;
+    }
+    let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+    let overlaps = |u: &[Vec3; 3]| {
+        let (ulo, uhi) = (u[0].min(u[1]).min(u[2]), u[0].max(u[1]).max(u[2]));
+        ulo.cmple(hi).all() && uhi.cmpge(lo).all()
+    };
+    let meets = |u: [Vec3; 3]| !is_degenerate_triangle(u[0], u[1], u[2]) && triangles_intersect(face, u);
+    if others.iter().any(|u| overlaps(u) && meets(*u)) {
+        return true;
+    }
+    let mut hit = false;
+    bvh.for_each_overlapping(lo, hi, |t| hit = hit || meets(bvh.triangle(t)));
+    hit
+}
 
 /// The (θ, φ) pairs tried per region: θ = 0 once, every other tilt at the four azimuths 0°, 90°, 180°, 270°.
 fn orientations(tilts: &[f64]) -> Vec<(f64, f64)> {
@@ -593,12 +664,15 @@ mod tests {
         assert_eq!(t.len(), 3);
         assert_eq!(p.len(), 7, "vertex 0 copied once, vertex 5 kept, nothing unused: {p:?}");
         assert!(SurfaceMesh::from_triangles(&p, &t).is_ok());
-        // The faces keep their corners.
+        // The two copies of vertex 0 are pulled apart into their fans (touching there would be a
+        // self-intersection); the other corners stay.
+        let pairs = nlos_mesh::intersect::triangle_self_intersections(&p, &t).expect("checked");
+        assert!(pairs.is_empty(), "{pairs:?}");
+        let near_origin: Vec<&Vec3> = p.iter().filter(|q| q.length() < 0.02).collect();
+        assert_eq!(near_origin.len(), 2, "{p:?}");
+        assert!(near_origin.iter().all(|q| q.length() > 0.001), "{p:?}");
         let corners: Vec<[Vec3; 3]> = t.iter().map(|t| t.map(|v| p[v as usize])).collect();
-        assert!(
-            corners.contains(&[Vec3::ZERO, -Vec3::X, -Vec3::Y])
-                && corners.contains(&[Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y])
-        );
+        assert!(corners.contains(&[Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]));
     }
 
     /// The full scan the lazy greedy replaces: every frontier face re-tested after every addition.

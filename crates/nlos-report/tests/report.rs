@@ -87,6 +87,7 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         intersections: Vec::new(),
         stages: Vec::new(),
         residual: Vec::new(),
+        collisions: Vec::new(),
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
     let ck = serde_json::json!({ "reflectance": Reflectance::default() });

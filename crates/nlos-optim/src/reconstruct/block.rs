@@ -11,10 +11,11 @@ use nlos_render::Renderer;
 use nlos_transient::Transient;
 
 use super::checkpoint::{State, write_outputs};
-use super::topology::{append, drop_faces, evolve_block, mesh_of, surface_area, untangle};
+use super::topology::{append, collision_step, drop_faces, mesh_of, surface_area, untangle};
 use super::{
-    Attempt, Evolve, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, StepKind,
-    StopReason, evaluate, face_steps, planned_edge, progress, report, rollback, rollback_refl, set_albedo_weights,
+    Attempt, Evolve, EvolveRecord, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent,
+    StepKind, StopReason, evaluate, face_steps, planned_edge, progress, report, rollback, rollback_refl,
+    set_albedo_weights,
 };
 use crate::adam::VertexAdam;
 use crate::boundary_smoothing::BoundarySmoothing;
@@ -87,21 +88,22 @@ pub(super) struct Block<'a> {
     pub(super) edge_reg: BoundarySmoothing,
     /// Boundary flags per vertex (their own learning rate).
     pub(super) boundary: Vec<bool>,
-    /// The positions at the block's start (collision-aware evolution replays the block's motion from them).
-    pub(super) start: Vec<Vec3>,
+    /// What collision handling did in this block (its remeshing's refusals, its steps' limits).
+    pub(super) collisions: EvolveRecord,
     /// The loss at the block's first step and at its last.
     pub(super) first: f64,
     pub(super) last: f64,
 }
 
-/// Step 2: the shape block — `schedule.shape_iterations` Adam steps on the vertices through the `evolve`
-/// hook, rolled back on a non-finite loss, gradient or position.
-pub(super) fn shape_block(
+/// Step 2: the shape block — `schedule.shape_iterations` Adam steps on the vertices, each through the
+/// caller's `evolve` hook (if any) and then collision-aware evolution ([`ReconstructParams::collision`]:
+/// no step makes the surface intersect itself), rolled back on a non-finite loss, gradient or position.
+pub(super) fn shape_block<'e>(
     st: &mut State,
     ctx: &RunCtx<'_>,
     b: &mut Block<'_>,
     hooks: &mut Hooks<'_>,
-    evolve: &mut dyn Evolve,
+    mut evolve: Option<&mut (dyn Evolve + 'e)>,
 ) -> Result<()> {
     let params = ctx.params;
     let w_edge = params.boundary_smoothing;
@@ -165,8 +167,26 @@ pub(super) fn shape_block(
         let (li, lb) = (params.lr_interior * b.target * st.lr_scale, params.lr_boundary * b.target * st.lr_scale);
         let boundary = &b.boundary;
         let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
-        let new = evolve.evolve(&st.positions, &st.triangles, &disp)?;
-        if new.len() != st.positions.len() || new.iter().any(|p| !p.is_finite()) {
+        let proposed = match evolve.as_deref_mut() {
+            Some(hook) => Some(hook.evolve(&st.positions, &st.triangles, &disp)?),
+            None => None,
+        };
+        if proposed.as_ref().is_some_and(|p| p.len() != st.positions.len() || p.iter().any(|p| !p.is_finite())) {
+            rollback(st, &mut good, &mut b.renderer, params, "positions")?;
+            continue;
+        }
+        let new = match (proposed, params.collision) {
+            (Some(p), None) => p,
+            (None, None) => st.positions.iter().zip(&disp).map(|(p, d)| *p + *d).collect(),
+            (proposed, Some(ep)) => {
+                let d = match proposed {
+                    Some(p) => p.iter().zip(&st.positions).map(|(p, q)| *p - *q).collect(),
+                    None => disp,
+                };
+                collision_step(st, &d, b.target as f32, ep, &mut b.collisions)?
+            }
+        };
+        if new.iter().any(|p| !p.is_finite()) {
             rollback(st, &mut good, &mut b.renderer, params, "positions")?;
             continue;
         }
@@ -175,11 +195,8 @@ pub(super) fn shape_block(
         st.iteration += 1;
         it += 1;
     }
-    // Collision-aware evolution of the block's accumulated displacement, from its starting positions.
-    if let Some(ep) = params.collision {
-        let rec = evolve_block(st, &b.start, b.target as f32, ep)?;
-        st.evolve_log.push(rec);
-        b.renderer.set_positions(&st.positions)?;
+    if params.collision.is_some() {
+        st.log.collisions.push(b.collisions);
     }
     Ok(())
 }

@@ -30,9 +30,6 @@ pub(super) struct State {
     /// Stages planned (for progress reports only).
     #[serde(default)]
     pub(super) max_stages_hint: u32,
-    /// Collision-aware evolution per block.
-    #[serde(default)]
-    pub(super) evolve_log: Vec<EvolveRecord>,
     /// Boundary pruning per block.
     #[serde(default)]
     pub(super) prune_log: Vec<PruneRecord>,

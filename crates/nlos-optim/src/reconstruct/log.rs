@@ -69,6 +69,9 @@ pub struct RunLog {
     /// the data test, with its depth, what it explained, its contrast and whether it was kept.
     #[serde(default)]
     pub residual: Vec<crate::ResidualRecord>,
+    /// Collision handling per block: the remeshing's refused operations and the shape steps' limited motion.
+    #[serde(default)]
+    pub collisions: Vec<EvolveRecord>,
 }
 
 /// A stage as it was started: its target edge, planned for the time budget, beside the schedule's own.
@@ -91,10 +94,11 @@ pub struct StageRecord {
 pub enum IntersectionCheck {
     /// The initial surface, before the loop.
     Start,
-    /// After a block's remeshing (remeshing moves vertices without collision handling).
+    /// After a block's remeshing (each of its operations checked, `nlos_mesh::remeshing::RemeshParams::
+    /// avoid_intersections`).
     Remeshed,
-    /// At the end of a block: after the collision-aware evolution of its shape steps, pruning and residual
-    /// patches (which are added where the data want them, whatever they cross).
+    /// At the end of a block: after its collision-aware shape steps, pruning and residual patches (whose faces
+    /// that would cross the surface are left out).
     BlockEnd,
 }
 
@@ -131,19 +135,32 @@ pub enum StopReason {
     Interrupted,
 }
 
-/// What the collision-aware evolution did at the end of one shape block.
+/// What collision handling did in one block (El Topo's per-operation checks): the operations its remeshing
+/// refused, and how its shape steps' motion was limited so that no step makes the surface intersect itself.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EvolveRecord {
     /// Stage.
     pub stage: u32,
     /// Block within the stage.
     pub block: u32,
-    /// Wall-clock seconds of the `evolve` call (the only non-deterministic field).
+    /// Wall-clock seconds of the steps' `evolve` calls (the only non-deterministic field).
     pub seconds: f64,
-    /// Vertices whose end position differs from `x₀ + d` (collisions resolved).
+    /// Shape steps evolved.
+    #[serde(default)]
+    pub steps: u32,
+    /// Steps in which some vertex's motion was limited (pushed apart, stopped short or cancelled).
+    #[serde(default)]
+    pub steps_limited: u32,
+    /// Vertices whose end position differs from `x₀ + d`, summed over the steps.
     pub vertices_adjusted: usize,
-    /// Share of the requested motion applied (`nlos_mesh::evolve::EvolveReport::motion_fraction`).
+    /// The smallest share of a step's requested motion applied
+    /// (`nlos_mesh::evolve::EvolveReport::motion_fraction`; 1 when nothing was limited).
     pub motion_fraction: f64,
-    /// Whether the block's starting mesh already self-intersected (evolved with `check_input: false`).
+    /// Whether the block's mesh self-intersected before its steps (then evolved with `check_input: false`:
+    /// no new intersection, the old ones kept).
     pub input_intersected: bool,
+    /// Operations the block's remeshing refused because they would have made the surface intersect itself
+    /// (`nlos_mesh::remeshing::RemeshReport::refused_intersections`).
+    #[serde(default)]
+    pub remesh_refused: usize,
 }

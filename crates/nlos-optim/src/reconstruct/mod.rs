@@ -24,12 +24,17 @@
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
 //!    progress callback.
 //!
-//! **Collision-aware evolution** (El Topo; Tsai et al. 2019, Sec. 5): within a shape block every
-//! Adam displacement goes through the [`Evolve`] hook (default [`DirectEvolve`]: applied as is). At the end
-//! of the block, the displacement accumulated over it is replayed from the block's starting positions by
-//! `nlos_mesh::evolve::evolve` (continuous collision detection, impulses, impact zones, fail-safe), so the
-//! surface that is remeshed next has no self-intersection the block would have introduced
-//! ([`crate::ReconstructParams::collision`]; [`Outcome::evolve`] records its cost per block).
+//! **The surface never intersects itself** (El Topo, Brochu & Bridson 2009; Tsai et al. 2019, Sec. 5), per
+//! operation: every shape step's displacement (after the caller's [`Evolve`] hook, if any) is applied by
+//! `nlos_mesh::evolve::evolve` (continuous collision detection, impulses, impact zones, fail-safe, exact
+//! static check), so no step passes the surface through itself
+//! ([`crate::ReconstructParams::collision`]); every operation of the remeshing is tested before it is
+//! applied (`nlos_mesh::remeshing::RemeshParams::avoid_intersections`); residual patches leave out the
+//! faces that would cross the surface ([`crate::residual`]). The start's own intersections are repaired
+//! before the first block by deleting faces; checks after every remeshing and at every block's end then find
+//! nothing. Should one find pairs, the faces are deleted as at the start and the run goes on, or, with
+//! `NLOS_REQUIRE_NO_INTERSECTIONS=1` in the environment (the test suite's strictness), the run stops with
+//! [`OptimError::SelfIntersecting`]. [`RunLog::collisions`] records per block what was refused and limited.
 //!
 //! **Robustness.** A non-finite loss, gradient, θ or position restores the state before the last step,
 //! halves every learning rate for the rest of the run, and retries ([`crate::ReconstructParams::max_rollbacks`]).
@@ -47,7 +52,7 @@ use std::time::Instant;
 use glam::Vec3;
 use nlos_mesh::evolve::{EvolveParams, evolve};
 use nlos_mesh::intersect::triangle_self_intersections;
-use nlos_mesh::{MeshError, SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
+use nlos_mesh::{SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
 use nlos_render::{RenderParams, Renderer, Sampling};
 use nlos_transient::{Scan, TimeAxis, Transient};
 use serde::{Deserialize, Serialize};
@@ -82,9 +87,9 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 pub const RUN_LOG_FILE: &str = "run_log.json";
 const CHECKPOINT_VERSION: u32 = 2;
 
-/// The collision-handling hook: turns the current positions and an Adam displacement into new positions.
-/// The default [`DirectEvolve`] adds the displacement. (Collision handling itself runs at the end of each
-/// block, [`crate::ReconstructParams::collision`]; this hook is for a caller's own per-step rule.)
+/// A caller's own per-step rule: turns the current positions and an Adam displacement into new positions.
+/// Without one, the displacement is used as it is ([`DirectEvolve`] does the same). Collision handling,
+/// [`crate::ReconstructParams::collision`], applies after the hook, to the motion it proposes.
 pub trait Evolve {
     /// New positions (same length as `positions`).
     ///
@@ -254,7 +259,6 @@ pub fn reconstruct_with(
         finished: None,
         log: RunLog::default(),
         max_stages_hint: params.schedule.max_stages,
-        evolve_log: Vec::new(),
         prune_log: Vec::new(),
         residual_log: Vec::new(),
         albedo,
@@ -354,11 +358,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     // An all-zero capture is refused before any work (each stage's own normaliser is taken in the loop).
     data_normaliser(params, data)?;
     st.max_stages_hint = params.schedule.max_stages;
-    let mut direct = DirectEvolve;
-    let evolve: &mut dyn Evolve = match hooks.evolve.take() {
-        Some(e) => e,
-        None => &mut direct,
-    };
+    let mut evolve: Option<&mut dyn Evolve> = hooks.evolve.take();
     let ctx = RunCtx::new(&st, params);
 
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
@@ -372,7 +372,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let stage_capture: &Transient = sd.capture.as_ref().unwrap_or(measured);
         let norm = data_normaliser(params, stage_capture.data())?;
         // Step 1: topology (remeshing at the stage's edge), then the block's renderer and regularisers.
-        let boundary = prepare_topology(&mut st, target as f32, params, stage_capture)?;
+        let (boundary, remesh_refused) = prepare_topology(&mut st, target as f32, params, stage_capture)?;
         let mut renderer = Renderer::new(
             &st.positions,
             &st.triangles,
@@ -391,12 +391,22 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             reg: NormalSmoothing::new(st.positions.len(), &st.triangles)?,
             edge_reg: BoundarySmoothing::new(st.positions.len(), &st.triangles)?,
             boundary,
-            start: st.positions.clone(),
+            collisions: EvolveRecord {
+                stage: st.stage,
+                block: st.block_in_stage,
+                seconds: 0.0,
+                steps: 0,
+                steps_limited: 0,
+                vertices_adjusted: 0,
+                motion_fraction: 1.0,
+                input_intersected: st.log.intersections.last().is_some_and(|r| r.pairs_left > 0),
+                remesh_refused,
+            },
             first: f64::NAN,
             last: f64::NAN,
         };
         let block_stage = st.stage;
-        block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve)?;
+        block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve.as_deref_mut())?;
         if ctx.refl_iters > 0 {
             block::reflectance_block(&mut st, &ctx, &mut b, &mut hooks)?;
         }
@@ -459,7 +469,7 @@ fn outcome(st: &State, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
         stop,
         stage: st.stage,
         blocks_done: st.blocks_done,
-        evolve: st.evolve_log.clone(),
+        evolve: st.log.collisions.clone(),
         prune: st.prune_log.clone(),
         residual: st.residual_log.clone(),
         albedo: st.albedo.clone(),
