@@ -151,6 +151,71 @@ struct Runner {
     root: PathBuf,
     /// Command lines run, for the record.
     log: Vec<String>,
+    /// What each reconstruction's self-intersection checks found, in run order.
+    collisions: Vec<Collisions>,
+}
+
+/// A reconstruction's self-intersection checks and collision handling, from its `run_log.json`.
+struct Collisions {
+    /// The run's output directory's name.
+    run: String,
+    /// Pairs the start's check found (repaired there by deleting faces).
+    start_pairs: usize,
+    /// Checks after the start, and the pairs they found (the promise: none).
+    checks: usize,
+    pairs_after_start: usize,
+    /// Shape steps, those whose motion was limited, and remeshing operations refused.
+    steps: u64,
+    steps_limited: u64,
+    remesh_refused: usize,
+}
+
+impl Collisions {
+    fn read(run_dir: &Path) -> Result<Self, String> {
+        let path = run_dir.join("run_log.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let log: nlos_optim::RunLog = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let start = nlos_optim::IntersectionCheck::Start;
+        let after = log.intersections.iter().filter(|r| r.check != start);
+        Ok(Self {
+            run: run_dir.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            start_pairs: log.intersections.iter().filter(|r| r.check == start).map(|r| r.pairs).sum(),
+            checks: after.clone().count(),
+            pairs_after_start: after.map(|r| r.pairs).sum(),
+            steps: log.collisions.iter().map(|r| u64::from(r.steps)).sum(),
+            steps_limited: log.collisions.iter().map(|r| u64::from(r.steps_limited)).sum(),
+            remesh_refused: log.collisions.iter().map(|r| r.remesh_refused).sum(),
+        })
+    }
+}
+
+/// The check every scenario ends with (El Topo's promise): no self-intersection found after the start in any
+/// of its reconstructions, with what collision handling did for it.
+fn collision_check(text: &mut String, pass: &mut bool, runs: &[Collisions]) {
+    if runs.is_empty() {
+        return;
+    }
+    let pairs: usize = runs.iter().map(|c| c.pairs_after_start).sum();
+    let checks: usize = runs.iter().map(|c| c.checks).sum();
+    let each: Vec<String> = runs
+        .iter()
+        .map(|c| {
+            format!(
+                "{}: start {} pairs, after it {} in {} checks; {} of {} steps limited, {} remeshing operations refused",
+                c.run, c.start_pairs, c.pairs_after_start, c.checks, c.steps_limited, c.steps, c.remesh_refused
+            )
+        })
+        .collect();
+    check(
+        text,
+        pass,
+        &format!(
+            "the surface never intersected itself after the start: {pairs} pairs in {checks} checks of {} runs ({})",
+            runs.len(),
+            each.join("; ")
+        ),
+        pairs == 0,
+    );
 }
 
 impl Runner {
@@ -174,7 +239,7 @@ impl Runner {
         };
         let out = root.join("out/accept");
         std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-        Ok(Self { bin, out, root: root.to_path_buf(), log: Vec::new() })
+        Ok(Self { bin, out, root: root.to_path_buf(), log: Vec::new(), collisions: Vec::new() })
     }
 
     /// Runs `nlos ARGS`, echoing its output; fails on a non-zero exit.
@@ -195,6 +260,11 @@ impl Runner {
         print!("{stdout}");
         if !out.status.success() {
             return Err(format!("`{line}` failed ({})", out.status));
+        }
+        if args.first().is_some_and(|a| a == "reconstruct")
+            && let Some(dir) = args.iter().position(|a| a == "--out").and_then(|i| args.get(i + 1))
+        {
+            self.collisions.push(Collisions::read(Path::new(dir))?);
         }
         Ok(Ran { stdout, wall_s, cpu_s })
     }
@@ -761,6 +831,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
     for name in &names {
         println!("==== acceptance: {name}{} ====", if opts.quick { " (quick)" } else { "" });
         let first_cmd = r.log.len();
+        let first_run = r.collisions.len();
         let t0 = Instant::now();
         let res = match name.as_str() {
             "bunny" => bunny(&mut r, &opts),
@@ -773,7 +844,10 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             _ => sensor(&mut r, &opts),
         };
         let (text, pass) = match res {
-            Ok(sec) => (sec.text, sec.pass),
+            Ok(mut sec) => {
+                collision_check(&mut sec.text, &mut sec.pass, &r.collisions[first_run..]);
+                (sec.text, sec.pass)
+            }
             Err(e) => (format!("- ERROR: {e}\n"), false),
         };
         if !pass {

@@ -215,8 +215,12 @@ fn fixtures() -> Result<(), String> {
 fn test(args: &[String]) -> Result<(), String> {
     let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| workspace_root().join("target"), PathBuf::from);
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    // In the tests, a self-intersection found after a run's start is an error, not a warning
+    // (nlos_optim::reconstruct): collision handling must leave nothing to find.
+    let strict = std::env::var_os("NLOS_REQUIRE_NO_INTERSECTIONS").unwrap_or_else(|| "1".into());
     let mut child = Command::new(cargo)
         .current_dir(workspace_root())
+        .env("NLOS_REQUIRE_NO_INTERSECTIONS", strict)
         .args(["test", "--workspace"])
         .args(args)
         .spawn()
