@@ -1,5 +1,7 @@
 //! Remeshing the shared bunny at L = 3 mm (5 and 10 iterations, plain and bounded-error) and closest-point
-//! query throughput on it. Target on a 2-core machine: the 5-iteration remesh in under 1 s.
+//! query throughput on it. Target on a 2-core machine: the 5-iteration remesh in under 1 s. Also the
+//! optimiser's own remeshing (`nlos_optim::ReconstructParams::default().remesh`) of the bunny's LCT start at
+//! two stages' edges, with and without its collision tests (`avoid_intersections`).
 //! `cargo bench --bench remesh`; figures in docs/performance.md.
 #![allow(missing_docs)]
 
@@ -9,6 +11,8 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
 use nlos_mesh::remeshing::{RemeshParams, uniform_remeshing};
 use nlos_mesh::{SurfaceMesh, TriangleBvh, io, shapes};
+
+mod common;
 
 fn bunny() -> Option<SurfaceMesh> {
     let path = nlos_testdata::shared("meshes/bunny_centered.obj")?;
@@ -36,6 +40,32 @@ fn remesh(c: &mut Criterion) {
                 criterion::BatchSize::LargeInput,
             )
         });
+    }
+    g.finish();
+}
+
+/// The loop's remeshing of a block's mesh (the start already at the stage's edge, as after a block) with the
+/// collision tests of every operation (the default) and without them.
+fn loop_remesh(c: &mut Criterion) {
+    let loop_params = nlos_optim::ReconstructParams::default().remesh;
+    let mut g = c.benchmark_group("loop_remesh");
+    g.sample_size(10);
+    for edge in [0.5f32 / 64.0, 0.0039] {
+        let (p, t) = common::remeshed_start(edge);
+        let input = SurfaceMesh::from_triangles(&p, &t).expect("valid");
+        for (name, guard) in [("guarded", true), ("unguarded", false)] {
+            let params = RemeshParams { avoid_intersections: guard, ..loop_params };
+            g.bench_function(format!("{}_faces_{name}", input.n_faces()), |b| {
+                b.iter_batched(
+                    || input.clone(),
+                    |mut m| {
+                        uniform_remeshing(&mut m, edge, &params).expect("remeshes");
+                        m
+                    },
+                    criterion::BatchSize::LargeInput,
+                )
+            });
+        }
     }
     g.finish();
 }
@@ -79,5 +109,5 @@ fn closest_point(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, remesh, closest_point);
+criterion_group!(benches, remesh, loop_remesh, closest_point);
 criterion_main!(benches);

@@ -1,6 +1,6 @@
-//! The loop's configuration shared by `loop_cost.rs` (time) and `memory.rs` (heap): Tsai et al. 2019's setup, the
-//! LCT start of the shared bunny (`fixtures/bunny_lct_start.obj`) remeshed as the optimiser's stages do,
-//! and the renderer settings of `nlos_optim::ReconstructParams::default()`.
+//! The loop's configuration shared by `loop_cost.rs` (time), `memory.rs` (heap) and `remesh.rs` (its
+//! remeshing): Tsai et al. 2019's setup, the LCT start of the shared bunny (`fixtures/bunny_lct_start.obj`)
+//! remeshed as the optimiser's stages do, and the renderer settings of `nlos_optim::ReconstructParams::default()`.
 #![allow(dead_code)]
 
 use glam::Vec3;

@@ -67,12 +67,16 @@ fn mesh(path: &Path) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     m.to_triangles()
 }
 
-/// The run log without its wall-clock times (the only non-deterministic field).
+/// The run log without its wall-clock times (the only non-deterministic fields: each iteration's `time_s`,
+/// each block's collision handling `seconds`).
 fn log_without_times(dir: &Path) -> serde_json::Value {
     let mut v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("run_log.json")).expect("log")).expect("log json");
     for r in v["iterations"].as_array_mut().expect("iterations") {
         r["time_s"] = serde_json::Value::Null;
+    }
+    for r in v["collisions"].as_array_mut().expect("collisions") {
+        r["seconds"] = serde_json::Value::Null;
     }
     v
 }

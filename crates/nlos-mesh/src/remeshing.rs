@@ -9,6 +9,10 @@
 //! input normals and sizes interpolated there). `L` is the target length: a constant for the uniform
 //! variant, a per-vertex field derived from curvature for the adaptive one.
 //!
+//! With [`RemeshParams::avoid_intersections`] every collapse, flip and vertex move is first tested for
+//! collisions with the rest of the surface (El Topo's per-operation tests, Brochu & Bridson 2009; the
+//! tests of [`crate::evolve::improve()`]) and refused if it would make the surface intersect itself.
+//!
 //! Preconditions: a valid, non-empty mesh with finite positions. The input surface is copied as the
 //! projection reference, so the result stays within a fraction of `L` of it.
 //!

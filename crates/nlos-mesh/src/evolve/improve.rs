@@ -6,7 +6,8 @@
 //! [`SurfaceMesh::collapse`], [`SurfaceMesh::split_edge`], [`SurfaceMesh::is_flip_ok`] /
 //! [`SurfaceMesh::flip`]); each is additionally rejected when
 //! - (collapse, flip) a new face intersects any other face: exact static test
-//!   ([`crate::intersect::faces_intersect`]) against the faces near it (a uniform grid of face boxes);
+//!   ([`crate::intersect::faces_intersect`]) against the faces near it (a uniform grid of face boxes;
+//!   `guard.rs`, shared with the remesher);
 //! - (collapse, flip) it changes the enclosed volume by more than `max_volume_change·L³` (El Topo's
 //!   `max_volume_change`), flips a face normal, or creates an angle below `min_angle` where the faces it
 //!   replaces had none that small;

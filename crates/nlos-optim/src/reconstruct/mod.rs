@@ -98,7 +98,8 @@ pub trait Evolve {
     fn evolve(&mut self, positions: &[Vec3], triangles: &[[u32; 3]], displacement: &[Vec3]) -> Result<Vec<Vec3>>;
 }
 
-/// Applies displacements directly, without collision handling (the default [`Evolve`]).
+/// Applies displacements as they are: the same as giving no [`Evolve`] hook (collision handling,
+/// [`crate::ReconstructParams::collision`], still applies after it).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct DirectEvolve;
 
