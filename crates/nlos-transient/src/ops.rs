@@ -254,10 +254,13 @@ impl Transient {
     /// zeroes bins 1–600, as the Stanford reference code does before LCT, to remove the direct reflection):
     /// `Some(z)` when the first `z ≥ 1` bins are zero in every measurement ([`Transient::leading_zero_bins`])
     /// and the light that follows them does not rise — the summed histogram's mean over the 8 bins after
-    /// them is positive and at least half its mean over the next 8. What a gate leaves is the direct light's
-    /// falling tail, background or a flat stretch; a simulation without background also starts with zero
-    /// bins, but what follows them is its first return's rising edge, so it has no gate. Neither has a
-    /// capture without zero bins.
+    /// them is positive and at least half its mean over the next 8 — and the summed histogram is positive in
+    /// every bin after them. What a gate leaves is the direct light's falling tail, background or a flat
+    /// stretch, and the background goes on after it; a simulation without background also starts with zero
+    /// bins, but what follows them is its first return's rising edge, and bins without a return are zero
+    /// there too (a flat face's abrupt first return passed the first test: the soap bar's 1,000-photon
+    /// capture was taken for gated and fitted through a response estimated from its own first return, 6 mm
+    /// off), so it has no gate. Neither has a capture without zero bins.
     ///
     /// Estimates that need bins without signal (the background, [`crate::sensor::BackgroundWindow`]) and
     /// the direct light's end start after the gate: its zeros are neither background nor signal.
@@ -268,7 +271,9 @@ impl Transient {
         }
         let h = self.summed_histogram();
         let (first, next) = (h[z..z + 8].iter().sum::<f64>(), h[z + 8..z + 16].iter().sum::<f64>());
-        (first > 0.0 && first >= 0.5 * next).then_some(z)
+        // Guard: background everywhere after the zeros, or they are darkness, not a gate.
+        let background_after = h[z..].iter().all(|&v| v > 0.0);
+        (first > 0.0 && first >= 0.5 * next && background_after).then_some(z)
     }
 
     /// Estimates where the last return from the hidden scene ends, as a path length (metres): the end of

@@ -639,6 +639,23 @@ fn a_gated_capture_is_recognised_and_estimated_after_its_gate() {
     let sim = pulses(4, 300, 200.0, 5.0);
     assert!(sim.leading_zero_bins() > 100);
     assert_eq!(sim.zero_gate(), None);
+    // An abrupt first return (a flat face facing the wall) does not rise over the 16 bins after the zeros,
+    // but without background the bins after the return are dark too: no gate (the soap bar's capture).
+    let mut abrupt = sim.clone();
+    for m in 0..4 {
+        let h = abrupt.histogram_mut(m);
+        h.fill(0.0);
+        h[150..170].fill(3.0);
+    }
+    assert_eq!(abrupt.leading_zero_bins(), 150);
+    assert_eq!(abrupt.zero_gate(), None);
+    // With background after the zeros, they are a gate.
+    for m in 0..4 {
+        for v in &mut abrupt.histogram_mut(m)[150..] {
+            *v += 0.05;
+        }
+    }
+    assert_eq!(abrupt.zero_gate(), Some(150));
 }
 
 #[test]
