@@ -485,14 +485,24 @@ impl<'a> Remesher<'a> {
         hit
     }
 
-    /// Moves `v` to `to` unless its straight-line motion would meet the surface (with the guard); returns
-    /// whether it moved. A refusal is counted.
+    /// Moves `v` to `to` unless its straight-line motion would meet the surface or its one-ring at `to` would
+    /// intersect another face (with the guard); returns whether it moved. A refusal is counted.
     fn move_vertex(&mut self, v: VertexId, to: Vec3) -> bool {
         let Some(g) = &mut self.guard else {
             self.mesh.set_position(v, to);
             return true;
         };
-        if g.move_collides(self.mesh, v, to, &mut self.scratch) {
+        // The continuous test, then the exact static test of the moved one-ring (contact below the continuous
+        // test's tolerance, e.g. in near-coplanar motion, is caught there, as `evolve`'s final check does).
+        let ring: Vec<FaceId> = self.mesh.vertex_faces(v).collect();
+        let moved: Vec<([u32; 3], [Vec3; 3])> = ring
+            .iter()
+            .map(|&f| {
+                let vs = self.mesh.face_vertices(f);
+                (vs.map(|w| w.0), vs.map(|w| if w == v { to } else { self.mesh.position(w) }))
+            })
+            .collect();
+        if g.move_collides(self.mesh, v, to, &mut self.scratch) || g.new_faces_intersect(self.mesh, &moved, &ring) {
             self.report.refused_intersections += 1;
             return false;
         }
