@@ -57,3 +57,24 @@ impl From<DeviceArg> for nlos_render::Device {
         }
     }
 }
+
+/// What a reader is told that some capture files do not say, shared by every command that reads one.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub(crate) struct ReadArgs {
+    /// Bin width in picoseconds, for captures whose files do not store it: general-NLOS `data.mat` +
+    /// `setup.mat` (32 ps in the published experiment). Refused for files that have their own.
+    #[arg(long, value_name = "PS")]
+    pub(crate) bin_width_ps: Option<f64>,
+}
+
+impl ReadArgs {
+    /// The reader's options.
+    pub(crate) fn options(self) -> nlos_transient::ReadOptions {
+        nlos_transient::ReadOptions::with_bin_width_ps(self.bin_width_ps)
+    }
+
+    /// Reads `file` (any format) with these options.
+    pub(crate) fn read(self, file: &std::path::Path) -> Result<nlos_transient::Transient, crate::CliError> {
+        nlos_transient::read_with(file, &self.options()).map_err(crate::CliError::input)
+    }
+}

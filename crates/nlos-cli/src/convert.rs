@@ -9,6 +9,8 @@ use crate::CliError;
 /// Arguments of `nlos convert`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
+    #[command(flatten)]
+    read: crate::choices::ReadArgs,
     /// The input capture (any readable format, detected from its content).
     input: PathBuf,
     /// The output file.
@@ -105,7 +107,7 @@ pub(crate) fn check_gate(t: &Transient, g: f64) -> Result<(), CliError> {
 /// Runs `nlos convert`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let format = output_format(args)?;
-    let t = nlos_transient::read(&args.input).map_err(CliError::input)?;
+    let t = args.read.read(&args.input)?;
     let t = transform(t, args)?;
     nlos_transient::write(&t, &args.output, format).map_err(CliError::output)?;
     eprintln!(

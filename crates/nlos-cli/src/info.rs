@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use nlos_transient::sensor::{BackgroundWindow, count_summary};
-use nlos_transient::{Format, Layout, PointSet, SPEED_OF_LIGHT, Transient};
+use nlos_transient::{Format, Layout, PointSet, SPEED_OF_LIGHT, ScanPattern, Transient};
 use serde_json::{Value, json};
 
 use crate::CliError;
@@ -78,8 +78,8 @@ fn num(v: f64, decimals: usize) -> String {
 }
 
 /// Runs `nlos info`.
-pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
-    let t = nlos_transient::read(file).map_err(CliError::input)?;
+pub(crate) fn run(file: &Path, as_json: bool, read: crate::choices::ReadArgs) -> Result<(), CliError> {
+    let t = read.read(file)?;
     let format = detected_format(file)?;
     let scan = t.scan();
     let ax = t.time();
@@ -98,7 +98,7 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
             "format": format.name(),
             "format_description": describe(format),
             "scan": {
-                "pattern": if scan.is_confocal() { "confocal" } else { "exhaustive" },
+                "pattern": scan.pattern_name(),
                 "measurements": t.measurements(),
                 "lasers": points_json(scan.lasers()),
                 "sensors": points_json(scan.sensors()),
@@ -141,10 +141,25 @@ pub(crate) fn run(file: &Path, as_json: bool) -> Result<(), CliError> {
         return Ok(());
     }
 
-    let geometry = if scan.is_confocal() {
-        format!("confocal, {}", points_text(scan.sensors()))
-    } else {
-        format!("exhaustive, lasers: {}; sensors: {}", points_text(scan.lasers()), points_text(scan.sensors()))
+    let geometry = match &scan.pattern {
+        ScanPattern::Confocal(p) => format!("confocal, {}", points_text(p)),
+        ScanPattern::Exhaustive { lasers, sensors } => {
+            format!("exhaustive, lasers: {}; sensors: {}", points_text(lasers), points_text(sensors))
+        }
+        ScanPattern::Paired { lasers, sensors } => {
+            let gap = lasers.points.iter().zip(&sensors.points).map(|(l, s)| l.distance(*s));
+            let (lo, hi) = gap.fold((f32::INFINITY, 0.0f32), |(lo, hi), d| (lo.min(d), hi.max(d)));
+            let curved = lasers.normals.iter().chain(&sensors.normals).any(|n| *n != lasers.normals[0]);
+            format!(
+                "paired (measurement i = laser spot i with sensor spot i), lasers: {}; sensors: {}; spots {}–{} m \
+                 apart; {}",
+                points_text(lasers),
+                points_text(sensors),
+                num(f64::from(lo), 3),
+                num(f64::from(hi), 3),
+                if curved { "a normal per spot (curved wall)" } else { "one wall normal" }
+            )
+        }
     };
     let device = |d: Option<[f32; 3]>| {
         d.map_or("unknown".to_string(), |[x, y, z]| {
@@ -236,6 +251,7 @@ pub(crate) fn describe(f: Format) -> &'static str {
         Format::Tal => "y-tal HDF5_TAL",
         Format::NpyJson => ".npy + .json sidecar",
         Format::Exr => "OpenEXR",
+        Format::GeneralNlosMat => "general-NLOS data.mat + setup.mat",
         _ => "other",
     }
 }

@@ -29,6 +29,8 @@ pub(crate) enum Method {
 /// Arguments of `nlos init`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
+    #[command(flatten)]
+    read: crate::choices::ReadArgs,
     /// The capture file (any readable format; LCT and f-k need a confocal grid scan, the phasor field takes
     /// any).
     file: PathBuf,
@@ -140,7 +142,7 @@ fn init_error(e: InitError) -> CliError {
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
-    let t = nlos_transient::read(&args.file).map_err(CliError::input)?;
+    let t = args.read.read(&args.file)?;
     let reflectance = if args.retroreflective { Model::Retroreflective } else { Model::Lambert };
     // The capture is prepared as `nlos reconstruct` prepares it (one library path: rebin, gate, the bins after
     // the last return, the depth the start may reach), with the same defaults.

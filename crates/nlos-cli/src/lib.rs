@@ -43,6 +43,8 @@ enum Command {
         /// Print machine-readable JSON instead of text.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        read: choices::ReadArgs,
     },
     /// Convert a capture to another format, optionally transforming it on the way.
     ///
@@ -114,7 +116,7 @@ where
         }
     };
     let result = match cli.command {
-        Command::Info { file, json } => info::run(&file, json),
+        Command::Info { file, json, read } => info::run(&file, json, read),
         Command::Convert(args) => convert::run(&args),
         Command::Preview(args) => preview::run(&args),
         Command::Eval(args) => eval::run(&args),

@@ -14,6 +14,8 @@ const DECADES: f64 = 3.0;
 /// Arguments of `nlos preview`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
+    #[command(flatten)]
+    read: crate::choices::ReadArgs,
     /// The capture file (any readable format).
     file: PathBuf,
     /// Where to write the PNG.
@@ -65,7 +67,7 @@ fn viz(e: nlos_viz::VizError) -> CliError {
 
 /// Runs `nlos preview`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
-    let t = nlos_transient::read(&args.file).map_err(CliError::input)?;
+    let t = args.read.read(&args.file)?;
     let (gated, gate_note, gate) = match args.gate {
         Gate::Off => (t, "direct light not gated (--gate off)".to_string(), None),
         Gate::At(g) => {

@@ -56,6 +56,10 @@ pub(crate) struct Args {
     /// [default: auto].
     #[arg(long, value_name = "auto|off|ideal|direct|FILE")]
     sensor: Option<SensorChoice>,
+    /// Bin width in picoseconds, for captures whose files do not store it: general-NLOS `data.mat` +
+    /// `setup.mat` (32 ps in the published experiment); `capture.bin_width_ps` [default: the file's].
+    #[arg(long, value_name = "PS")]
+    bin_width_ps: Option<f64>,
     /// Sum K consecutive bins of the capture before anything else (faster, coarser) [default: 1].
     #[arg(long, value_name = "K")]
     rebin: Option<usize>,
@@ -118,6 +122,9 @@ fn config(args: &Args) -> Result<Config, CliError> {
     }
     if let Some(sensor) = &args.sensor {
         config.sensor.response = sensor.clone();
+    }
+    if let Some(ps) = args.bin_width_ps {
+        config.capture.bin_width_ps = pipeline::Setting::Value(ps);
     }
     if let Some(k) = args.rebin {
         config.capture.rebin = k;

@@ -19,6 +19,8 @@ use crate::choices::{DeviceArg, ModeArg, VisibilityArg, brdf_parser};
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
+    #[command(flatten)]
+    read: crate::choices::ReadArgs,
     /// The mesh (OBJ, PLY or GLB; any triangle list, manifold or not); faces reflect on the side of
     /// `(v1 − v0) × (v2 − v0)` unless --two-sided.
     mesh: PathBuf,
@@ -144,7 +146,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     })?;
     let (scan, time) = match &args.setup {
         Some(file) => {
-            let t = nlos_transient::read(file).map_err(CliError::input)?;
+            let t = args.read.read(file)?;
             (t.scan().clone(), *t.time())
         }
         None => (

@@ -38,7 +38,7 @@ pub mod transient;
 
 pub use error::{Result, TransientError};
 #[cfg(feature = "formats")]
-pub use formats::{Format, detect, read, write};
+pub use formats::{Format, ReadOptions, detect, read, read_with, write};
 pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
 
 pub use time_axis::{SPEED_OF_LIGHT, TimeAxis};

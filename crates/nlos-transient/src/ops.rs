@@ -145,7 +145,7 @@ impl Transient {
                 }
                 as_grid(p);
             }
-            ScanPattern::Exhaustive { lasers, sensors } => {
+            ScanPattern::Exhaustive { lasers, sensors } | ScanPattern::Paired { lasers, sensors } => {
                 as_grid(lasers);
                 as_grid(sensors);
             }
@@ -154,7 +154,7 @@ impl Transient {
     }
 
     /// Keeps every `step_x`-th column and `step_y`-th row of a grid scan (both laser and sensor grids of
-    /// an exhaustive scan).
+    /// an exhaustive scan; the laser grid of a paired scan, each kept measurement with its sensor spot).
     ///
     /// # Errors
     /// [`TransientError::InvalidArgument`] when a step is zero or a point set is not a grid.
@@ -175,6 +175,19 @@ impl Transient {
                 let ns = sensors.len();
                 let kept = lk.iter().flat_map(|&l| sk.iter().map(move |&s| l * ns + s)).collect();
                 (ScanPattern::Exhaustive { lasers: ls, sensors: ss }, kept)
+            }
+            ScanPattern::Paired { lasers, sensors } => {
+                // The laser grid indexes the measurements; each kept measurement keeps its sensor spot.
+                let (ls, kept) = lasers.subsample(step_x, step_y).ok_or_else(not_grid)?;
+                let ss = match sensors.subsample(step_x, step_y) {
+                    Some((ss, sk)) if sk == kept => ss,
+                    _ => crate::PointSet {
+                        points: kept.iter().map(|&m| sensors.points[m]).collect(),
+                        normals: kept.iter().map(|&m| sensors.normals[m]).collect(),
+                        layout: crate::Layout::List,
+                    },
+                };
+                (ScanPattern::Paired { lasers: ls, sensors: ss }, kept)
             }
         };
         let data = kept.iter().flat_map(|&m| self.histogram(m).iter().copied()).collect();

@@ -66,7 +66,10 @@ impl Transient {
         let bins = self.bins();
         let row = nx * iy..nx * (iy + 1);
         match &self.scan().pattern {
-            ScanPattern::Confocal(_) => Ok(self.data()[row.start * bins..row.end * bins].to_vec()),
+            // A paired scan's measurement m has sensor spot m, as a confocal scan's.
+            ScanPattern::Confocal(_) | ScanPattern::Paired { .. } => {
+                Ok(self.data()[row.start * bins..row.end * bins].to_vec())
+            }
             ScanPattern::Exhaustive { lasers, sensors } => {
                 let ns = sensors.len();
                 let mut acc = vec![0.0f64; nx * bins];

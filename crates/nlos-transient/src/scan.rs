@@ -190,7 +190,7 @@ impl PointSet {
     }
 }
 
-/// Confocal or exhaustive illumination/detection pattern.
+/// Which laser spot goes with which sensor spot: confocal, exhaustive or paired.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ScanPattern {
     /// The laser spot and the sensor spot coincide: one measurement per point.
@@ -200,6 +200,15 @@ pub enum ScanPattern {
         /// Laser spots on the wall.
         lasers: PointSet,
         /// Sensor spots on the wall.
+        sensors: PointSet,
+    },
+    /// Measurement `m` lights laser spot `m` and records at sensor spot `m` (two galvos, or a SPAD and a
+    /// laser on separate mirrors, as in "Non-line-of-sight imaging with irregular relay surfaces"). The two
+    /// sets have the same length; neither needs to be a grid or lie on a plane.
+    Paired {
+        /// Laser spot of each measurement.
+        lasers: PointSet,
+        /// Sensor spot of each measurement.
         sensors: PointSet,
     },
 }
@@ -226,6 +235,21 @@ impl Scan {
         Self { pattern: ScanPattern::Exhaustive { lasers, sensors }, laser_device: None, sensor_device: None }
     }
 
+    /// A paired scan (measurement `m` = laser spot `m` with sensor spot `m`), device positions unknown.
+    /// [`Scan::validate`] checks that the two sets have the same length.
+    pub fn paired(lasers: PointSet, sensors: PointSet) -> Self {
+        Self { pattern: ScanPattern::Paired { lasers, sensors }, laser_device: None, sensor_device: None }
+    }
+
+    /// The pattern's name as the file formats write it: `confocal`, `exhaustive` or `paired`.
+    pub fn pattern_name(&self) -> &'static str {
+        match self.pattern {
+            ScanPattern::Confocal(_) => "confocal",
+            ScanPattern::Exhaustive { .. } => "exhaustive",
+            ScanPattern::Paired { .. } => "paired",
+        }
+    }
+
     /// Whether laser and sensor spots coincide.
     pub fn is_confocal(&self) -> bool {
         matches!(self.pattern, ScanPattern::Confocal(_))
@@ -236,6 +260,7 @@ impl Scan {
         match &self.pattern {
             ScanPattern::Confocal(p) => p.len(),
             ScanPattern::Exhaustive { lasers, sensors } => lasers.len() * sensors.len(),
+            ScanPattern::Paired { lasers, .. } => lasers.len(),
         }
     }
 
@@ -243,7 +268,7 @@ impl Scan {
     pub fn lasers(&self) -> &PointSet {
         match &self.pattern {
             ScanPattern::Confocal(p) => p,
-            ScanPattern::Exhaustive { lasers, .. } => lasers,
+            ScanPattern::Exhaustive { lasers, .. } | ScanPattern::Paired { lasers, .. } => lasers,
         }
     }
 
@@ -251,7 +276,7 @@ impl Scan {
     pub fn sensors(&self) -> &PointSet {
         match &self.pattern {
             ScanPattern::Confocal(p) => p,
-            ScanPattern::Exhaustive { sensors, .. } => sensors,
+            ScanPattern::Exhaustive { sensors, .. } | ScanPattern::Paired { sensors, .. } => sensors,
         }
     }
 
@@ -262,7 +287,7 @@ impl Scan {
     pub fn indices(&self, m: usize) -> (usize, usize) {
         assert!(m < self.measurements(), "measurement {m} out of range");
         match &self.pattern {
-            ScanPattern::Confocal(_) => (m, m),
+            ScanPattern::Confocal(_) | ScanPattern::Paired { .. } => (m, m),
             ScanPattern::Exhaustive { sensors, .. } => (m / sensors.len(), m % sensors.len()),
         }
     }
@@ -294,6 +319,19 @@ impl Scan {
                 sensors.validate("sensor_points")?;
                 on_the_grid_plane(lasers, "laser_points", sensors, "sensor grid")?;
                 on_the_grid_plane(sensors, "sensor_points", lasers, "laser grid")?;
+            }
+            ScanPattern::Paired { lasers, sensors } => {
+                lasers.validate("laser_points")?;
+                sensors.validate("sensor_points")?;
+                if lasers.len() != sensors.len() {
+                    return Err(TransientError::WrongShape {
+                        file: MEMORY.into(),
+                        field: "sensor_points".into(),
+                        expected: format!("{} points (one per laser point: a paired scan)", lasers.len()),
+                        found: format!("{}", sensors.len()),
+                    });
+                }
+                on_the_relay_surface(lasers, sensors)?;
             }
         }
         for (field, d) in [("laser_device", self.laser_device), ("sensor_device", self.sensor_device)] {
@@ -328,6 +366,86 @@ fn on_the_grid_plane(points: &PointSet, field: &str, grid: &PointSet, grid_name:
         )),
         None => Ok(()),
     }
+}
+
+/// How far (metres) a spot of a paired scan may lie from the least-squares plane of all its spots, at the
+/// least: a curved relay surface bends a few centimetres (the general-NLOS wall: −1.7 … +2.9 cm over 1.5 m).
+/// The limit grows with the scan (a tenth of its extent), so that large curved walls are accepted.
+pub const MAX_OFF_PLANE: f32 = 0.1;
+
+/// Checks that every spot of a paired scan lies on the relay surface: within [`MAX_OFF_PLANE`] (or a tenth
+/// of the scan's extent) of the least-squares plane through all spots, and that each wall normal faces the
+/// side of the hidden scene (`n·ẑ > 0`, the wall seen from the scene). A spot further off is a point in the
+/// hidden volume or behind the wall, usually a unit (mm for m) or axis mistake.
+fn on_the_relay_surface(lasers: &PointSet, sensors: &PointSet) -> Result<()> {
+    let all: Vec<Vec3> = lasers.points.iter().chain(&sensors.points).copied().collect();
+    let fit = fit_plane(&all);
+    let (lo, hi) = all.iter().fold((all[0], all[0]), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let extent = (hi - lo).truncate().max_element();
+    let limit = MAX_OFF_PLANE.max(0.1 * extent);
+    for (set, field) in [(lasers, "laser_points"), (sensors, "sensor_points")] {
+        if let Some((i, (p, d))) =
+            set.points.iter().map(|p| (p, fit.distance(*p))).enumerate().find(|(_, (_, d))| d.abs() > limit)
+        {
+            let side = if d > 0.0 { "in front of the wall, in the hidden volume" } else { "behind the wall" };
+            return Err(invalid(
+                field,
+                format!(
+                    "spot {i} at {p:?} lies {:.3} m {side} (the plane through all spots, z = {:.3} m at its centre;                      at most {limit:.3} m allowed); laser and sensor spots lie on the relay surface: give both in                      the same frame (metres, wall near z = 0, hidden scene at z > 0)",
+                    d.abs(),
+                    fit.centre.z
+                ),
+            ));
+        }
+        if let Some(i) = set.normals.iter().position(|n| n.z <= 0.0) {
+            return Err(invalid(
+                &format!("{field}.normals"),
+                format!(
+                    "normal {i} = {:?} faces away from the hidden scene (z > 0); the wall normal at a spot points \
+                     into the hidden scene",
+                    set.normals[i]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A plane through `centre` with unit normal `normal` (`normal.z ≥ 0`).
+struct Plane {
+    centre: Vec3,
+    normal: Vec3,
+}
+
+impl Plane {
+    /// Signed distance along the normal (positive on the hidden scene's side).
+    fn distance(&self, p: Vec3) -> f32 {
+        (p - self.centre).dot(self.normal)
+    }
+}
+
+/// The least-squares plane `z = a + b·x + c·y` through `points` (a wall is never vertical in this frame); the
+/// plane `z = mean` when the points are collinear.
+fn fit_plane(points: &[Vec3]) -> Plane {
+    let n = points.len() as f64;
+    let c = points.iter().fold(glam::DVec3::ZERO, |a, p| a + p.as_dvec3()) / n;
+    let (mut sxx, mut sxy, mut syy, mut sxz, mut syz) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for p in points {
+        let d = p.as_dvec3() - c;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+        sxz += d.x * d.z;
+        syz += d.y * d.z;
+    }
+    let det = sxx * syy - sxy * sxy;
+    let (b, cc) = if det.abs() > 1e-12 * (sxx * syy).max(1e-30) {
+        ((sxz * syy - syz * sxy) / det, (syz * sxx - sxz * sxy) / det)
+    } else {
+        (0.0, 0.0)
+    };
+    let normal = glam::DVec3::new(-b, -cc, 1.0).normalize();
+    Plane { centre: c.as_vec3(), normal: normal.as_vec3() }
 }
 
 /// The wall geometry of one measurement.

@@ -158,15 +158,21 @@ fn tsai_bin_width_gt_transient_and_sensor() {
     assert_eq!(detect_bytes(&bytes, f).expect("detect"), Format::TsaiMat);
     let t = read_bytes_as(&bytes, Format::TsaiMat, f).expect("read");
     assert_eq!(t.time().bin_width, 0.003);
-    // A sensor that differs from the lighting is a non-confocal capture: refused, typed.
+    assert!(t.scan().is_confocal());
+    // A sensor that differs from the lighting is a paired capture: measurement r lights lighting[r] and
+    // records at sensor[r].
     let mut other = lighting;
     other.name = "sensor".into();
     if let mat5::Body::Numeric { data: Stored::F64(v), .. } = &mut other.body {
         v[0] += 1.0;
     }
     *vars.last_mut().expect("sensor") = other;
-    let r = read_bytes_as(&write(&vars, Options::default()), Format::TsaiMat, f);
-    assert!(matches!(r, Err(TransientError::Unsupported { .. })), "{r:?}");
+    let t = read_bytes_as(&write(&vars, Options::default()), Format::TsaiMat, f).expect("paired");
+    assert_eq!(t.scan().pattern_name(), "paired");
+    assert_eq!(t.measurements(), m);
+    let g = t.scan().measurement(0);
+    assert_eq!(g.sensor.x, g.laser.x + 1.0);
+    assert_eq!(t.scan().measurement(1).sensor, t.scan().measurement(1).laser);
 }
 
 /// A Tsai file whose `lighting` is a 4 × 3 grid (x fastest, as their `compute_init_su.m` writes it) reads as

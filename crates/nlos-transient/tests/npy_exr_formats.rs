@@ -73,7 +73,17 @@ fn scans() -> Result<Vec<(&'static str, Scan, bool)>, TransientError> {
         ),
         ("exhaustive_list", Scan::exhaustive(tilted, PointSet::list(odd_points(2, -1.7))), false),
         ("devices_and_legs", with_devices, true),
+        ("paired_grid", Scan::paired(PointSet::wall_grid(3, 2, 0.3, 0.2)?, PointSet::list(odd_points(6, 0.9))), false),
+        ("paired_curved", Scan::paired(curved(0.0), curved(0.27)), false),
     ])
+}
+
+/// Five spots on a wall curved by ±3 cm, shifted `dx` along x, each with its own normal.
+fn curved(dx: f32) -> PointSet {
+    let points: Vec<Vec3> =
+        (0..5).map(|i| i as f32 * 0.1 - 0.2).map(|x| Vec3::new(x + dx, 0.05 * x, 0.03 * (5.0 * x).sin())).collect();
+    let normals = points.iter().map(|p| Vec3::new(-0.15 * (5.0 * (p.x - dx)).cos(), 0.0, 1.0).normalize()).collect();
+    PointSet { points, normals, layout: nlos_transient::Layout::List }
 }
 
 fn make(scan: Scan, legs: bool, bins: usize) -> Result<Transient, TransientError> {
@@ -122,7 +132,8 @@ fn npy_shapes_follow_the_scan() -> R {
         nlos_transient::write(&t, &path, Format::NpyJson)?;
         let (values, shape) = npy::read_npy_array(&path)?;
         let expected = match t.scan().pattern {
-            nlos_transient::ScanPattern::Confocal(ref p) => match p.grid_dims() {
+            nlos_transient::ScanPattern::Confocal(ref p)
+            | nlos_transient::ScanPattern::Paired { lasers: ref p, .. } => match p.grid_dims() {
                 Some((nx, ny)) => vec![ny, nx, 3],
                 None => vec![p.len(), 3],
             },

@@ -229,11 +229,31 @@ pub struct CaptureConfig {
     /// return, where the summed histogram holds only background (plus 5 %), and the initial surface takes no
     /// voxel beyond that depth; `"off"`: the whole axis.
     pub max_depth: Setting,
+    /// The bin width in picoseconds for a capture whose files do not store it (general-NLOS `data.mat` +
+    /// `setup.mat`: 32 ps in the published experiment). `"auto"`: as the file says (an error for a file that
+    /// says nothing).
+    pub bin_width_ps: Setting,
 }
 
 impl Default for CaptureConfig {
     fn default() -> Self {
-        Self { rebin: 1, subsample: 1, gate: Setting::AUTO, max_depth: Setting::AUTO }
+        Self { rebin: 1, subsample: 1, gate: Setting::AUTO, max_depth: Setting::AUTO, bin_width_ps: Setting::AUTO }
+    }
+}
+
+impl CaptureConfig {
+    /// What the reader is told that the file may not say ([`nlos_transient::ReadOptions`]).
+    ///
+    /// # Errors
+    /// [`OptimError::Config`] for `bin_width_ps = "off"`.
+    pub fn read_options(&self) -> Result<nlos_transient::ReadOptions> {
+        match self.bin_width_ps {
+            Setting::Word(Word::Auto) => Ok(nlos_transient::ReadOptions::default()),
+            Setting::Value(ps) => Ok(nlos_transient::ReadOptions::with_bin_width_ps(Some(ps))),
+            Setting::Word(Word::Off) => {
+                Err(config_error("capture.bin_width_ps", "\"off\": give the bin width in ps, or \"auto\" (the file's)"))
+            }
+        }
     }
 }
 
@@ -510,6 +530,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
     ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),
     ("capture.max_depth", "fit no bin beyond 2 × this depth (m): \"auto\" (after the last return) or \"off\""),
+    ("capture.bin_width_ps", "bin width (ps) for files that do not store it (general-NLOS: 32), or \"auto\""),
     (
         "reflectance.model",
         "\"lambert\" (or \"lambertian\"), \"ggx\" or \"retroreflective\" (1/r² confocal return; start weighted for it)",

@@ -72,7 +72,7 @@ impl Prepared {
     /// # Errors
     /// [`OptimError::Capture`] naming the file when it cannot be read, and those of [`Prepared::new`].
     pub fn load(path: &Path, config: &Config) -> Result<Self> {
-        let read = nlos_transient::read(path)
+        let read = nlos_transient::read_with(path, &config.capture.read_options()?)
             .map_err(|source| OptimError::Capture { path: path.to_owned(), source: Box::new(source) })?;
         Self::new(read, config)
     }

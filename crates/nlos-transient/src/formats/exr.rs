@@ -22,7 +22,6 @@ use exr::prelude::{
 
 use crate::error::{Result, TransientError};
 use crate::formats::sidecar::{self, Ctx};
-use crate::scan::ScanPattern;
 use crate::time_axis::SPEED_OF_LIGHT;
 use crate::transient::Transient;
 
@@ -281,10 +280,7 @@ pub fn write(transient: &Transient, file: &Path) -> Result<Vec<u8>> {
     let json = json.ok_or_else(|| cannot("the geometry JSON is not representable as EXR text".into()))?;
     let text = |s: &str| Text::new_or_none(s).ok_or_else(|| cannot(format!("{s:?} is not EXR text")));
     let mut attributes = LayerAttributes::default();
-    let pattern = match transient.scan().pattern {
-        ScanPattern::Confocal(_) => "confocal",
-        ScanPattern::Exhaustive { .. } => "exhaustive",
-    };
+    let pattern = transient.scan().pattern_name();
     let mut entries = vec![
         (ATTRIBUTE, AttributeValue::Text(json)),
         ("nlos.t0", AttributeValue::F64(time.t0)),

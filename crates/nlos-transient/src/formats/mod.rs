@@ -5,6 +5,7 @@
 //! | Stanford LCT `.mat` (O'Toole 2018) | ✓ | – | [`mat`] |
 //! | Tsai 2019 `.mat` | ✓ | – | [`mat`] |
 //! | Stanford f-k `.mat` (Lindell 2019), MAT v5 and v7.3 | ✓ | – | [`mat`], [`hdf5`] |
+//! | general-NLOS `data.mat` + `setup.mat` (paired spots, curved wall; bin width given) | ✓ | – | [`mat`] |
 //! | Zaragoza Z-NLOS HDF5 | ✓ | – | [`hdf5`] |
 //! | y-tal HDF5_TAL | ✓ | ✓ | [`hdf5`] |
 //! | `.npy` + `.json` sidecar | ✓ | ✓ | [`npy`] |
@@ -36,6 +37,10 @@ pub enum Format {
     ZNlos,
     /// Z-NLOS as NeTF preprocessed it, MAT v5: `data` (T,A,B), `cameraGridPositions` (3,N), `deltaT`, …
     ZNlosMat,
+    /// general-NLOS (irregular relay surfaces), MAT v5: `data.mat` (`data`, A×B×T) with `setup.mat`
+    /// (`laserpoints`, `detectpoints`, A×B×3) beside it: a paired scan; the bin width comes from
+    /// [`ReadOptions::bin_width`].
+    GeneralNlosMat,
     /// y-tal HDF5_TAL (`H`, `H_format`, `sensor_grid_xyz`, `laser_grid_xyz`, `delta_t`, `t_start`, …).
     Tal,
     /// NumPy `.npy` (data) with a `.json` sidecar (geometry and time axis): this project's exchange format.
@@ -46,11 +51,12 @@ pub enum Format {
 
 impl Format {
     /// Every format, in detection order.
-    pub const ALL: [Format; 8] = [
+    pub const ALL: [Format; 9] = [
         Format::LctMat,
         Format::TsaiMat,
         Format::FkMat,
         Format::ZNlosMat,
+        Format::GeneralNlosMat,
         Format::ZNlos,
         Format::Tal,
         Format::NpyJson,
@@ -65,6 +71,7 @@ impl Format {
             Format::FkMat => "fk-mat",
             Format::ZNlos => "znlos",
             Format::ZNlosMat => "znlos-mat",
+            Format::GeneralNlosMat => "general-nlos",
             Format::Tal => "tal",
             Format::NpyJson => "npy",
             Format::Exr => "exr",
@@ -170,6 +177,27 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Format> {
     detect_bytes(&bytes, path)
 }
 
+/// What a reader needs to know that some files do not say.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReadOptions {
+    /// The bin width, metres of path, for formats whose files do not store it ([`Format::GeneralNlosMat`]:
+    /// 32 ps = 0.0096 m for the published capture). Refused for a format that stores or defines its own, so
+    /// that a file is never read with two different time axes.
+    pub bin_width: Option<f64>,
+}
+
+impl ReadOptions {
+    /// Options with a bin width given in picoseconds (converted at the speed of light the capture formats
+    /// use, `c = 3e8` m/s: 32 ps is 9.6 mm of path).
+    pub fn with_bin_width_ps(ps: Option<f64>) -> Self {
+        Self { bin_width: ps.map(|ps| ps * 1e-12 * CAPTURE_SPEED_OF_LIGHT) }
+    }
+}
+
+/// The speed of light the capture formats' reference code uses for bin widths (3e8 m/s): Stanford's 4 ps
+/// is 1.2 mm, f-k's and general-NLOS's 32 ps 9.6 mm.
+pub const CAPTURE_SPEED_OF_LIGHT: f64 = 3e8;
+
 /// Reads a transient from a file in any supported format, detected from the content.
 ///
 /// For the npy format, pass either the `.npy` or its `.json` sidecar.
@@ -177,7 +205,22 @@ pub fn detect(path: impl AsRef<Path>) -> Result<Format> {
 /// # Errors
 /// Any [`TransientError`]; each names the file and the field.
 pub fn read(path: impl AsRef<Path>) -> Result<Transient> {
+    read_with(path, &ReadOptions::default())
+}
+
+/// [`read`] with what the file does not say ([`ReadOptions`]).
+///
+/// # Errors
+/// As [`read`]; [`TransientError::InvalidValue`] for a bin width that is not one, or one given for a format
+/// that has its own; [`TransientError::MissingField`] for a general-NLOS file without one.
+pub fn read_with(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Transient> {
     let path = path.as_ref();
+    if options.bin_width.is_some() {
+        // The format is known only after detection; the general-NLOS files are the only ones that need it.
+        let bytes = read_file(path)?;
+        let format = detect_bytes(&bytes, path)?;
+        return read_bytes_with(&bytes, format, path, options);
+    }
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) {
         return npy::read_pair(&path.with_extension("npy"), path);
     }
@@ -196,6 +239,27 @@ pub fn read(path: impl AsRef<Path>) -> Result<Transient> {
 /// # Errors
 /// Any [`TransientError`].
 pub fn read_bytes_as(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
+    read_bytes_with(bytes, format, file, &ReadOptions::default())
+}
+
+/// [`read_bytes_as`] with what the file does not say ([`ReadOptions`]).
+///
+/// # Errors
+/// As [`read_with`].
+pub fn read_bytes_with(bytes: &[u8], format: Format, file: &Path, options: &ReadOptions) -> Result<Transient> {
+    if let Some(w) = options.bin_width {
+        mat::general_nlos::check_bin_width(w, file)?;
+        if format != Format::GeneralNlosMat {
+            return Err(TransientError::InvalidValue {
+                file: file.into(),
+                field: "bin width".into(),
+                reason: format!(
+                    "a bin width was given, but this {format} file has its own time axis; the option is for \
+                     files that do not store one (general-NLOS)"
+                ),
+            });
+        }
+    }
     let t = match format {
         Format::LctMat | Format::TsaiMat | Format::FkMat if sniff(bytes) == Some(Container::MatV5) => {
             mat::read(bytes, format, file)?
@@ -207,6 +271,16 @@ pub fn read_bytes_as(bytes: &[u8], format: Format, file: &Path) -> Result<Transi
             return Err(TransientError::UnknownFormat { file: file.into(), reason: "not a MAT-file".into() });
         }
         Format::ZNlosMat if sniff(bytes) == Some(Container::MatV5) => mat::read(bytes, format, file)?,
+        Format::GeneralNlosMat if sniff(bytes) == Some(Container::MatV5) => {
+            mat::read_general_nlos(bytes, file, options)?
+        }
+        Format::GeneralNlosMat => {
+            return Err(TransientError::Unsupported {
+                file: file.into(),
+                what: "a general-NLOS file saved as MAT v7.3 (HDF5); save it with `-v7` (scipy.io.savemat writes v5)"
+                    .into(),
+            });
+        }
         Format::ZNlosMat => {
             return Err(TransientError::Unsupported {
                 file: file.into(),

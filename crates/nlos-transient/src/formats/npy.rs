@@ -1,16 +1,17 @@
 //! `.npy` data with a `.json` sidecar: this project's exchange format (schema: `docs/formats/npy-json.md`).
 //!
 //! - The `.npy` holds the histograms: NumPy format v1.0, little-endian `float32` (`<f4`), C order. A
-//!   confocal **grid** scan is written with shape `(ny, nx, bins)`, so that `np.load` gives an image-shaped
-//!   cube (`cube[iy, ix, k]`); every other scan with shape `(measurements, bins)`.
+//!   confocal **grid** scan (or a paired scan whose laser spots form a grid) is written with shape
+//!   `(ny, nx, bins)`, so that `np.load` gives an image-shaped cube (`cube[iy, ix, k]`); every other scan with
+//!   shape `(measurements, bins)`.
 //! - The `.json` sidecar beside it (same stem) holds the scan geometry and time axis:
 //!   `{"format": "nlos-transient", "version": 1, "data": "x.npy", "dtype": "<f4", "shape": [...],
 //!   "time": {...}, "scan": {...}}`.
 //!
 //! Reading accepts NumPy format versions 1.0, 2.0 and 3.0; either byte order; `float16/32/64`, signed and
 //! unsigned integers of 1–8 bytes and `bool` (converted to `f32`, rounding to nearest); C or Fortran order;
-//! shape `(measurements, bins)`, or `(ny, nx, bins)` for a confocal grid, or `(lasers, sensors, bins)` for
-//! an exhaustive scan. Non-finite values are rejected ([`TransientError::NonFinite`]).
+//! shape `(measurements, bins)`, or `(ny, nx, bins)` for a confocal grid (or a paired scan's laser grid), or
+//! `(lasers, sensors, bins)` for an exhaustive scan. Non-finite values are rejected ([`TransientError::NonFinite`]).
 //!
 //! [`read_npy_array`] loads a bare `.npy` (no sidecar) as `(values, shape)`, e.g. for reference data.
 
@@ -78,7 +79,8 @@ fn decode(npy: &[u8], json: &[u8], npy_file: &Path, json_file: &Path) -> Result<
     if !fits {
         let mut expected = format!("({m}, {bins}) (measurements, bins, from the sidecar)");
         if let Some((a, b)) = header.image_dims() {
-            let what = if header.is_confocal() { "ny, nx, bins" } else { "lasers, sensors, bins" };
+            let what =
+                if header.is_confocal() || header.is_paired() { "ny, nx, bins" } else { "lasers, sensors, bins" };
             expected.push_str(&format!(" or ({a}, {b}, {bins}) ({what})"));
         }
         return Err(TransientError::WrongShape {
@@ -121,7 +123,7 @@ fn decode(npy: &[u8], json: &[u8], npy_file: &Path, json_file: &Path) -> Result<
 pub fn write(transient: &Transient, file: &Path) -> Result<(Vec<u8>, Vec<u8>)> {
     let (m, bins) = (transient.measurements(), transient.bins());
     let shape = match &transient.scan().pattern {
-        ScanPattern::Confocal(p) => match p.layout {
+        ScanPattern::Confocal(p) | ScanPattern::Paired { lasers: p, .. } => match p.layout {
             Layout::Grid { nx, ny } if nx.checked_mul(ny) == Some(m) => vec![ny, nx, bins],
             _ => vec![m, bins],
         },

@@ -139,8 +139,8 @@ pub(crate) fn to_json(
 ) -> Result<Vec<u8>> {
     let (points, lasers, sensors, pattern) = match &scan.pattern {
         ScanPattern::Confocal(p) => (Some(point_set_out(p)), None, None, "confocal"),
-        ScanPattern::Exhaustive { lasers, sensors } => {
-            (None, Some(point_set_out(lasers)), Some(point_set_out(sensors)), "exhaustive")
+        ScanPattern::Exhaustive { lasers, sensors } | ScanPattern::Paired { lasers, sensors } => {
+            (None, Some(point_set_out(lasers)), Some(point_set_out(sensors)), scan.pattern_name())
         }
     };
     let header = HeaderOut {
@@ -278,8 +278,10 @@ impl PointSetIn {
 pub(crate) struct Header {
     /// The time axis (validated).
     pub time: TimeAxis,
-    /// Confocal: one set; exhaustive: lasers and sensors.
+    /// Confocal: one set; exhaustive and paired: lasers and sensors.
     sets: Vec<PointSetIn>,
+    /// Whether two sets pair up one to one rather than every laser with every sensor.
+    paired: bool,
     laser_device: Option<Vec3>,
     sensor_device: Option<Vec3>,
     /// The whole top-level object, for format-specific keys (`data`, `dtype`, `shape`).
@@ -291,6 +293,7 @@ impl Header {
     pub fn measurements(&self) -> usize {
         match self.sets.as_slice() {
             [one] => one.len,
+            [l, s] if self.paired => l.len,
             [l, s] => l.len.saturating_mul(s.len),
             _ => 0,
         }
@@ -301,14 +304,20 @@ impl Header {
         self.sets.len() == 1
     }
 
-    /// `(ny, nx)` of a confocal grid, `(lasers, sensors)` of an exhaustive scan; `None` for a confocal list.
+    /// Whether the scan is paired (measurement `m` = laser `m` with sensor `m`).
+    pub fn is_paired(&self) -> bool {
+        self.paired
+    }
+
+    /// `(ny, nx)` of a confocal grid (or of a paired scan's laser grid), `(lasers, sensors)` of an exhaustive
+    /// scan; `None` for a list.
     pub fn image_dims(&self) -> Option<(usize, usize)> {
-        match self.sets.as_slice() {
-            [one] => match one.layout {
+        match (self.sets.as_slice(), self.paired) {
+            ([one], _) | ([one, _], true) => match one.layout {
                 Layout::Grid { nx, ny } => Some((ny, nx)),
                 Layout::List => None,
             },
-            [l, s] => Some((l.len, s.len)),
+            ([l, s], false) => Some((l.len, s.len)),
             _ => None,
         }
     }
@@ -319,6 +328,7 @@ impl Header {
         let mut sets = self.sets.into_iter().map(PointSetIn::into_point_set);
         let first = sets.next().unwrap_or_else(|| PointSet::list(Vec::new()));
         let pattern = match sets.next() {
+            Some(sensors) if self.paired => ScanPattern::Paired { lasers: first, sensors },
             Some(sensors) => ScanPattern::Exhaustive { lasers: first, sensors },
             None => ScanPattern::Confocal(first),
         };
@@ -574,25 +584,35 @@ pub(crate) fn parse(json: &[u8], ctx: &Ctx<'_>) -> Result<Header> {
     }
     let time = time_axis(ctx, req(ctx, top, "time", "time", "add the time axis object")?)?;
     let scan = object(ctx, req(ctx, top, "scan", "scan", "add the scan geometry object")?, "scan")?;
-    let pattern = req(ctx, scan, "pattern", "scan.pattern", "\"confocal\" or \"exhaustive\"")?;
+    const PATTERNS: &str = "\"confocal\", \"exhaustive\" or \"paired\"";
+    let pattern = req(ctx, scan, "pattern", "scan.pattern", PATTERNS)?;
+    let paired = pattern.as_str() == Some("paired");
     let sets = match pattern.as_str() {
         Some("confocal") => {
             only_keys(ctx, scan, &["pattern", "points", "laser_device", "sensor_device"], "scan")?;
             let p = req(ctx, scan, "points", "scan.points", "the confocal scan points")?;
             vec![point_set(ctx, p, "scan.points")?]
         }
-        Some("exhaustive") => {
+        Some("exhaustive" | "paired") => {
             only_keys(ctx, scan, &["pattern", "lasers", "sensors", "laser_device", "sensor_device"], "scan")?;
             let l = req(ctx, scan, "lasers", "scan.lasers", "the laser points")?;
             let s = req(ctx, scan, "sensors", "scan.sensors", "the sensor points")?;
-            vec![point_set(ctx, l, "scan.lasers")?, point_set(ctx, s, "scan.sensors")?]
+            let sets = vec![point_set(ctx, l, "scan.lasers")?, point_set(ctx, s, "scan.sensors")?];
+            if paired && sets[0].len != sets[1].len {
+                return Err(ctx.wrong_shape(
+                    "scan.sensors",
+                    format!("{} points (a paired scan has one sensor spot per laser spot)", sets[0].len),
+                    sets[1].len.to_string(),
+                ));
+            }
+            sets
         }
-        _ => return Err(ctx.wrong_type("scan.pattern", "\"confocal\" or \"exhaustive\"", pattern)),
+        _ => return Err(ctx.wrong_type("scan.pattern", PATTERNS, pattern)),
     };
     let laser_device = device(ctx, scan, "laser_device")?;
     let sensor_device = device(ctx, scan, "sensor_device")?;
     let Value::Object(top) = value else { return Err(ctx.wrong_type("", "a JSON object", &Value::Null)) };
-    Ok(Header { time, sets, laser_device, sensor_device, top })
+    Ok(Header { time, sets, paired, laser_device, sensor_device, top })
 }
 
 /// Reads an optional integer list (e.g. `shape`) from the top level.

@@ -31,7 +31,8 @@
 //! Writing: confocal grid → `T_Sx_Sy`; confocal list → `T_Si`; exhaustive with two grids →
 //! `T_Lx_Ly_Sx_Sy`; exhaustive with a single laser spot → `T_Sx_Sy` / `T_Si` with a one-point laser
 //! grid; any other exhaustive scan → `T_Li_Si` (a grid in a `T_Li_Si` file is stored as `N_3`, so its
-//! grid shape is not kept). `H` is float32, gzip-compressed in chunks; positions and normals float32;
+//! grid shape is not kept). A paired scan has no y-tal layout and is refused with
+//! [`TransientError::CannotWrite`] (write `.npy` + `.json` or `.exr`). `H` is float32, gzip-compressed in chunks; positions and normals float32;
 //! `delta_t` and `t_start` are written as **float64** (y-tal writes float32; y-tal and h5py read either),
 //! so our own files round-trip bit-exactly.
 //!
@@ -349,6 +350,16 @@ pub(super) fn write(t: &Transient, file: &Path) -> Result<Vec<u8>> {
                 (_, true, true) => (HFormat::TLxLySxSy, lasers, sensors, false, false),
                 _ => (HFormat::TLiSi, lasers, sensors, true, true),
             }
+        }
+        ScanPattern::Paired { .. } => {
+            return Err(TransientError::CannotWrite {
+                file: file.into(),
+                format: "y-tal HDF5".into(),
+                reason: "a paired scan (measurement i = laser spot i with sensor spot i) has no y-tal layout: every \
+                         H_format is confocal or pairs each laser spot with every sensor spot; write .npy (with its \
+                         .json sidecar) or .exr, which keep the pairing"
+                    .into(),
+            });
         }
     };
     let (l_dims, l_xyz, l_nrm) = grid_arrays(lasers, laser_list);

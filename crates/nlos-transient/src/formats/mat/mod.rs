@@ -40,7 +40,8 @@
 //!   `lighting = [x(:) y(:) 0]` from `ndgrid(linspace(-width, width, 64))`, saved with only those two
 //!   variables. Their synthetic setup files (`main_create_gt.py`) hold `gt_transient` instead of
 //!   `transient`, plus `bin_width` (metres of path, `distance_resolution = 1.2e-3`) and `sensor`
-//!   (equal to `lighting`); both are honoured when present.
+//!   (equal to `lighting`); both are honoured when present, and a `sensor` apart from `lighting` makes the
+//!   scan paired (measurement r = laser `lighting[r]` with sensor `sensor[r]`).
 //! - Time: their code (`OPT.distance_resolution = 1.2*10**-3`, path-length bins starting at the wall)
 //!   uses [`TSAI_BIN_WIDTH`] = 1.2 mm per bin and `t0 = 0`, times `l → x → s`; used when `bin_width` is
 //!   not stored.
@@ -73,6 +74,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
+pub mod general_nlos;
 mod v5;
 mod znlos;
 
@@ -103,7 +105,7 @@ pub const FK_DEFAULT_HALF_WIDTH: f64 = 1.0;
 ///
 /// `rect_data` → [`Format::LctMat`]; `meas` → [`Format::FkMat`]; `lighting` with `transient` (or
 /// `gt_transient`) → [`Format::TsaiMat`]; `data` with `cameraGridPositions` and `deltaT` →
-/// [`Format::ZNlosMat`].
+/// [`Format::ZNlosMat`]; `data` alone, or `laserpoints` with `detectpoints` → [`Format::GeneralNlosMat`].
 ///
 /// # Errors
 /// [`TransientError::UnknownFormat`] naming the variables found when they match no known layout;
@@ -120,13 +122,16 @@ pub fn classify(bytes: &[u8], file: &Path) -> Result<Format> {
         Ok(Format::TsaiMat)
     } else if has("data") && has("cameraGridPositions") && has("deltaT") {
         Ok(Format::ZNlosMat)
+    } else if general_nlos::is_setup(&m) || (has("data") && m.headers().count() == 1) {
+        Ok(Format::GeneralNlosMat)
     } else {
         Err(TransientError::UnknownFormat {
             file: file.into(),
             reason: format!(
                 "MAT v5 file with {}; expected `rect_data` + `width` (Stanford LCT), `transient` + `lighting` \
-                 (Tsai 2019), `meas` + `tofgrid` (Stanford f-k) or `data` + `cameraGridPositions` + `deltaT` \
-                 (Z-NLOS as NeTF preprocessed it)",
+                 (Tsai 2019), `meas` + `tofgrid` (Stanford f-k), `data` + `cameraGridPositions` + `deltaT` \
+                 (Z-NLOS as NeTF preprocessed it), `data` alone or `laserpoints` + `detectpoints` (general-NLOS \
+                 data.mat and setup.mat)",
                 m.names()
             ),
         })
@@ -152,6 +157,14 @@ pub fn read(bytes: &[u8], format: Format, file: &Path) -> Result<Transient> {
             reason: format!("{other} is not a MAT-file format"),
         }),
     }
+}
+
+/// Reads a general-NLOS capture ([`general_nlos`]) from either of its files.
+///
+/// # Errors
+/// As [`read`]; see [`general_nlos`] for what each file must hold.
+pub fn read_general_nlos(bytes: &[u8], file: &Path, options: &super::ReadOptions) -> Result<Transient> {
+    general_nlos::read(&MatFile::parse(bytes, file)?, file, options)
 }
 
 /// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN and
@@ -303,19 +316,23 @@ fn read_tsai(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
         TSAI_BIN_WIDTH
     };
     let l = lighting.to_f64(file)?;
-    if m.header("sensor").is_some() {
-        let s = m.numeric("sensor", "")?;
-        if s.header.dims != lighting.header.dims || s.to_f64(file)? != l {
-            return Err(TransientError::Unsupported {
-                file: file.into(),
-                what: "Tsai 2019 file whose `sensor` positions differ from `lighting` (non-confocal paired \
-                       measurements cannot be represented; only confocal captures are read)"
-                    .into(),
-            });
+    let rows = |v: &[f64]| -> Vec<Vec3> {
+        let col = |c: usize, r: usize| v.get(r + meas * c).copied().unwrap_or(f64::NAN) as f32;
+        (0..meas).map(|r| Vec3::new(col(0, r), col(1, r), col(2, r))).collect()
+    };
+    let points = rows(&l);
+    // Their synthetic setups may hold `sensor` positions apart from `lighting`: a paired scan.
+    let sensors = match m.header("sensor") {
+        Some(_) => {
+            let s = m.numeric("sensor", "")?;
+            if s.header.dims != lighting.header.dims {
+                return Err(wrong_shape(file, &s.header, format!("{meas}×3 (one x, y, z row per measurement)")));
+            }
+            let s = s.to_f64(file)?;
+            (s != l).then(|| rows(&s))
         }
-    }
-    let col = |c: usize, r: usize| l.get(r + meas * c).copied().unwrap_or(f64::NAN) as f32;
-    let points: Vec<Vec3> = (0..meas).map(|r| Vec3::new(col(0, r), col(1, r), col(2, r))).collect();
+        None => None,
+    };
     let mut data = vec![0.0f32; meas * bins];
     tr.for_each_f32(file, |idx, v| {
         let (r, k) = (idx % meas, idx / meas);
@@ -323,11 +340,19 @@ fn read_tsai(m: &MatFile<'_>, file: &Path) -> Result<Transient> {
             *d = v;
         }
     })?;
-    let points = PointSet::list(points);
+    let scan = match sensors {
+        Some(s) => Scan::paired(PointSet::list(points), PointSet::list(s)),
+        None => Scan::confocal(PointSet::list(points)),
+    };
     let time = TimeAxis::new(0.0, bin_width, bins).map_err(|e| with_file(e, file))?;
-    Transient::new(Scan::confocal(points), time, data).map_err(|e| match with_file(e, file) {
-        TransientError::NonFinite { file, field, index } if field.starts_with("scan_points") => {
+    Transient::new(scan, time, data).map_err(|e| match with_file(e, file) {
+        TransientError::NonFinite { file, field, index }
+            if field.starts_with("scan_points") || field.starts_with("laser_points") =>
+        {
             TransientError::NonFinite { file, field: "lighting".into(), index }
+        }
+        TransientError::NonFinite { file, field, index } if field.starts_with("sensor_points") => {
+            TransientError::NonFinite { file, field: "sensor".into(), index }
         }
         e => e,
     })
