@@ -116,6 +116,34 @@ fn gpu_matches_the_cpu_on_a_general_scan_two_sided_with_face_weights() {
     compare(&mut g, &r, &wide, 1e-4, "general retroreflective, 0.2 rad lobe");
 }
 
+/// Paired spots on a wall curved by ±5 cm, each with its own normal (the general-NLOS shape of capture).
+fn paired_curved_scan() -> Scan {
+    let spot = |x: f32, y: f32| Vec3::new(x, y, 0.05 * (4.0 * x).sin() * (3.0 * y).cos());
+    let normal = |p: Vec3| {
+        Vec3::new(-0.2 * (4.0 * p.x).cos() * (3.0 * p.y).cos(), 0.15 * (4.0 * p.x).sin() * (3.0 * p.y).sin(), 1.0)
+            .normalize()
+    };
+    let set = |points: Vec<Vec3>| PointSet {
+        normals: points.iter().map(|p| normal(*p)).collect(),
+        points,
+        layout: nlos_transient::Layout::List,
+    };
+    let lasers: Vec<Vec3> = (0..12).map(|i| spot(-0.25 + 0.1 * (i % 4) as f32, -0.2 + 0.2 * (i / 4) as f32)).collect();
+    let sensors = lasers.iter().map(|l| spot(l.x + 0.27 * (0.5 * l.y).cos(), l.y + 0.27 * (0.5 * l.y).sin())).collect();
+    Scan::paired(set(lasers), set(sensors))
+}
+
+#[test]
+fn gpu_matches_the_cpu_on_paired_spots_of_a_curved_wall() {
+    let Some(mut g) = gpu() else { return };
+    let (p, f) = common::bumpy_surface_with_occluder(12);
+    let time = TimeAxis::new(0.6, 0.004, 300).expect("axis");
+    let r = Renderer::new(&p, &f, &paired_curved_scan(), &time, splat(Visibility::Cached { level: 2 })).expect("valid");
+    compare(&mut g, &r, &Lambertian::new(0.8f32).expect("albedo"), 1e-4, "paired curved wall, Lambertian");
+    let wide = Retroreflective::with_lobe_width(0.7f32, 0.2).expect("lobe");
+    compare(&mut g, &r, &wide, 1e-4, "paired curved wall, retroreflective, 0.2 rad lobe");
+}
+
 #[test]
 fn gpu_gradient_matches_finite_differences_of_the_gpu_forward() {
     let Some(mut g) = gpu() else { return };
