@@ -53,7 +53,7 @@ pub use fbp::{FbpParams, fbp};
 pub use fk::{FkParams, fk};
 pub use lct::{LctParams, lct};
 pub use nlos_brdf::Model;
-pub use pf::{PfParams, pf};
+pub use pf::{DepthNoise, PfParams, pf};
 pub use prep::Gate;
 pub use rim::round_rim;
 pub use surface::{

@@ -252,7 +252,7 @@ pub fn residual_patches(
     let volume = if confocal_grid {
         lct(&t, &LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() })
     } else {
-        pf(&t, &PfParams { gate: Gate::None, ..PfParams::default() })
+        pf(&t, &PfParams { gate: Gate::None, depth_noise: nlos_init::DepthNoise::Off, ..PfParams::default() })
     };
     let vol = match volume {
         Ok(v) => v,

@@ -62,7 +62,8 @@ impl Planar {
         let scan = t.scan();
         let (lasers, sensors) = (scan.lasers(), scan.sensors());
         let flat = |p: &nlos_transient::PointSet| p.points.iter().all(|v| v.z.abs() < 1e-9);
-        if !(flat(lasers) && flat(sensors)) {
+        // A paired scan has one measurement per sparse point: one propagation each, slower than the direct sum.
+        if !(flat(lasers) && flat(sensors)) || matches!(scan.pattern, nlos_transient::ScanPattern::Paired { .. }) {
             return None;
         }
         let lasers_dense = lasers.len() > sensors.len();
