@@ -43,8 +43,16 @@ impl Capture {
 }
 
 fn points_array<'py>(py: Python<'py>, points: &PointSet) -> PyResult<Bound<'py, PyArray2<f32>>> {
-    let flat: Vec<f32> = points.points.iter().flat_map(|p| p.to_array()).collect();
-    let array = Array2::from_shape_vec((points.len(), 3), flat).map_err(errors::capture)?;
+    vec3_array(py, &points.points)
+}
+
+fn normals_array<'py>(py: Python<'py>, points: &PointSet) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    vec3_array(py, &points.normals)
+}
+
+fn vec3_array<'py>(py: Python<'py>, v: &[glam::Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let flat: Vec<f32> = v.iter().flat_map(|p| p.to_array()).collect();
+    let array = Array2::from_shape_vec((v.len(), 3), flat).map_err(errors::capture)?;
     Ok(PyArray2::from_owned_array(py, array))
 }
 
@@ -110,25 +118,28 @@ impl Capture {
         self.format.map(Format::name)
     }
 
-    /// A capture from arrays: `data` (measurements × bins), `scan_points` (n, 3), `laser_points` (n_l, 3)
-    /// for a non-confocal scan (every laser spot with every sensor spot, `m = il·n + is`; None: confocal),
-    /// the time axis `t0`, `dt` (metres of path), and `grid = (nx, ny)` when the sensor spots are a grid.
+    /// A capture from arrays: `data` (measurements × bins), `scan_points` (n, 3) the sensor spots,
+    /// `laser_points` (n_l, 3) for a non-confocal scan (None: confocal), the time axis `t0`, `dt` (metres of
+    /// path), `grid = (nx, ny)` when the sensor spots are a grid. `pattern`: `"exhaustive"` (every laser
+    /// spot with every sensor spot, `m = il·n + is`; the default with `laser_points`) or `"paired"`
+    /// (measurement `m` = laser spot `m` with sensor spot `m`, as many of each). The wall's normals are +z;
+    /// [`Capture::with_normals`] sets them for a curved wall.
     #[staticmethod]
-    #[pyo3(signature = (data, scan_points, *, dt, t0 = 0.0, laser_points = None, grid = None))]
+    #[pyo3(signature = (data, scan_points, *, dt, t0 = 0.0, laser_points = None, grid = None, pattern = None))]
     fn from_arrays(
-        py: Python<'_>,
         data: &Bound<'_, PyAny>,
         scan_points: &Bound<'_, PyAny>,
         dt: f64,
         t0: f64,
         laser_points: Option<&Bound<'_, PyAny>>,
         grid: Option<(usize, usize)>,
+        pattern: Option<&str>,
     ) -> PyResult<Self> {
-        let sensors = arrays::points("scan_points", scan_points, None)?;
-        let mut sensor_set = PointSet::list(sensors);
+        let value = pyo3::exceptions::PyValueError::new_err;
+        let mut sensor_set = PointSet::list(arrays::points("scan_points", scan_points, None)?);
         if let Some((nx, ny)) = grid {
             if nx * ny != sensor_set.len() {
-                return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                return Err(value(format!(
                     "grid: {nx} × {ny} = {} spots, but scan_points has {}",
                     nx * ny,
                     sensor_set.len()
@@ -136,15 +147,79 @@ impl Capture {
             }
             sensor_set.layout = nlos_transient::Layout::Grid { nx, ny };
         }
-        let scan = match laser_points {
-            None => Scan::confocal(sensor_set),
-            Some(l) => Scan::exhaustive(PointSet::list(arrays::points("laser_points", l, None)?), sensor_set),
+        let lasers = laser_points.map(|l| arrays::points("laser_points", l, None).map(PointSet::list)).transpose()?;
+        let scan = match (pattern, lasers) {
+            (None | Some("confocal"), None) => Scan::confocal(sensor_set),
+            (None | Some("exhaustive"), Some(l)) => Scan::exhaustive(l, sensor_set),
+            (Some("paired"), Some(l)) => Scan::paired(l, sensor_set),
+            (Some(p @ ("exhaustive" | "paired")), None) => {
+                return Err(value(format!("pattern: {p:?} needs laser_points")));
+            }
+            (Some("confocal"), Some(_)) => {
+                return Err(value("pattern: \"confocal\" takes no laser_points".to_string()));
+            }
+            (Some(other), _) => {
+                return Err(value(format!("pattern: {other:?} is not \"confocal\", \"exhaustive\" or \"paired\"")));
+            }
         };
+        scan.validate().map_err(errors::capture)?;
         let (values, [_, bins]) = arrays::floats_2d("data", data, Some(scan.measurements()), None)?;
-        let time =
-            TimeAxis::new(t0, dt, bins).map_err(|e| pyo3::exceptions::PyValueError::new_err(format!("t0, dt: {e}")))?;
+        let time = TimeAxis::new(t0, dt, bins).map_err(|e| value(format!("t0, dt: {e}")))?;
         let t = Transient::new(scan, time, values).map_err(errors::capture)?;
-        Self::new(py, t, None)
+        Self::new(data.py(), t, None)
+    }
+
+    /// The same capture (sharing `data`) with the relay wall's unit normals at each sensor spot
+    /// (`scan_normals`, shaped as `scan_points`) and, for a non-confocal scan, at each laser spot
+    /// (`laser_normals`; None keeps them): for a curved wall.
+    #[pyo3(signature = (scan_normals, laser_normals = None))]
+    fn with_normals(
+        &self,
+        py: Python<'_>,
+        scan_normals: &Bound<'_, PyAny>,
+        laser_normals: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let mut scan = self.scan.clone();
+        let n_s = arrays::points("scan_normals", scan_normals, Some(scan.sensors().len()))?;
+        let n_l = laser_normals.map(|n| arrays::points("laser_normals", n, Some(scan.lasers().len()))).transpose()?;
+        match (&mut scan.pattern, n_l) {
+            (nlos_transient::ScanPattern::Confocal(p), None) => p.normals = n_s,
+            (nlos_transient::ScanPattern::Confocal(_), Some(_)) => {
+                return Err(pyo3::exceptions::PyValueError::new_err(
+                    "laser_normals: a confocal scan's laser spots are its sensor spots; give scan_normals only",
+                ));
+            }
+            (
+                nlos_transient::ScanPattern::Exhaustive { lasers, sensors }
+                | nlos_transient::ScanPattern::Paired { lasers, sensors },
+                n_l,
+            ) => {
+                sensors.normals = n_s;
+                if let Some(n) = n_l {
+                    lasers.normals = n;
+                }
+            }
+        }
+        scan.validate().map_err(errors::capture)?;
+        Ok(Self { scan, time: self.time, format: self.format, data: self.data.clone_ref(py) })
+    }
+
+    /// How laser and sensor spots pair up: `"confocal"`, `"exhaustive"` or `"paired"`.
+    #[getter]
+    fn pattern(&self) -> &'static str {
+        self.scan.pattern_name()
+    }
+
+    /// The wall's unit normal at each sensor spot, (n, 3).
+    #[getter]
+    fn scan_normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        normals_array(py, self.scan.sensors())
+    }
+
+    /// The wall's unit normal at each laser spot, (n_l, 3).
+    #[getter]
+    fn laser_normals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        normals_array(py, self.scan.lasers())
     }
 
     /// Writes the capture: format from `format` (`"tal"`, `"npy"`, `"exr"`) or from the extension
@@ -167,10 +242,13 @@ impl Capture {
     }
 
     fn __repr__(&self) -> String {
-        let geometry = match (self.scan.is_confocal(), self.scan.sensors().grid_dims()) {
-            (true, Some((nx, ny))) => format!("confocal {nx} × {ny} grid"),
-            (true, None) => format!("confocal, {} spots", self.scan.sensors().len()),
-            (false, _) => format!("{} lasers × {} sensors", self.scan.lasers().len(), self.scan.sensors().len()),
+        let geometry = match (&self.scan.pattern, self.scan.sensors().grid_dims()) {
+            (nlos_transient::ScanPattern::Confocal(_), Some((nx, ny))) => format!("confocal {nx} × {ny} grid"),
+            (nlos_transient::ScanPattern::Confocal(p), None) => format!("confocal, {} spots", p.len()),
+            (nlos_transient::ScanPattern::Exhaustive { lasers, sensors }, _) => {
+                format!("{} lasers × {} sensors", lasers.len(), sensors.len())
+            }
+            (nlos_transient::ScanPattern::Paired { lasers, .. }, _) => format!("{} laser/sensor pairs", lasers.len()),
         };
         format!(
             "Capture({geometry}, {} bins of {:.4} m from t0 = {:.4} m{})",
@@ -182,11 +260,16 @@ impl Capture {
     }
 }
 
-/// Reads a capture in any supported format (detected from the content).
+/// Reads a capture in any supported format (detected from the content). `bin_width_ps`: the bin width
+/// for files that do not store it (general-NLOS `data.mat` + `setup.mat`: 32).
 #[pyfunction]
-pub(crate) fn load(py: Python<'_>, path: PathBuf) -> PyResult<Capture> {
+#[pyo3(signature = (path, *, bin_width_ps = None))]
+pub(crate) fn load(py: Python<'_>, path: PathBuf, bin_width_ps: Option<f64>) -> PyResult<Capture> {
+    let options = nlos_transient::ReadOptions::with_bin_width_ps(bin_width_ps);
     let (t, format) = py
-        .detach(|| nlos_transient::detect(&path).and_then(|f| nlos_transient::read(&path).map(|t| (t, f))))
+        .detach(|| {
+            nlos_transient::detect(&path).and_then(|f| nlos_transient::read_with(&path, &options).map(|t| (t, f)))
+        })
         .map_err(errors::capture)?;
     Capture::new(py, t, Some(format))
 }

@@ -130,6 +130,19 @@ impl PointSet {
         Some((step(lo.x, hi.x, nx), step(lo.y, hi.y, ny)))
     }
 
+    /// The lateral spacing of the points (metres): a [`Layout::Grid`]'s larger step, or for a list the side
+    /// of the square each point covers in the points' bounding box in x and y (`√(area / n)`; a regular grid
+    /// written as a list gets its step back, up to the `n/(n−1)` of its edges). `None` for a set of fewer
+    /// than two points or one on a line.
+    pub fn spacing(&self) -> Option<f64> {
+        if let Some((dx, dy)) = self.grid_spacing() {
+            return Some(dx.max(dy)).filter(|s| *s > 0.0);
+        }
+        let (lo, hi) = self.bounds()?;
+        let area = f64::from(hi.x - lo.x) * f64::from(hi.y - lo.y);
+        (self.len() >= 2 && area > 0.0).then(|| (area / self.len() as f64).sqrt())
+    }
+
     /// Axis-aligned bounds `(min, max)` of the points; `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.points.first()?;

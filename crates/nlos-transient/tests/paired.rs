@@ -92,7 +92,8 @@ fn general_nlos_errors_name_the_file_and_the_fix() -> R {
     let options = ReadOptions::with_bin_width_ps(Some(32.0));
     // Not a bin width.
     for bad in [0.0, -32.0, f64::NAN, 1e12] {
-        let e = nlos_transient::read_with(&data, &ReadOptions::with_bin_width_ps(Some(bad))).unwrap_err();
+        let e =
+            nlos_transient::read_with(&data, &ReadOptions::with_bin_width_ps(Some(bad))).expect_err("not a bin width");
         assert!(matches!(e, TransientError::InvalidValue { ref field, .. } if field == "bin width"), "{bad}: {e}");
     }
     // A bin width for a file that has its own time axis is refused.
@@ -103,7 +104,7 @@ fn general_nlos_errors_name_the_file_and_the_fix() -> R {
         vec![0.0; 12],
     )?;
     nlos_transient::write(&t, &own, Format::NpyJson)?;
-    let e = nlos_transient::read_with(&own, &options).unwrap_err();
+    let e = nlos_transient::read_with(&own, &options).expect_err("the file has its own axis");
     assert!(matches!(e, TransientError::InvalidValue { ref field, .. } if field == "bin width"), "{e}");
     // The setup beside the data is missing.
     std::fs::remove_file(dir.join("setup.mat")).expect("remove");

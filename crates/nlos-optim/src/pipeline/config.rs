@@ -96,6 +96,9 @@ impl InitMethod {
             Self::Auto if scan.is_confocal() => {
                 (Self::Pf, "a confocal scan whose points are no regular grid: the phasor field")
             }
+            Self::Auto if matches!(scan.pattern, nlos_transient::ScanPattern::Paired { .. }) => {
+                (Self::Pf, "a paired scan (laser spot i with sensor spot i): the phasor field")
+            }
             Self::Auto => (Self::Pf, "a non-confocal scan (lasers × sensors): the phasor field"),
             other => (other.clone(), "as set"),
         }

@@ -145,10 +145,10 @@ impl CubicSurface {
         let mut atz = [0.0f64; 10];
         for p in points {
             let row = s.row(f64::from(p.x), f64::from(p.y));
-            for r in 0..10 {
-                atz[r] += row[r] * (f64::from(p.z) - mean_z);
-                for c in 0..10 {
-                    ata[r][c] += row[r] * row[c];
+            for ((ata_r, atz_r), &x_r) in ata.iter_mut().zip(atz.iter_mut()).zip(&row) {
+                *atz_r += x_r * (f64::from(p.z) - mean_z);
+                for (a, &x_c) in ata_r.iter_mut().zip(&row) {
+                    *a += x_r * x_c;
                 }
             }
         }
@@ -195,12 +195,13 @@ fn solve(mut a: [[f64; 10]; 10], mut b: [f64; 10]) -> Option<[f64; 10]> {
         }
         a.swap(col, piv);
         b.swap(col, piv);
-        for r in col + 1..10 {
-            let f = a[r][col] / a[col][col];
-            for c in col..10 {
-                a[r][c] -= f * a[col][c];
+        let (pivot, pivot_b) = (a[col], b[col]);
+        for (row, rb) in a.iter_mut().zip(b.iter_mut()).skip(col + 1) {
+            let f = row[col] / pivot[col];
+            for (x, p) in row[col..].iter_mut().zip(&pivot[col..]) {
+                *x -= f * p;
             }
-            b[r] -= f * b[col];
+            *rb -= f * pivot_b;
         }
     }
     let mut x = [0.0; 10];
