@@ -197,18 +197,19 @@ pub struct DepthView {
 }
 
 impl DepthView {
-    /// The view over the bounding rectangle of a capture's sensor points.
+    /// The view over the bounding rectangle of a capture's wall spots, laser and sensor spots together (a
+    /// paired scan's sensors sit beside its lasers, and the hidden scene faces both).
     ///
     /// # Errors
     /// [`ReportError::Capture`] when the points do not span a rectangle of positive area.
     pub fn over_scan(t: &Transient, grid: usize) -> Result<Self> {
-        let pts = &t.scan().sensors().points;
+        let scan = t.scan();
         let (mut x0, mut x1, mut y0, mut y1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
-        for p in pts {
+        for p in scan.sensors().points.iter().chain(&scan.lasers().points) {
             (x0, x1, y0, y1) = (x0.min(p.x), x1.max(p.x), y0.min(p.y), y1.max(p.y));
         }
         if !(x1 > x0 && y1 > y0) {
-            return Err(capture_error("the sensor points do not span a rectangle of the wall: no depth view"));
+            return Err(capture_error("the wall spots do not span a rectangle of the wall: no depth view"));
         }
         Ok(Self { grid, x_range: [x0, x1], y_range: [y0, y1] })
     }
