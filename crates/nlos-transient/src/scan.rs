@@ -404,7 +404,9 @@ fn on_the_relay_surface(lasers: &PointSet, sensors: &PointSet) -> Result<()> {
             return Err(invalid(
                 field,
                 format!(
-                    "spot {i} at {p:?} lies {:.3} m {side} (the plane through all spots, z = {:.3} m at its centre;                      at most {limit:.3} m allowed); laser and sensor spots lie on the relay surface: give both in                      the same frame (metres, wall near z = 0, hidden scene at z > 0)",
+                    "spot {i} at {p:?} lies {:.3} m {side} (the plane through all spots, z = {:.3} m at its centre; \
+                     at most {limit:.3} m allowed); laser and sensor spots lie on the relay surface: give both in \
+                     the same frame (metres, wall near z = 0, hidden scene at z > 0)",
                     d.abs(),
                     fit.centre.z
                 ),

@@ -166,6 +166,7 @@ fn bad_pairings_are_typed_errors_naming_the_field() {
             Err(TransientError::InvalidValue { field, reason, .. }) => {
                 assert_eq!(field, "laser_points");
                 assert!(reason.contains("spot 3") && reason.contains(side), "{reason}");
+                assert!(!reason.contains("  "), "a message in one line, no runs of spaces: {reason}");
             }
             other => panic!("{other:?}"),
         }
