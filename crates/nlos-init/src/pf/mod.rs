@@ -516,6 +516,7 @@ mod tests {
             Scan::exhaustive(lasers, grid.clone()),
             Scan::exhaustive(grid.clone(), PointSet::list(vec![glam::Vec3::ZERO])),
             Scan::confocal(PointSet::list(grid.points.clone())),
+            paired_on_a_curved_wall(&grid),
         ] {
             let t = point_capture(scan, x);
             let vol = pf(&t, &PfParams { gate: Gate::None, ..PfParams::default() }).expect("test value");
@@ -525,6 +526,64 @@ mod tests {
             assert!((px - x.x).abs() <= spacing && (py - x.y).abs() <= spacing, "{px} {py}");
             assert!((pz - x.z).abs() < 0.01, "depth {pz}");
         }
+    }
+
+    /// Each sensor spot 0.1 m from its laser spot along −x, both on a wall bent by ±2 cm (as the
+    /// general-NLOS capture's pairs): a paired scan whose columns stand over the pairs' midpoints.
+    fn paired_on_a_curved_wall(grid: &PointSet) -> Scan {
+        let bent = |dx: f32| {
+            PointSet::list(
+                grid.points.iter().map(|p| glam::Vec3::new(p.x + dx, p.y, 0.02 * (6.0 * (p.x + dx)).cos())).collect(),
+            )
+        };
+        Scan::paired(bent(0.05), bent(-0.05))
+    }
+
+    /// Morlet's correction: the pulse passes nothing of a constant (f = 0) and keeps its peak at `fc` up to
+    /// `G(fc)²`.
+    #[test]
+    fn the_virtual_pulse_is_zero_mean() {
+        let (fc, sigma) = (1.0 / 0.06, 2.0 * 0.06 / 6.0);
+        assert_eq!(pulse_spectrum(0.0, fc, sigma), 0.0);
+        let g_fc = (-2.0 * (std::f64::consts::PI * sigma * fc).powi(2)).exp();
+        assert!((pulse_spectrum(fc, fc, sigma) - (1.0 - g_fc * g_fc)).abs() < 1e-12);
+        assert!(g_fc > 0.1, "two periods leak {g_fc} of a constant without the correction");
+    }
+
+    /// A capture with a background: `Auto` divides every depth slice by its median (as `PerDepth`), so each
+    /// slice's median becomes 1 and the point still stands out; without background `Auto` keeps the raw
+    /// magnitudes (as `Off`).
+    #[test]
+    fn depth_noise_follows_the_background() {
+        let x = DVec3::new(0.02, 0.03, 0.45);
+        let grid = PointSet::wall_grid(12, 12, 0.25, 0.25).expect("test value");
+        let clean = point_capture(Scan::confocal(grid), x);
+        let mut noisy = clean.clone();
+        for m in 0..noisy.measurements() {
+            for (k, v) in noisy.histogram_mut(m).iter_mut().enumerate() {
+                // A smooth, positive background with a little variation from bin to bin.
+                *v += 0.05 + 0.01 * ((k * 7 + m * 3) % 5) as f32;
+            }
+        }
+        let with = |t: &Transient, depth_noise| {
+            pf(t, &PfParams { gate: Gate::None, depth_noise, ..PfParams::default() }).expect("test value")
+        };
+        assert_eq!(with(&clean, DepthNoise::Auto).data, with(&clean, DepthNoise::Off).data);
+        let (auto, per_depth) = (with(&noisy, DepthNoise::Auto), with(&noisy, DepthNoise::PerDepth));
+        assert_eq!(auto.data, per_depth.data);
+        assert_ne!(auto.data, with(&noisy, DepthNoise::Off).data);
+        let columns = auto.nx * auto.ny;
+        for iz in (0..auto.nz).step_by(17) {
+            let mut slice: Vec<f32> = (0..columns).map(|c| auto.data[c * auto.nz + iz]).collect();
+            let mid = columns / 2;
+            let median = *slice.select_nth_unstable_by(mid, f32::total_cmp).1;
+            assert!((median - 1.0).abs() < 1e-5 || median == 0.0, "slice {iz}: median {median}");
+        }
+        let (px, py, pz) = peak(&auto);
+        // Within a column and a depth voxel (λ/8 = 17 mm at this coarse grid) of the point.
+        let spacing = 0.5 / 11.0;
+        assert!((px - x.x).abs() <= spacing && (py - x.y).abs() <= spacing, "{px} {py}");
+        assert!((pz - x.z).abs() <= auto.z.step, "depth {pz}, voxels of {}", auto.z.step);
     }
 
     /// The angular spectrum and the direct sum focus the same wave: on a tilted patch of points seen by
