@@ -90,10 +90,17 @@ pub enum BackgroundWindow {
     /// above the minimum, to the first hidden return (its onset found as above, at 2 % instead of 10 %: the
     /// return's foot is not background either), when they are at least 32 — the tail's end still sits above
     /// the floor. Otherwise
-    /// [`BackgroundWindow::BeforeFirstReturn`] when it holds at least 16 bins; otherwise (captures cropped
-    /// to start inside the direct light, e.g. the Stanford LCT `.mat` files) the last 10 % of the axis,
-    /// assuming the axis runs past the last return. [`BackgroundEstimate::window`] tells which was used.
+    /// [`BackgroundWindow::BeforeFirstReturn`] when it holds at least 16 bins; otherwise, on a capture
+    /// cropped to start inside its direct light (the Stanford LCT `.mat` files), the same later half of the
+    /// quiet bins as on a gated capture, searched from where the direct light has fallen to the level of the
+    /// strongest hidden return (after [`Transient::direct_light_end`]): the raw capture and its gated
+    /// version read the same bins; otherwise [`BackgroundWindow::AxisEnd`], assuming the axis runs past the
+    /// last return. [`BackgroundEstimate::window`] tells which was used.
     Auto,
+    /// The last 10 % of the axis (at least one bin). Background only when the axis runs well past the last
+    /// return; on a capture whose returns reach the end of the axis it also holds their late light, which
+    /// is what the sensor fit's floor wants (`nlos_optim`'s pipeline on gated captures).
+    AxisEnd,
     /// Bins `[start, end)`.
     Bins {
         /// First bin.
@@ -141,17 +148,22 @@ fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)
         BackgroundWindow::Auto => {
             // A capture gated before it reached us: the later half of the bins between its gate and the first
             // hidden return (the first half holds what the gate left of the direct light's tail).
-            if let Some(z) = t.zero_gate() {
-                let (s, e) = quiet_bins(t, z, 0.02, true);
-                if e >= s + 32 {
-                    return Ok((s + (e - s) / 2, e));
-                }
+            let later_half = |start: usize| {
+                let (s, e) = quiet_bins(t, start, 0.02, true);
+                (e >= s + 32).then_some((s + (e - s) / 2, e))
+            };
+            if let Some(window) = t.zero_gate().and_then(later_half) {
+                return Ok(window);
             }
             return match window_bins(t, BackgroundWindow::BeforeFirstReturn) {
                 Ok((s, e)) if e - s >= 16 => Ok((s, e)),
-                _ => window_bins(t, BackgroundWindow::Bins { start: ax.bins - (ax.bins / 10).max(1), end: ax.bins }),
+                _ => match direct_tail_start(t).and_then(later_half) {
+                    Some(window) => Ok(window),
+                    None => window_bins(t, BackgroundWindow::AxisEnd),
+                },
             };
         }
+        BackgroundWindow::AxisEnd => (ax.bins - (ax.bins / 10).max(1), ax.bins),
         BackgroundWindow::BeforeFirstReturn => quiet_bins(t, t.zero_gate().unwrap_or(0), 0.1, false),
     };
     if s >= e || e > ax.bins {
@@ -165,6 +177,29 @@ fn window_bins(t: &Transient, window: BackgroundWindow) -> Result<(usize, usize)
         ));
     }
     Ok((s, e))
+}
+
+/// On a capture without a gate whose direct light is on the axis: the first bin after the direct light's
+/// peak (the smoothed summed histogram's maximum in the first 10 % of the axis) at which the smoothed
+/// histogram has fallen to the strongest hidden return's level (its maximum after
+/// [`Transient::direct_light_end`]). From there on the direct light's tail is no stronger than the hidden
+/// returns, so [`quiet_bins`] can skip the rest of it as it does after a gate. `None` without direct light.
+fn direct_tail_start(t: &Transient) -> Option<usize> {
+    let ax = t.time();
+    let end = ((t.direct_light_end() - ax.t0) / ax.bin_width).round();
+    // Guard: `direct_light_end` returns the axis start when it finds no direct light (a NaN is none either).
+    if t.zero_gate().is_some() || end.is_nan() || end < 1.0 {
+        return None;
+    }
+    let end = (end as usize).min(ax.bins - 1);
+    let h = t.summed_histogram();
+    let w = ((0.006 / ax.bin_width).round() as usize).clamp(1, ax.bins);
+    let smooth: Vec<f64> =
+        (0..h.len()).map(|k| h[k.saturating_sub(w - 1)..=k].iter().sum::<f64>() / w as f64).collect();
+    let hidden = smooth[end..].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let head = (ax.bins / 10).max(1).min(end);
+    let peak = (0..head).fold(0, |b, k| if smooth[k] > smooth[b] { k } else { b });
+    (peak..end).find(|&k| smooth[k] <= hidden)
 }
 
 /// Bins `[start, onset − 3w)`: from `start` to the first return after it (the summed histogram smoothed with

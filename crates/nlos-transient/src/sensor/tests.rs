@@ -635,6 +635,21 @@ fn a_gated_capture_is_recognised_and_estimated_after_its_gate() {
     let est = estimate_background(&gated, BackgroundWindow::Auto).unwrap();
     assert!(est.window.0 > 700 && est.window.1 > est.window.0 + 100 && est.window.1 < 1100, "{:?}", est.window);
     assert!((est.per_bin - b_true).abs() < 4.5 * est.std_error, "background {est:?}");
+    // The raw capture, cropped to start inside its direct light (as the Stanford files are), reads the
+    // later half of the same quiet stretch: its direct light is followed down to the hidden return's level
+    // and skipped as the gate's tail is (here the tail is quiet before bin 600, so the stretch starts a
+    // little earlier than the gate; on the Stanford S and U both read bins 783..940).
+    let from_raw = estimate_background(&raw, BackgroundWindow::Auto).unwrap();
+    assert_eq!(from_raw.window.1, est.window.1);
+    assert!(from_raw.window.0 > 700 && from_raw.window.0 <= est.window.0, "{:?}", from_raw.window);
+    assert!((from_raw.per_bin - b_true).abs() < 4.5 * from_raw.std_error, "background {from_raw:?}");
+    // The fit's floor (the axis's end) is the same bins in both, zeros or no zeros before it.
+    let (floor_raw, floor_gated) = (
+        estimate_background(&raw, BackgroundWindow::AxisEnd).unwrap(),
+        estimate_background(&gated, BackgroundWindow::AxisEnd).unwrap(),
+    );
+    assert_eq!(floor_raw.window, (1440, 1600));
+    assert_eq!(floor_raw, floor_gated);
     // A noiseless simulation starts with zeros too, but what follows them is its first return: no gate.
     let sim = pulses(4, 300, 200.0, 5.0);
     assert!(sim.leading_zero_bins() > 100);
