@@ -36,6 +36,7 @@ use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
 use crate::error::{OptimError, Result};
 
 mod run_dir;
+mod start_response;
 use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
 use crate::{Schedule, SensorBackground, SensorFit};
 pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, run, saved_config};
@@ -304,8 +305,8 @@ impl Prepared {
     pub fn describe_sensor(&self, config: &Config, params: &ReconstructParams) -> String {
         let response = match config.sensor.response {
             SensorChoice::Auto if self.read.zero_gate().is_some() => format!(
-                "the capture's own response (its first strong hidden return: bins 0..{} are zero in every \
-                 measurement, the direct light gated before it reached us)",
+                "the capture's own response (its first strong hidden returns with the start surface's spread \
+                 taken out: bins 0..{} are zero in every measurement, the direct light gated before it reached us)",
                 self.read.zero_gate().unwrap_or(0)
             ),
             SensorChoice::Auto | SensorChoice::Direct => "the capture's own response (its direct reflection)".into(),

@@ -57,7 +57,18 @@ pub fn run(
     hooks: Hooks<'_>,
 ) -> Result<Outcome> {
     match start {
-        Start::Resume => crate::resume(&prepared.measured, params, hooks),
+        Start::Resume => {
+            // The response of a gated capture depends on the start surface (Prepared::with_start_response):
+            // the same start gives the same response as when the run began.
+            let params = match params.out_dir.as_deref() {
+                Some(dir) if prepared.takes_response_from_start(config, params) => {
+                    let start = nlos_mesh::io::load(dir.join(INIT_FILE))?;
+                    prepared.with_start_response(config, params, &start)?
+                }
+                _ => params.clone(),
+            };
+            crate::resume(&prepared.measured, &params, hooks)
+        }
         Start::New => {
             if let Some(dir) = &params.out_dir {
                 create_dir(dir)?;
@@ -72,7 +83,8 @@ pub fn run(
             if let Some(dir) = &params.out_dir {
                 nlos_mesh::io::save(&init, dir.join(INIT_FILE))?;
             }
-            crate::reconstruct_with(&prepared.measured, &init, params, hooks)
+            let params = prepared.with_start_response(config, params, &init)?;
+            crate::reconstruct_with(&prepared.measured, &init, &params, hooks)
         }
     }
 }

@@ -195,7 +195,8 @@ impl JitterResponse {
     /// spot's nearest point: a patch facing the wall spreads its return over a few millimetres of path
     /// (a stroke 5 cm wide at 0.6 m: about 1 mm; 20 cm along it: about 16 mm on the late side). The fit
     /// through it therefore explains the sensor's tail and a little of that spread; the peak, where the
-    /// depth is read, is the surface's.
+    /// depth is read, is the surface's. Given a surface close to the scene's,
+    /// [`JitterResponse::from_first_return_deconvolved`] takes that spread out.
     ///
     /// # Errors
     /// [`TransientError::InvalidValue`] (field `first return`) when no measurement has light after the
@@ -203,39 +204,7 @@ impl JitterResponse {
     pub fn from_first_return(t: &Transient) -> Result<Self> {
         let ax = *t.time();
         let no_return = |reason: String| invalid("first return", reason);
-        let start = (((t.direct_light_end() - ax.t0) / ax.bin_width).ceil().max(0.0) as usize).min(ax.bins);
-        let w = ((0.006 / ax.bin_width).round() as usize).max(1);
-        let before = ((0.036 / ax.bin_width).round() as usize).max(2);
-        let after = ((0.150 / ax.bin_width).round() as usize).max(4);
-        // (peak counts of the smoothed histogram, measurement, peak bin)
-        let mut peaks: Vec<(f64, usize, usize)> = t
-            .histograms()
-            .enumerate()
-            .filter_map(|(m, h)| {
-                let h = &h[start..];
-                if h.len() < 2 * w + 1 {
-                    return None;
-                }
-                let mut acc: f64 = h[..w].iter().map(|&v| f64::from(v)).sum();
-                let mut smooth = vec![0.0; h.len() - w + 1];
-                for k in 0..smooth.len() {
-                    if k > 0 {
-                        acc += f64::from(h[k + w - 1]) - f64::from(h[k - 1]);
-                    }
-                    smooth[k] = acc / w as f64;
-                }
-                let top = smooth.iter().copied().fold(0.0f64, f64::max);
-                let first = smooth.iter().position(|&v| v >= 0.5 * top)?;
-                let peak = (first..smooth.len()).find(|&k| k + 1 == smooth.len() || smooth[k + 1] < smooth[k])?;
-                // The box covers bins [peak, peak + w): its centre is the peak's bin.
-                (top > 0.0).then_some((smooth[peak], m, start + peak + w / 2))
-            })
-            .collect();
-        if peaks.is_empty() {
-            return Err(no_return(format!("no measurement has light after the direct light (from bin {start})")));
-        }
-        peaks.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        peaks.truncate((peaks.len() / 20).max(1));
+        let FirstReturns { start, before, after, peaks } = FirstReturns::strongest(t)?;
         let background =
             crate::sensor::estimate_background(t, crate::sensor::BackgroundWindow::Auto).map_or(0.0, |e| e.per_bin);
         let mut counts = vec![0.0f64; before + 1 + after];
@@ -554,5 +523,65 @@ impl BinKernel {
         let mut out = vec![0.0; yd.len()];
         self.adjoint_f64(&yd, bins, &mut out)?;
         Ok(out.into_iter().map(|v| v as f32).collect())
+    }
+}
+
+/// The strongest first hidden returns of a capture ([`JitterResponse::from_first_return`]): each
+/// measurement's histogram after the direct light ([`Transient::direct_light_end`]) smoothed with a box of
+/// `w = max(1, 6 mm/Δ)` bins, its first return's peak the first local maximum at or above half its largest
+/// value, and the 5 % of measurements whose peak holds the most counts kept.
+pub(crate) struct FirstReturns {
+    /// First bin searched (the direct light's end).
+    pub start: usize,
+    /// Bins kept before each peak (36 mm of path).
+    pub before: usize,
+    /// Bins kept after each peak (150 mm of path).
+    pub after: usize,
+    /// (peak counts of the smoothed histogram, measurement, peak bin), strongest first.
+    pub peaks: Vec<(f64, usize, usize)>,
+}
+
+impl FirstReturns {
+    /// # Errors
+    /// [`TransientError::InvalidValue`] (field `first return`) when no measurement has light after the
+    /// direct light.
+    pub fn strongest(t: &Transient) -> Result<Self> {
+        let ax = *t.time();
+        let start = (((t.direct_light_end() - ax.t0) / ax.bin_width).ceil().max(0.0) as usize).min(ax.bins);
+        let w = ((0.006 / ax.bin_width).round() as usize).max(1);
+        let before = ((0.036 / ax.bin_width).round() as usize).max(2);
+        let after = ((0.150 / ax.bin_width).round() as usize).max(4);
+        let mut peaks: Vec<(f64, usize, usize)> = t
+            .histograms()
+            .enumerate()
+            .filter_map(|(m, h)| {
+                let h = &h[start..];
+                if h.len() < 2 * w + 1 {
+                    return None;
+                }
+                let mut acc: f64 = h[..w].iter().map(|&v| f64::from(v)).sum();
+                let mut smooth = vec![0.0; h.len() - w + 1];
+                for k in 0..smooth.len() {
+                    if k > 0 {
+                        acc += f64::from(h[k + w - 1]) - f64::from(h[k - 1]);
+                    }
+                    smooth[k] = acc / w as f64;
+                }
+                let top = smooth.iter().copied().fold(0.0f64, f64::max);
+                let first = smooth.iter().position(|&v| v >= 0.5 * top)?;
+                let peak = (first..smooth.len()).find(|&k| k + 1 == smooth.len() || smooth[k + 1] < smooth[k])?;
+                // The box covers bins [peak, peak + w): its centre is the peak's bin.
+                (top > 0.0).then_some((smooth[peak], m, start + peak + w / 2))
+            })
+            .collect();
+        if peaks.is_empty() {
+            return Err(invalid(
+                "first return",
+                format!("no measurement has light after the direct light (from bin {start})"),
+            ));
+        }
+        peaks.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        peaks.truncate((peaks.len() / 20).max(1));
+        Ok(Self { start, before, after, peaks })
     }
 }

@@ -69,6 +69,7 @@
 //! - C.-Y. Tsai, A. C. Sankaranarayanan, I. Gkioulekas, "Beyond Volumetric Albedo", CVPR 2019, Sec. 6.1, 7.
 
 pub mod correct;
+pub mod deconvolve;
 pub mod jitter;
 pub mod likelihood;
 #[cfg(test)]
