@@ -225,7 +225,12 @@ impl Prepared {
     /// The sensor fit of `config.sensor` on this capture's bins (None: an L2 fit).
     fn sensor_fit(&self, config: &Config) -> Result<Option<SensorFit>> {
         let s = &config.sensor;
-        let counts = nlos_transient::sensor::is_integer_counts(self.measured.data());
+        // Photon counts, or a capture gated before it reached us whose values are counts scaled by a
+        // constant (non-negative, not integers: the Poisson deviance of `c·n` against `c·μ` is `c` times that
+        // of `n` against `μ`, so the fit and its floor, taken from the same bins, are the same; a background
+        // subtracted from it would leave negative values and an L2 fit).
+        let counts = nlos_transient::sensor::is_integer_counts(self.measured.data())
+            || self.read.zero_gate().is_some() && self.measured.data().iter().all(|&v| v >= 0.0);
         // `auto`: the capture's own response when it holds one: its direct reflection, which the gate removed,
         // or, on a capture gated before it reached us, its first strong hidden return.
         let direct = match &s.response {
@@ -462,7 +467,8 @@ mod tests {
 
     /// A raw capture holding its direct light and the same capture gated before it reached us (bins 0..600
     /// zeroed, as Tsai et al.'s files are) get the same sensor-fit floor: the level of the axis's last 10 %,
-    /// bins both hold, here above the quiet bins' background because a late return reaches the axis's end.
+    /// bins both hold, here above the quiet bins' background because a late return reaches the axis's end;
+    /// the gated capture scaled by a constant (not integers) gets the Poisson fit too, its floor scaled.
     #[test]
     fn a_raw_capture_and_its_gated_version_get_the_same_floor() {
         use nlos_transient::sensor::estimate_background;
@@ -498,7 +504,14 @@ mod tests {
                 other => panic!("{other:?}"),
             }
         };
+        // The gated capture scaled by a constant (values no longer integers) is fitted alike, its floor scaled.
+        let mut scaled = gated.clone();
+        for m in 0..64 {
+            scaled.histogram_mut(m).iter_mut().for_each(|v| *v *= 0.37);
+        }
+        let from_scaled = floor(scaled);
         let (from_raw, from_gated) = (floor(raw.clone()), floor(gated));
+        assert!((from_scaled - 0.37 * from_gated).abs() < 1e-6 * from_gated, "{from_scaled} against {from_gated}");
         assert_eq!(from_raw, from_gated);
         let axis_end = estimate_background(&raw, BackgroundWindow::AxisEnd).expect("estimate");
         assert_eq!(from_raw, axis_end.per_bin);
