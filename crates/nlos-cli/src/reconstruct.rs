@@ -1,4 +1,4 @@
-//! `nlos reconstruct`: capture → initial surface (LCT, f-k, carving or a mesh file) → optimised mesh.
+//! `nlos reconstruct`: capture → initial surface (LCT, f-k, phasor field, carving or a mesh file) → optimised mesh.
 //!
 //! The command parses, calls [`nlos_optim::pipeline`] (capture preparation, every `auto` decision, the
 //! initial surface, the run directory: [`pipeline::run`]), and prints. Every setting lives in
@@ -41,9 +41,11 @@ pub(crate) struct Args {
     /// `capture.gate=0.3`); repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
-    /// Initial surface: `lct` (the settings for compact objects), `fk`, `carve` (space carving from first
-    /// returns), or a mesh file (OBJ/PLY/GLB) whose faces face the wall [default: lct].
-    #[arg(long, value_name = "lct|fk|carve|MESH")]
+    /// Initial surface: `auto` (the light-cone transform on a confocal scan on a regular grid, the phasor
+    /// field on any other scan; the choice and why go to the log and `settings.toml`), `lct` (the settings
+    /// for compact objects), `fk`, `pf` (phasor field: any scan pattern and wall), `carve` (space carving from
+    /// first returns), or a mesh file (OBJ/PLY/GLB) whose faces face the wall [default: auto].
+    #[arg(long, value_name = "auto|lct|fk|pf|carve|MESH")]
     init: Option<InitMethod>,
     /// Reflectance model to fit (GGX's α starts at `reflectance.alpha`; `retroreflective` also weights the
     /// LCT start for a 1/r² return, as the Stanford captures' reference code does for every scene but the
@@ -52,8 +54,9 @@ pub(crate) struct Args {
     brdf: Option<Model>,
     /// Fit photon counts through this SPAD timing response: a jitter file, `ideal` for no jitter, `direct`
     /// for the capture's own (its direct reflection off the wall), `off` for an L2 fit of intensities, or
-    /// `auto`: `direct` for photon counts that hold a direct reflection (real captures), `off` otherwise
-    /// [default: auto].
+    /// `auto`: `direct` for photon counts that hold a direct reflection (real captures); on a capture gated
+    /// before it reached us (counts, or counts scaled by a constant), its first strong returns with the start
+    /// surface's spread taken out; `off` otherwise [default: auto].
     #[arg(long, value_name = "auto|off|ideal|direct|FILE")]
     sensor: Option<SensorChoice>,
     /// Bin width in picoseconds, for captures whose files do not store it: general-NLOS `data.mat` +
