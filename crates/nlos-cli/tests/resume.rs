@@ -44,6 +44,26 @@ fn capture(dir: &Path) -> PathBuf {
     file
 }
 
+/// The ridge as photon counts (200 at the strongest bin, 2 background counts per bin) gated before it reached
+/// us (bins 0..40 zeroed): fitted through the Poisson model with a response that depends on the start surface
+/// (`Prepared::with_start_response`), which a resumed run must take again from `init.obj`.
+fn gated_capture(dir: &Path) -> PathBuf {
+    let flux = nlos_transient::read(capture(dir)).expect("read");
+    let top = flux.data().iter().copied().fold(0.0f32, f32::max);
+    let bins = flux.bins();
+    let counts: Vec<f32> = flux
+        .data()
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| if i % bins < 40 { 0.0 } else { (200.0 * v / top + 2.0).round() })
+        .collect();
+    let t = nlos_transient::Transient::new(flux.scan().clone(), *flux.time(), counts).expect("counts");
+    assert_eq!(t.zero_gate(), Some(40));
+    let file = dir.join("ridge_gated.hdf5");
+    nlos_transient::write(&t, &file, Format::Tal).expect("write");
+    file
+}
+
 /// Fast settings: 3 stages × up to 2 blocks of 6 shape steps, seed 11; every block writes a checkpoint.
 fn command(data: &Path, out: &Path) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_nlos"));
@@ -85,6 +105,18 @@ fn log_without_times(dir: &Path) -> serde_json::Value {
 fn sigkilled_run_resumes_to_the_uninterrupted_result() {
     let dir = scratch("kill");
     let data = capture(&dir);
+    resumes_to_the_uninterrupted_result(&dir, &data);
+}
+
+#[test]
+fn a_gated_capture_resumes_to_the_uninterrupted_result() {
+    let dir = scratch("gated");
+    let data = gated_capture(&dir);
+    resumes_to_the_uninterrupted_result(&dir, &data);
+}
+
+fn resumes_to_the_uninterrupted_result(dir: &Path, data: &Path) {
+    let data = data.to_path_buf();
 
     // The reference: one uninterrupted run.
     let whole = dir.join("whole");
