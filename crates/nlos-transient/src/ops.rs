@@ -412,7 +412,8 @@ pub(crate) fn shift_histogram(input: &[f32], shift: f64, out: &mut [f32]) {
     }
 }
 
-fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {
+/// `h` smoothed with a centred box of `w` bins (shorter at the ends, where it is clipped to the slice).
+pub(crate) fn box_smooth(h: &[f64], w: usize) -> Vec<f64> {
     let n = h.len();
     let mut cum = vec![0.0; n + 1];
     for i in 0..n {

@@ -311,7 +311,8 @@ impl Prepared {
         let response = match config.sensor.response {
             SensorChoice::Auto if self.read.zero_gate().is_some() => format!(
                 "the capture's own response (its first strong hidden returns with the start surface's spread \
-                 taken out: bins 0..{} are zero in every measurement, the direct light gated before it reached us)",
+                 taken out, or aligned as they are where the start renders no light near them: bins 0..{} are \
+                 zero in every measurement, the direct light gated before it reached us)",
                 self.read.zero_gate().unwrap_or(0)
             ),
             SensorChoice::Auto | SensorChoice::Direct => "the capture's own response (its direct reflection)".into(),

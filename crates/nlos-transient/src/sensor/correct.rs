@@ -194,8 +194,8 @@ fn direct_tail_start(t: &Transient) -> Option<usize> {
     let end = (end as usize).min(ax.bins - 1);
     let h = t.summed_histogram();
     let w = ((0.006 / ax.bin_width).round() as usize).clamp(1, ax.bins);
-    let smooth: Vec<f64> =
-        (0..h.len()).map(|k| h[k.saturating_sub(w - 1)..=k].iter().sum::<f64>() / w as f64).collect();
+    // The smoothing `direct_light_end` applies, so that both read the same curve.
+    let smooth = crate::ops::box_smooth(&h, w);
     let hidden = smooth[end..].iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let head = (ax.bins / 10).max(1).min(end);
     let peak = (0..head).fold(0, |b, k| if smooth[k] > smooth[b] { k } else { b });
