@@ -45,6 +45,7 @@ use crate::prep::Gate;
 use crate::volume::{Axis, Volume};
 use nlos_brdf::Model;
 
+mod depth;
 mod planar;
 use planar::Planar;
 
@@ -81,7 +82,10 @@ pub struct PfParams {
     pub gate: Gate,
     /// Ignore path lengths beyond `2 × max_depth` (metres; default `None`).
     pub max_depth: Option<f64>,
-    /// Depth between voxels (metres); `None`: λ / [`DEPTH_STEPS_PER_WAVELENGTH`].
+    /// Depth between voxels (metres); `None`: λ / [`DEPTH_STEPS_PER_WAVELENGTH`]. On a planar wall whose
+    /// denser set of points is a grid, a step at least twice finer is not focused depth by depth: the complex
+    /// field is focused at a whole multiple of the step no finer than the default and interpolated between
+    /// (band-limited, within 2 % of the volume's peak), so every bin's depth costs about the default volume.
     pub depth_step: Option<f64>,
     /// Whether each depth slice is divided by its noise level ([`DepthNoise`]). Default
     /// [`DepthNoise::Auto`].
@@ -183,11 +187,12 @@ impl Columns {
 /// cycles, depth step, gate or max depth out of range, [`InitError::Empty`] when nothing is left after the
 /// gate and the depth cap, [`InitError::NonFinite`] for NaN data.
 pub fn pf(t: &Transient, params: &PfParams) -> Result<Volume> {
-    pf_with(t, params, true)
+    pf_with(t, params, true, true)
 }
 
-/// [`pf`], by the angular spectrum where the wall allows it (`planar`), else by the direct sum.
-fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
+/// [`pf`], by the angular spectrum where the wall allows it (`planar`), else by the direct sum; on the
+/// angular spectrum's path, depth steps finer than the default's interpolated from it (`interpolate`).
+fn pf_with(t: &Transient, params: &PfParams, planar: bool, interpolate: bool) -> Result<Volume> {
     if t.time().includes_device_legs {
         return Err(InitError::DeviceLegs);
     }
@@ -258,7 +263,24 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool) -> Result<Volume> {
     let z = Axis { start: 0.5 * dz, step: dz };
     if let Some(plan) = Planar::of(t, &columns).filter(|_| planar) {
         let window = Window { t0: time.t0, delta: time.bin_width, first, len: last - first };
-        let mut data = plan.focus(t, &window, pulse, params.reflectance, z, nz)?;
+        let cols = columns.nx * columns.ny;
+        // Depths finer than the wave resolves come from the field at the default step ([`depth`]); a few
+        // coarse samples past the end keep the interpolation's wrap away from the last fine depths.
+        let m = (wavelength / DEPTH_STEPS_PER_WAVELENGTH / dz).floor() as usize;
+        let mut data = if m >= 2 && interpolate {
+            let (zc, nc) = (Axis { start: z.start, step: m as f64 * dz }, nz.div_ceil(m) + 3);
+            let planes = plan.focus(t, &window, pulse, params.reflectance, zc, nc)?;
+            depth::upsample(&planes, cols, m, 2.0 / wavelength * zc.step, nz)
+        } else {
+            let planes = plan.focus(t, &window, pulse, params.reflectance, z, nz)?;
+            let mut out = vec![0.0f32; cols * nz];
+            out.par_chunks_mut(nz).enumerate().for_each(|(c, col)| {
+                for (iz, o) in col.iter_mut().enumerate() {
+                    *o = planes[iz * cols + c].norm();
+                }
+            });
+            out
+        };
         if per_depth {
             per_depth_noise(&mut data, nz);
         }
@@ -603,7 +625,8 @@ mod tests {
             }
         }
         let p = PfParams { gate: Gate::None, ..PfParams::default() };
-        let (fast, direct) = (pf_with(&t, &p, true).expect("test value"), pf_with(&t, &p, false).expect("test value"));
+        let (fast, direct) =
+            (pf_with(&t, &p, true, true).expect("test value"), pf_with(&t, &p, false, true).expect("test value"));
         assert_eq!((fast.nx, fast.ny, fast.nz), (direct.nx, direct.ny, direct.nz));
         let argmax = |v: &Volume, c: usize| {
             let col = &v.data[c * v.nz..(c + 1) * v.nz];
@@ -620,6 +643,46 @@ mod tests {
             }
         }
         assert!(compared >= 10, "{compared} bright columns");
+    }
+
+    /// Depth steps finer than the default's, interpolated from the field at the default step ([`depth`]),
+    /// give the volume computed at every fine depth: on the tilted patch seen by one laser and a sensor
+    /// grid at a quarter of the default step, and confocally at a third, every voxel away from the axis's
+    /// ends agrees within 2 % of the volume's peak. Measured: 0.4 % and 1.7 %; the angular spectrum drops
+    /// each spatial frequency at the depth its rays leave the padded window, a step in depth that the
+    /// interpolation rounds (without that cut, 0.1 % and 0.3 %).
+    #[test]
+    fn fine_depths_are_interpolated_from_the_default_step() {
+        let grid = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("test value");
+        let one = PointSet::list(vec![glam::Vec3::new(0.05, -0.05, 0.0)]);
+        for (scan, ratio) in [(Scan::exhaustive(one, grid.clone()), 4.0), (Scan::confocal(grid), 3.0)] {
+            let mut t =
+                Transient::zeros(scan, TimeAxis::new(0.0, 0.002, 800).expect("test value")).expect("test value");
+            for (i, j) in (0..6).flat_map(|i| (0..6).map(move |j| (i, j))) {
+                let x = DVec3::new(-0.1 + 0.04 * i as f64, -0.1 + 0.04 * j as f64, 0.4 + 0.1 * (0.04 * i as f64));
+                for m in 0..t.measurements() {
+                    let me = t.scan().measurement(m);
+                    let path = (x - me.laser.as_dvec3()).length() + (x - me.sensor.as_dvec3()).length();
+                    t.histogram_mut(m)[(path / 0.002) as usize] += 1.0;
+                }
+            }
+            let wavelength = WAVELENGTH_PER_SPACING * 0.5 / 15.0;
+            let step = wavelength / DEPTH_STEPS_PER_WAVELENGTH / ratio;
+            let p = PfParams { gate: Gate::None, depth_step: Some(step), ..PfParams::default() };
+            let (fast, exact) =
+                (pf_with(&t, &p, true, true).expect("test value"), pf_with(&t, &p, true, false).expect("test value"));
+            assert_eq!((fast.nx, fast.ny, fast.nz), (exact.nx, exact.ny, exact.nz));
+            let peak = exact.data.iter().copied().fold(0.0f32, f32::max);
+            let ends = 3 * ratio as usize;
+            let mut worst = 0.0f32;
+            for c in 0..exact.nx * exact.ny {
+                for iz in ends..exact.nz - ends {
+                    let i = c * exact.nz + iz;
+                    worst = worst.max((fast.data[i] - exact.data[i]).abs());
+                }
+            }
+            assert!(worst <= 0.02 * peak, "{:?}: worst {worst} of a peak {peak}", t.scan().pattern_name());
+        }
     }
 
     #[test]

@@ -92,7 +92,8 @@ impl Planar {
         self.sparse.is_empty()
     }
 
-    /// The volume's magnitudes, `data[(ix + nx·iy)·nz + iz]`.
+    /// The volume's complex field, plane-major: `planes[iz·(nx·ny) + ix + nx·iy]`; its magnitudes are the
+    /// volume.
     pub(super) fn focus(
         &self,
         t: &Transient,
@@ -101,7 +102,7 @@ impl Planar {
         reflectance: Model,
         z: Axis,
         nz: usize,
-    ) -> Result<Vec<f32>> {
+    ) -> Result<Vec<Complex32>> {
         let (nx, ny) = (self.nx, self.ny);
         let n_sparse = self.sparse.len().max(1);
         let (px, py) = (fft_size(2 * nx), fft_size(2 * ny));
@@ -138,14 +139,7 @@ impl Planar {
                 a
             })
             .unwrap_or_else(|| vec![Complex32::new(0.0, 0.0); nz * columns]);
-        // Plane-major sums to column-major magnitudes.
-        let mut out = vec![0.0f32; columns * nz];
-        out.par_chunks_mut(nz).enumerate().for_each(|(c, col)| {
-            for (iz, o) in col.iter_mut().enumerate() {
-                *o = planes[iz * columns + c].norm();
-            }
-        });
-        Ok(out)
+        Ok(planes)
     }
 
     /// The phase `e^{i2πf(|x − p| − τ₀)}` of every sparse point `p` at every voxel `x`, at frequency `f`, and
