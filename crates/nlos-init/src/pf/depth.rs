@@ -1,4 +1,5 @@
-//! Depth steps finer than the virtual wave resolves, by band-limited interpolation of the complex field.
+//! From the focused complex field to the volume's magnitudes, and depth steps finer than the virtual wave
+//! resolves by band-limited interpolation of that field.
 //!
 //! The focused field `V(x, z)` of one column is a sum over the pulse's band of waves `e^{i2πf·path(z)}`
 //! (module docs of [`super`]): along depth it is band-limited, its spectrum near `2f_c` (the path grows by
@@ -57,5 +58,18 @@ pub(super) fn upsample(planes: &[Complex32], columns: usize, m: usize, carrier: 
             }
         },
     );
+    out
+}
+
+/// Magnitudes `out[c·nz + iz]` of the complex field `planes` (plane-major, `planes[iz·columns + c]`), at the
+/// depths it was focused at.
+pub(super) fn magnitudes(planes: &[Complex32], columns: usize) -> Vec<f32> {
+    let nz = planes.len() / columns.max(1);
+    let mut out = vec![0.0f32; columns * nz];
+    out.par_chunks_mut(nz.max(1)).enumerate().for_each(|(c, col)| {
+        for (iz, o) in col.iter_mut().enumerate() {
+            *o = planes[iz * columns + c].norm();
+        }
+    });
     out
 }

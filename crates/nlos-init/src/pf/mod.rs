@@ -272,14 +272,7 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool, interpolate: bool) ->
             let planes = plan.focus(t, &window, pulse, params.reflectance, zc, nc)?;
             depth::upsample(&planes, cols, m, 2.0 / wavelength * zc.step, nz)
         } else {
-            let planes = plan.focus(t, &window, pulse, params.reflectance, z, nz)?;
-            let mut out = vec![0.0f32; cols * nz];
-            out.par_chunks_mut(nz).enumerate().for_each(|(c, col)| {
-                for (iz, o) in col.iter_mut().enumerate() {
-                    *o = planes[iz * cols + c].norm();
-                }
-            });
-            out
+            depth::magnitudes(&plan.focus(t, &window, pulse, params.reflectance, z, nz)?, cols)
         };
         if per_depth {
             per_depth_noise(&mut data, nz);
