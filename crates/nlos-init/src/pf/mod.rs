@@ -601,14 +601,10 @@ mod tests {
         assert!((pz - x.z).abs() <= auto.z.step, "depth {pz}, voxels of {}", auto.z.step);
     }
 
-    /// The angular spectrum and the direct sum focus the same wave: on a tilted patch of points seen by
-    /// one laser and a sensor grid, the two volumes' columns peak at the same depths.
-    #[test]
-    fn angular_spectrum_matches_the_direct_sum() {
-        let grid = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("test value");
-        let one = PointSet::list(vec![glam::Vec3::new(0.05, -0.05, 0.0)]);
-        let mut t = Transient::zeros(Scan::exhaustive(one, grid), TimeAxis::new(0.0, 0.002, 800).expect("test value"))
-            .expect("test value");
+    /// A 6 × 6 patch of points 4 cm apart, tilted by 0.1 in depth along x, 0.4 m from the wall, seen by
+    /// `scan` through 800 bins of 2 mm.
+    fn tilted_patch(scan: Scan) -> Transient {
+        let mut t = Transient::zeros(scan, TimeAxis::new(0.0, 0.002, 800).expect("test value")).expect("test value");
         for (i, j) in (0..6).flat_map(|i| (0..6).map(move |j| (i, j))) {
             let x = DVec3::new(-0.1 + 0.04 * i as f64, -0.1 + 0.04 * j as f64, 0.4 + 0.1 * (0.04 * i as f64));
             for m in 0..t.measurements() {
@@ -617,6 +613,16 @@ mod tests {
                 t.histogram_mut(m)[(path / 0.002) as usize] += 1.0;
             }
         }
+        t
+    }
+
+    /// The angular spectrum and the direct sum focus the same wave: on a tilted patch of points seen by
+    /// one laser and a sensor grid, the two volumes' columns peak at the same depths.
+    #[test]
+    fn angular_spectrum_matches_the_direct_sum() {
+        let grid = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("test value");
+        let one = PointSet::list(vec![glam::Vec3::new(0.05, -0.05, 0.0)]);
+        let t = tilted_patch(Scan::exhaustive(one, grid));
         let p = PfParams { gate: Gate::None, ..PfParams::default() };
         let (fast, direct) =
             (pf_with(&t, &p, true, true).expect("test value"), pf_with(&t, &p, false, true).expect("test value"));
@@ -649,16 +655,7 @@ mod tests {
         let grid = PointSet::wall_grid(16, 16, 0.25, 0.25).expect("test value");
         let one = PointSet::list(vec![glam::Vec3::new(0.05, -0.05, 0.0)]);
         for (scan, ratio) in [(Scan::exhaustive(one, grid.clone()), 4.0), (Scan::confocal(grid), 3.0)] {
-            let mut t =
-                Transient::zeros(scan, TimeAxis::new(0.0, 0.002, 800).expect("test value")).expect("test value");
-            for (i, j) in (0..6).flat_map(|i| (0..6).map(move |j| (i, j))) {
-                let x = DVec3::new(-0.1 + 0.04 * i as f64, -0.1 + 0.04 * j as f64, 0.4 + 0.1 * (0.04 * i as f64));
-                for m in 0..t.measurements() {
-                    let me = t.scan().measurement(m);
-                    let path = (x - me.laser.as_dvec3()).length() + (x - me.sensor.as_dvec3()).length();
-                    t.histogram_mut(m)[(path / 0.002) as usize] += 1.0;
-                }
-            }
+            let t = tilted_patch(scan);
             let wavelength = WAVELENGTH_PER_SPACING * 0.5 / 15.0;
             let step = wavelength / DEPTH_STEPS_PER_WAVELENGTH / ratio;
             let p = PfParams { gate: Gate::None, depth_step: Some(step), ..PfParams::default() };
