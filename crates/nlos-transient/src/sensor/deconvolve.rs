@@ -169,13 +169,6 @@ mod tests {
         if j < 0.0 { g } else { 0.85 * g + 0.15 * (-j / 25.0).exp() }
     }
 
-    /// Full width at half maximum of `w` in samples.
-    fn fwhm(w: &[f64]) -> usize {
-        let top = w.iter().copied().fold(0.0, f64::max);
-        let above: Vec<usize> = (0..w.len()).filter(|&i| w[i] >= 0.5 * top).collect();
-        above.last().map_or(0, |l| l - above[0] + 1)
-    }
-
     /// A gated capture (bins 0..100 zero) whose first returns spread over 20–60 bins (a surface's extent
     /// in path, different per measurement) seen through [`sensor`], with background and Poisson noise:
     /// the aligned returns are as wide as the spread; with the spread taken out, the response is the
@@ -207,13 +200,14 @@ mod tests {
         let t = Transient::new(scan.clone(), axis, counts).expect("valid");
         assert_eq!(t.zero_gate(), Some(100));
         let geometry = Transient::new(scan, axis, geometry).expect("valid");
-        let truth: Vec<f64> = (-20..=150).map(|j| sensor(f64::from(j))).collect();
+        let samples: Vec<f64> = (-20..=150).map(|j| sensor(f64::from(j))).collect();
+        let truth = JitterResponse::from_histogram(-20.0 * 0.0012, 0.0012, &samples, false).expect("valid");
         let aligned = JitterResponse::from_first_return(&t).expect("valid");
         let taken_out = JitterResponse::from_first_return_deconvolved(&t, &geometry).expect("valid");
-        let (w_truth, w_aligned, w_out) = (fwhm(&truth), fwhm(aligned.weights()), fwhm(taken_out.weights()));
-        eprintln!("FWHM in bins: sensor {w_truth}, aligned returns {w_aligned}, spread taken out {w_out}");
-        assert!(w_aligned >= 3 * w_truth, "the aligned returns hold the spread: {w_aligned} bins");
-        assert!(w_out.abs_diff(w_truth) <= 2, "{w_out} bins against the sensor's {w_truth}");
+        let [w_truth, w_aligned, w_out] = [&truth, &aligned, &taken_out].map(|r| r.fwhm() / 0.0012);
+        eprintln!("FWHM in bins: sensor {w_truth:.1}, aligned returns {w_aligned:.1}, spread taken out {w_out:.1}");
+        assert!(w_aligned >= 3.0 * w_truth, "the aligned returns hold the spread: {w_aligned} bins");
+        assert!((w_out - w_truth).abs() <= 2.0, "{w_out} bins against the sensor's {w_truth}");
         // Zero delay at the peak: the largest sample's centre lies within a bin of delay 0.
         let w = taken_out.weights();
         let top = (0..w.len()).fold(0, |b, i| if w[i] > w[b] { i } else { b });
