@@ -12,9 +12,10 @@ use std::process::Command;
 use crate::accept;
 
 /// Every fuzz target, with what it reads.
-const TARGETS: [(&str, &str); 10] = [
+const TARGETS: [(&str, &str); 11] = [
     ("mat_v5", "MAT v5: Stanford LCT, Tsai 2019, Stanford f-k"),
     ("znlos_mat", "MAT v5: Z-NLOS as NeTF preprocessed it, and its wall"),
+    ("general_nlos", "MAT v5 pair: general-NLOS `data.mat` + `setup.mat`"),
     ("hdf5", "HDF5: y-tal, Z-NLOS, MAT v7.3"),
     ("npy", "`.npy` + JSON sidecar"),
     ("exr", "OpenEXR captures"),
@@ -82,6 +83,17 @@ fn campaign(root: &Path, target: &str, minutes: f64) -> Result<Campaign, String>
             let seed = corpus.join(format!("seed-{i}"));
             std::fs::write(&seed, [prefix.as_slice(), &bytes].concat())
                 .map_err(|e| format!("{}: {e}", seed.display()))?;
+        }
+    }
+    if target == "general_nlos" {
+        // The pair target's input: the length of `data.mat` (u32, little-endian), which file to give, then both.
+        let dir = root.join("../shared/data/measured/general_nlos");
+        if let (Ok(data), Ok(setup)) = (std::fs::read(dir.join("data.mat")), std::fs::read(dir.join("setup.mat"))) {
+            let len = u32::try_from(data.len()).map_err(|e| e.to_string())?;
+            for which in [0u8, 1] {
+                let seed = [len.to_le_bytes().as_slice(), &[which], &data, &setup].concat();
+                std::fs::write(corpus.join(format!("seed-pair-{which}")), seed).map_err(|e| e.to_string())?;
+            }
         }
     }
     if target == "settings" {

@@ -113,7 +113,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         )));
     }
     let head = header(args.threshold);
-    println!("{head}");
+    outln!("{head}");
     let mut table = vec![head];
     for s in &scenes {
         let place = MapPlace::Wall(s.capture.clone());
@@ -121,7 +121,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         let mut score = |method: &str, mesh: &nlos_mesh::SurfaceMesh, t: f64| -> Result<(), CliError> {
             let m = score_maps(mesh, &format!("{} ({method})", s.name), &truth, args.threshold)?;
             let line = row(&s.name, method, &m, t);
-            println!("{line}");
+            outln!("{line}");
             table.push(line);
             Ok(())
         };

@@ -107,6 +107,7 @@ pub(crate) fn check_gate(t: &Transient, g: f64) -> Result<(), CliError> {
 /// Runs `nlos convert`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let format = output_format(args)?;
+    crate::check_output(&args.output, "output")?;
     let t = args.read.read(&args.input)?;
     let t = transform(t, args)?;
     nlos_transient::write(&t, &args.output, format).map_err(CliError::output)?;

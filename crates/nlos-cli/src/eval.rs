@@ -20,6 +20,7 @@ use nlos_mesh::metrics::{EvalParams, MAX_GRID, evaluate, load_for_eval};
 use nlos_mesh::{MeshError, SurfaceMesh};
 
 use crate::CliError;
+use crate::progress::Step;
 
 /// The volumetric method of `--volume`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -245,7 +246,15 @@ pub(crate) fn score_maps(
 
 /// Runs `nlos eval`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    if let Some(png) = &args.map {
+        if !png.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            return Err(CliError::Input(format!("--map {}: the picture is a PNG image; name it .png", png.display())));
+        }
+        crate::check_output(png, "--map")?;
+    }
+    let step = Step::spinner("eval: reading the reconstruction");
     let reconstruction = reconstruction(args)?;
+    step.finish();
     let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
     if let Some(depth_file) = &args.gt_depth {
         let place = match (&args.wall, &args.volume, args.extent) {
@@ -255,7 +264,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.gt_layout.into(), &place)?;
         let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
         let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
-        println!("{line}");
+        outln!("{line}");
         return Ok(());
     }
     let gt = args.gt.as_deref().unwrap_or(Path::new(""));
@@ -265,8 +274,14 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     // either may be non-manifold (scanned or exported models): see `load_for_eval`
     let ground_truth = load(gt)?;
     let params = EvalParams { grid: args.grid, coverage_threshold: args.threshold, ..EvalParams::default() };
+    let step = Step::spinner(format!(
+        "eval: {} faces against {} faces of the truth",
+        reconstruction.n_faces(),
+        ground_truth.n_faces()
+    ));
     let metrics = evaluate(&reconstruction, &ground_truth, &params)
         .map_err(|e| CliError::Input(format!("evaluating {what} against {}: {e}", gt.display())))?;
+    step.finish();
     if let Some(png) = &args.map {
         let view =
             nlos_report::figures::DepthView { grid: params.grid, x_range: params.x_range, y_range: params.y_range };
@@ -281,6 +296,6 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         fig.save_png(png).map_err(|e| CliError::Failure(format!("cannot write {}: {e}", png.display())))?;
     }
     let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
-    println!("{line}");
+    outln!("{line}");
     Ok(())
 }

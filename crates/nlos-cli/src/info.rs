@@ -2,8 +2,9 @@
 
 use std::path::Path;
 
+use nlos_transient::describe::short_number as num;
 use nlos_transient::sensor::{BackgroundWindow, count_summary};
-use nlos_transient::{Format, Layout, PointSet, SPEED_OF_LIGHT, ScanPattern, Transient};
+use nlos_transient::{Format, Layout, PointSet, Quantity, ScanPattern, Transient};
 use serde_json::{Value, json};
 
 use crate::CliError;
@@ -14,13 +15,47 @@ struct Peak {
     depth: Option<f64>,
     /// Path length of the peak, metres.
     path: Option<f64>,
-    /// The direct-light gate used, metres of path.
+    /// The direct-light gate used, metres of path; `None` when no direct light was found.
     gate: Option<f64>,
-    /// Where the last return ends (`Transient::signal_end_path`), metres of path; `None` when it is the end
-    /// of the axis.
-    end: Option<f64>,
+    /// Where the last return ends.
+    end: SignalEnd,
     /// How it was obtained, or why it is missing.
     note: String,
+}
+
+/// Where the last return of the summed histogram ends, metres of path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SignalEnd {
+    /// The end of the last bin clearly above the background (`Transient::signal_end_path`).
+    AboveBackground(f64),
+    /// A capture without background: the end of the last bin that is not zero.
+    LastNonZero(f64),
+    /// Returns or background up to the axis's last bin.
+    AxisEnd,
+}
+
+impl SignalEnd {
+    fn path(self) -> Option<f64> {
+        match self {
+            Self::AboveBackground(e) | Self::LastNonZero(e) => Some(e),
+            Self::AxisEnd => None,
+        }
+    }
+}
+
+fn signal_end(t: &Transient, gate: f64) -> SignalEnd {
+    let ax = t.time();
+    let end = t.signal_end_path(gate);
+    if end < ax.end() {
+        return SignalEnd::AboveBackground(end);
+    }
+    // A capture without background keeps its whole axis for the fit (`signal_end_path`), but a reader still
+    // wants to know where its light stops: the end of its last bin that is not zero.
+    let h = t.summed_histogram();
+    match h.iter().rposition(|&v| v != 0.0) {
+        Some(k) if k + 1 < ax.bins => SignalEnd::LastNonZero(ax.bin_start(k + 1)),
+        _ => SignalEnd::AxisEnd,
+    }
 }
 
 fn peak(t: &Transient) -> Peak {
@@ -34,20 +69,28 @@ fn peak(t: &Transient) -> Peak {
                 &removed
             }
             Err(e) => {
-                return Peak { depth: None, path: None, gate: None, end: None, note: format!("not computed: {e}") };
+                let note = format!("not computed: {e}");
+                return Peak { depth: None, path: None, gate: None, end: SignalEnd::AxisEnd, note };
             }
         }
     } else {
         t
     };
-    let gate = t.direct_light_end();
-    note.push_str(&format!("summed histogram after gating the direct light before {gate:.4} m of path"));
-    let path = t.summed_peak_path(Some(gate));
-    let depth = t.summed_peak_depth(Some(gate)).ok();
-    let end = Some(t.signal_end_path(gate)).filter(|&e| e < t.time().end());
+    let direct_end = t.direct_light_end();
+    // Guard: `direct_light_end` returns the axis's start when it finds no direct light (a simulation).
+    let gate = (direct_end > t.time().t0).then_some(direct_end);
+    match gate {
+        Some(g) => {
+            note.push_str(&format!("summed histogram after gating the direct light before {} m of path", num(g, 4)))
+        }
+        None => note.push_str("summed histogram; no direct light found to gate"),
+    }
+    let path = t.summed_peak_path(Some(direct_end));
+    let depth = t.summed_peak_depth(Some(direct_end)).ok();
+    let end = signal_end(t, direct_end);
     match path {
-        Ok(p) => Peak { depth, path: Some(p), gate: Some(gate), end, note },
-        Err(e) => Peak { depth: None, path: None, gate: Some(gate), end, note: format!("not computed: {e}") },
+        Ok(p) => Peak { depth, path: Some(p), gate, end, note },
+        Err(e) => Peak { depth: None, path: None, gate, end, note: format!("not computed: {e}") },
     }
 }
 
@@ -58,23 +101,9 @@ fn points_json(p: &PointSet) -> Value {
     }
 }
 
-fn points_text(p: &PointSet) -> String {
-    match p.layout {
-        Layout::Grid { nx, ny } => format!("grid {nx} × {ny} ({} points)", p.len()),
-        Layout::List => format!("list of {} points", p.len()),
-    }
-}
-
 /// An `f32` as the `f64` with the same shortest decimal form (`0.2f32` → `0.2`, not `0.20000000298…`).
 fn short(v: f32) -> f64 {
     v.to_string().parse().unwrap_or(f64::from(v))
-}
-
-/// Formats `v` with at most `decimals` decimals, trailing zeros removed.
-fn num(v: f64, decimals: usize) -> String {
-    let s = format!("{v:.decimals$}");
-    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s };
-    if s == "-0" { "0".into() } else { s }
 }
 
 /// Runs `nlos info`.
@@ -87,7 +116,8 @@ pub(crate) fn run(file: &Path, as_json: bool, read: crate::choices::ReadArgs) ->
     let (lo, hi) = PointSet::list(all_points).bounds().unwrap_or_default();
     let total: f64 = t.summed_histogram().iter().sum();
     let peak = peak(&t);
-    let ps = ax.bin_width / SPEED_OF_LIGHT * 1e12;
+    let ps = ax.bin_width_ps();
+    let quantity = Quantity::of(t.data());
     let counts = count_summary(&t, BackgroundWindow::Auto);
     let zero_gate = t.zero_gate().map(|z| (z, ax.bin_start(z)));
 
@@ -115,6 +145,7 @@ pub(crate) fn run(file: &Path, as_json: bool, read: crate::choices::ReadArgs) ->
                 "includes_device_legs": ax.includes_device_legs,
             },
             "zero_gate": zero_gate.map_or(Value::Null, |(z, path)| json!({ "bins": z, "path_m": path })),
+            "quantity": quantity.noun(),
             "total_counts": total,
             "photon_counts": match &counts {
                 Ok(c) => json!({
@@ -132,44 +163,42 @@ pub(crate) fn run(file: &Path, as_json: bool, read: crate::choices::ReadArgs) ->
                 "depth_m": peak.depth,
                 "path_m": peak.path,
                 "direct_light_gate_m": peak.gate,
-                "signal_end_path_m": peak.end,
+                "signal_end_path_m": peak.end.path(),
                 "note": peak.note,
             },
         });
         let text = serde_json::to_string_pretty(&out).map_err(|e| CliError::Failure(e.to_string()))?;
-        println!("{text}");
+        outln!("{text}");
         return Ok(());
     }
 
     let geometry = match &scan.pattern {
-        ScanPattern::Confocal(p) => format!("confocal, {}", points_text(p)),
-        ScanPattern::Exhaustive { lasers, sensors } => {
-            format!("exhaustive, lasers: {}; sensors: {}", points_text(lasers), points_text(sensors))
-        }
         ScanPattern::Paired { lasers, sensors } => {
             let gap = lasers.points.iter().zip(&sensors.points).map(|(l, s)| l.distance(*s));
             let (lo, hi) = gap.fold((f32::INFINITY, 0.0f32), |(lo, hi), d| (lo.min(d), hi.max(d)));
             let curved = lasers.normals.iter().chain(&sensors.normals).any(|n| *n != lasers.normals[0]);
             format!(
-                "paired (measurement i = laser spot i with sensor spot i), lasers: {}; sensors: {}; spots {}–{} m \
-                 apart; {}",
-                points_text(lasers),
-                points_text(sensors),
+                "{}; laser and sensor spots {}–{} m apart; {}",
+                scan.describe(),
                 num(f64::from(lo), 3),
                 num(f64::from(hi), 3),
                 if curved { "a normal per spot (curved wall)" } else { "one wall normal" }
             )
         }
+        _ => scan.describe(),
     };
     let device = |d: Option<[f32; 3]>| {
         d.map_or("unknown".to_string(), |[x, y, z]| {
             format!("({}, {}, {}) m", num(f64::from(x), 4), num(f64::from(y), 4), num(f64::from(z), 4))
         })
     };
-    println!("file:          {}", file.display());
-    println!("format:        {} ({})", format.name(), describe(format));
-    println!("scan:          {geometry}, {} measurements", t.measurements());
-    println!(
+    outln!("file:          {}", file.display());
+    outln!("format:        {} ({})", format.name(), describe(format));
+    // The description names the count itself where it is a product (several lasers with a sensor grid).
+    let count =
+        if scan.kind() == "multi-laser" { String::new() } else { format!("; {} measurements", t.measurements()) };
+    outln!("scan:          {geometry}{count}");
+    outln!(
         "wall extent:   x {} .. {} m, y {} .. {} m, z {} .. {} m",
         num(f64::from(lo.x), 4),
         num(f64::from(hi.x), 4),
@@ -178,57 +207,66 @@ pub(crate) fn run(file: &Path, as_json: bool, read: crate::choices::ReadArgs) ->
         num(f64::from(lo.z), 4),
         num(f64::from(hi.z), 4)
     );
-    println!(
+    outln!(
         "devices:       laser {}, sensor {}",
         device(scan.laser_device.map(|d| d.to_array())),
         device(scan.sensor_device.map(|d| d.to_array()))
     );
-    println!("time axis:     {} bins of {} mm ({} ps) of path length", ax.bins, num(ax.bin_width * 1e3, 4), num(ps, 3));
-    println!(
-        "path range:    {} .. {} m ({} the device legs)",
-        num(ax.t0, 4),
-        num(ax.end(), 4),
-        if ax.includes_device_legs { "times include" } else { "times exclude" }
-    );
+    outln!("time axis:     {}", ax.describe());
     if let Some((z, path)) = zero_gate {
-        println!(
+        outln!(
             "gate:          bins 0..{z} (path < {} m) are zero in every measurement: gated before it reached us \
              (the direct light removed); the estimates below use the bins after it",
             num(path, 4)
         );
     }
-    println!("total counts:  {}", num(total, 3));
+    let what = if quantity == Quantity::Counts { "photon counts" } else { "intensity: not photon counts" };
+    outln!("sum of values: {} ({what})", num(total, 3));
+    let label = match quantity {
+        Quantity::Counts => "photon counts:",
+        Quantity::Intensity => "intensity:",
+    };
     match &counts {
-        Ok(c) => println!(
-            "photon counts: background {} ± {} per bin (from bins {}..{}); signal {} ({} per \
-             measurement){}",
+        Ok(c) if c.background.per_bin == 0.0 && c.background.std_error == 0.0 => outln!(
+            "{label:<15}no background (bins {}..{}, where the returns have not begun or have ended, are zero); signal {}",
+            c.background.window.0,
+            c.background.window.1,
+            num(c.signal_total, 3),
+        ),
+        Ok(c) => outln!(
+            "{label:<15}background {} ± {} per bin (from bins {}..{}); signal {} ({} per measurement){}",
             num(c.background.per_bin, 4),
             num(c.background.std_error, 4),
             c.background.window.0,
             c.background.window.1,
             num(c.signal_total, 1),
             num(c.signal_per_measurement, 2),
-            if c.integer_counts { "" } else { "; values are not integers: not raw photon counts" }
+            if quantity == Quantity::Counts { "" } else { "; values are not integers: not raw photon counts" }
         ),
-        Err(e) => println!("photon counts: n/a (background not estimated: {e})"),
+        Err(e) => outln!("{label:<15}n/a (background not estimated: {e})"),
     }
     match (peak.depth, peak.path) {
-        (Some(d), Some(p)) if !scan.is_confocal() => println!(
-            "peak depth:    {} m straight in front of the scan (path {} m; {})",
-            num(d, 4),
-            num(p, 4),
-            peak.note
-        ),
-        (Some(d), _) => println!("peak depth:    {} m ({})", num(d, 4), peak.note),
-        (None, Some(p)) => println!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
-        _ => println!("peak depth:    n/a ({})", peak.note),
+        (Some(d), Some(p)) if !scan.is_confocal() => {
+            outln!("peak depth:    {} m straight in front of the scan (path {} m; {})", num(d, 4), num(p, 4), peak.note)
+        }
+        (Some(d), _) => outln!("peak depth:    {} m ({})", num(d, 4), peak.note),
+        (None, Some(p)) => outln!("peak path:     {} m ({}; depth needs a confocal scan)", num(p, 4), peak.note),
+        _ => outln!("peak depth:    n/a ({})", peak.note),
     }
     match peak.end {
-        Some(e) => {
-            let depth = format!(" (depth {} m)", num(t.depth_of_path(e), 4));
-            println!("signal ends:   {} m of path{depth}: later bins hold only background", num(e, 4));
+        SignalEnd::AboveBackground(e) => outln!(
+            "signal ends:   {} m of path (depth {} m): later bins hold only background",
+            num(e, 4),
+            num(t.depth_of_path(e), 4)
+        ),
+        SignalEnd::LastNonZero(e) => outln!(
+            "signal ends:   {} m of path (depth {} m): later bins are zero",
+            num(e, 4),
+            num(t.depth_of_path(e), 4)
+        ),
+        SignalEnd::AxisEnd => {
+            outln!("signal ends:   at the end of the axis (returns or background up to its last bin)")
         }
-        None => println!("signal ends:   at the end of the axis (no late bins of background only)"),
     }
     Ok(())
 }

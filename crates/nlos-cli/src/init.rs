@@ -8,6 +8,7 @@ use nlos_optim::pipeline::{Config, InitMethod, Prepared, Setting, Volumetric};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
 use crate::CliError;
+use crate::progress::Step;
 
 /// The volumetric method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -86,7 +87,8 @@ pub(crate) struct Args {
     all_regions: bool,
     /// Hysteresis fraction (0–1) of the largest column maximum down to which the mask grows from its seed
     /// (the settings for compact objects use 0.1). Lower keeps dim parts (a rabbit's ears) and more of
-    /// the albedo halo around the object; `nlos reconstruct --prune` deletes what the data do not support.
+    /// the albedo halo around the object; `nlos reconstruct` prunes what the data do not support
+    /// (`boundary.prune_rounds`).
     #[arg(long, value_name = "FRACTION")]
     grow: Option<f32>,
     /// Smoothing passes over the depth map.
@@ -137,11 +139,27 @@ fn init_error(e: InitError) -> CliError {
     match e {
         InitError::Transient(e) => CliError::input(e),
         InitError::Mesh(e) => CliError::Failure(e.to_string()),
+        e @ (InitError::NotConfocal { .. } | InitError::NotGrid { .. }) => {
+            CliError::Input(format!("{e} (`--method pf`, or `--method auto`, the default, which chooses it)"))
+        }
         other => CliError::Input(other.to_string()),
     }
 }
 
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    // The outputs are checked before the work that makes them.
+    nlos_mesh::io::check_save_extension(&args.out).map_err(|e| CliError::Input(format!("--out: {e}")))?;
+    crate::check_output(&args.out, "--out")?;
+    if let Some(path) = &args.volume {
+        if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npy")) {
+            return Err(CliError::Input(format!(
+                "--volume {}: the volume is written as NumPy .npy; name it .npy",
+                path.display()
+            )));
+        }
+        crate::check_output(path, "--volume")?;
+    }
+    let step = Step::spinner(format!("init: reading {}", args.file.display()));
     let t = args.read.read(&args.file)?;
     let reflectance = if args.retroreflective { Model::Retroreflective } else { Model::Lambert };
     // The capture is prepared as `nlos reconstruct` prepares it (one library path: rebin, gate, the bins after
@@ -163,6 +181,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Method::Lct | Method::Fbp => InitMethod::Lct,
     };
     let prepared = Prepared::new(t, &config).map_err(optim_error)?;
+    step.finish();
     for note in &prepared.notes {
         eprintln!("{note}");
     }
@@ -177,6 +196,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         Method::Pf => Volumetric::Pf,
         Method::Carve => Volumetric::Carve,
     };
+    let step = Step::spinner(format!("init: {} volume", format!("{method:?}").to_lowercase()));
     let vol = if method == Volumetric::Pf {
         let defaults = PfParams::default();
         let params = PfParams {
@@ -207,7 +227,10 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         rim_radius: args.rim_radius,
         ..base
     };
+    step.finish();
+    let step = Step::spinner("init: surface");
     let surface = volume_to_surface(&vol, &params).map_err(init_error)?;
+    step.finish();
     nlos_mesh::io::save(&surface.mesh, &args.out).map_err(|e| CliError::Failure(e.to_string()))?;
     if let Some(path) = &args.volume {
         std::fs::write(path, vol.to_npy())
@@ -216,7 +239,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let png = args.out.with_extension("png");
     figure(&vol, &surface.depth, &surface.mask, &png)?;
     let kept = surface.mask.iter().filter(|&&k| k).count();
-    println!(
+    outln!(
         "{:?}: {} × {} × {} volume; {kept} of {} columns kept (threshold {:.3e}), median depth {} m; \
          {} vertices, {} triangles → {}; figure {}",
         method,

@@ -9,6 +9,14 @@
 //! of range, a usage error), 1 for other failures (an output that cannot be written, a figure that cannot
 //! be encoded). Errors are printed to stderr as `error: <message>`.
 
+/// `println!` that ends the command quietly when stdout is a closed pipe (`nlos info FILE | head -1`); inside
+/// a function returning `Result<_, CliError>`.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::write_stdout(format_args!($($arg)*))?
+    };
+}
+
 mod benchmark;
 mod choices;
 mod convert;
@@ -16,19 +24,27 @@ mod eval;
 mod info;
 mod init;
 mod preview;
+mod progress;
 mod reconstruct;
 mod render;
 mod report;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use nlos_transient::TransientError;
 
-/// Non-line-of-sight imaging: inspect, convert and preview transient captures.
+/// Non-line-of-sight imaging: inspect, convert, preview and simulate transient captures, reconstruct the
+/// hidden surface, evaluate and report.
 #[derive(Debug, Parser)]
-#[command(name = "nlos", version, about)]
+#[command(
+    name = "nlos",
+    version,
+    about,
+    after_help = "Exit status: 0 on success; 2 for bad input (an unreadable, truncated or malformed file, an \
+                  argument out of range, a usage error); 1 for other failures (an output that cannot be written)."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -60,9 +76,11 @@ enum Command {
     /// angular error (all vertices, and those within 1 cm of the truth); or against ground-truth depth and
     /// normal maps (--gt-depth, --gt-normal).
     Eval(eval::Args),
-    /// Volumetric reconstruction (LCT, f-k, FBP) → initial surface mesh, with a front-view/depth PNG.
+    /// Volumetric reconstruction (LCT, f-k, phasor field, FBP or space carving; `auto` chooses) → initial
+    /// surface mesh, with a front-view/depth PNG.
     Init(init::Args),
-    /// Reconstruct the hidden surface: initial surface (LCT, f-k or a mesh) → optimised mesh in --out.
+    /// Reconstruct the hidden surface: initial surface (LCT, f-k, phasor field, space carving or a mesh; `auto`
+    /// chooses) → optimised mesh in --out.
     Reconstruct(Box<reconstruct::Args>),
     /// Simulate the measurements of a mesh (box kernel), optionally as SPAD photon counts.
     Render(render::Args),
@@ -80,6 +98,36 @@ pub(crate) enum CliError {
     Input(String),
     /// Anything else: exit code 1.
     Failure(String),
+    /// Standard output was closed by its reader (a pipe into `head`): the command ends quietly, exit code 0.
+    Closed,
+}
+
+/// Writes one line to standard output ([`outln!`]).
+pub(crate) fn write_stdout(args: std::fmt::Arguments<'_>) -> Result<(), CliError> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_fmt(args).and_then(|()| out.write_all(b"\n")) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(CliError::Closed),
+        Err(e) => Err(CliError::Failure(format!("cannot write to standard output: {e}"))),
+    }
+}
+
+/// Checks, before any work, that an output can be written at `path` (given with `flag`): its directory
+/// exists and the path is not a directory (exit code 1, as for any output that cannot be written).
+pub(crate) fn check_output(path: &Path, flag: &str) -> Result<(), CliError> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(CliError::Failure(format!(
+            "{flag} {}: the directory {} does not exist; create it first",
+            path.display(),
+            dir.display()
+        )));
+    }
+    if path.is_dir() {
+        return Err(CliError::Failure(format!("{flag} {}: is a directory; give a file name", path.display())));
+    }
+    Ok(())
 }
 
 impl CliError {
@@ -127,7 +175,7 @@ where
         Command::Benchmark(args) => benchmark::run(&args),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) | Err(CliError::Closed) => ExitCode::SUCCESS,
         Err(CliError::Input(msg)) => {
             eprintln!("error: {msg}");
             ExitCode::from(2)

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_transient::Transient;
+use nlos_transient::{Quantity, Transient};
 use nlos_viz::{Colormap, Extent, Figure, Interp, MarkerAxis, Norm, Panel, Rgb, ScalarGrid, Scale};
 
 use crate::CliError;
@@ -67,6 +67,10 @@ fn viz(e: nlos_viz::VizError) -> CliError {
 
 /// Runs `nlos preview`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
+    if !args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        return Err(CliError::Input(format!("--out {}: the preview is a PNG image; name it .png", args.out.display())));
+    }
+    crate::check_output(&args.out, "--out")?;
     let t = args.read.read(&args.file)?;
     let (gated, gate_note, gate) = match args.gate {
         Gate::Off => (t, "direct light not gated (--gate off)".to_string(), None),
@@ -95,13 +99,19 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         }
     };
     let name = args.file.file_name().map_or_else(|| args.file.display().to_string(), |n| n.to_string_lossy().into());
-    match gated.sensor_grid() {
+    let shown = match gated.sensor_grid() {
         Some((nx, ny)) => {
             let iy = args.row.unwrap_or(ny / 2);
-            grid_figure(&gated, &name, (nx, ny), iy, (gate, &gate_note), &args.out)
+            grid_figure(&gated, &name, (nx, ny), iy, (gate, &gate_note), &args.out)?;
+            format!("the time-summed image and the x–t slice of row {iy}")
         }
-        None => list_figure(&gated, &name, gate, &gate_note, &args.out),
-    }
+        None => {
+            list_figure(&gated, &name, gate, &gate_note, &args.out)?;
+            "the summed histogram".to_string()
+        }
+    };
+    outln!("wrote {}: {shown}; {gate_note}", args.out.display());
+    Ok(())
 }
 
 /// The physical extents (x, y) of the sensor grid, from its corner points.
@@ -124,6 +134,7 @@ fn grid_figure(
     (gate, gate_note): (Option<f64>, &str),
     out: &Path,
 ) -> Result<(), CliError> {
+    let noun = Quantity::of(t.data()).noun();
     let image = t.time_summed_image().map_err(CliError::input)?;
     let slice = t.grid_row_slice(iy).map_err(CliError::input)?;
     let (ex, ey) = grid_extents(t, nx, ny)?;
@@ -145,25 +156,22 @@ fn grid_figure(
         .with_title("time-summed")
         .with_labels("x (m)", "y (m)")
         .with_size(w, h)
-        .with_colorbar("counts");
+        .with_colorbar(noun);
     let mut right = Panel::image(slice_grid, Norm::auto(&slice, Scale::Log { decades: DECADES }).map_err(viz)?)
         .with_title(format!("x-t slice at y = {row_y:.3} m (row {iy})"))
         .with_labels(format!("path length{legs} (m)"), "x (m)")
         .with_size(480, h)
         .with_colormap(Colormap::Magma)
         .with_interp(Interp::Area)
-        .with_colorbar("counts (log)");
+        .with_colorbar(format!("{noun} (log)"));
     if let Some(g) = gate {
         right = right.with_marker(MarkerAxis::X, g, "gate", Rgb::new(80, 200, 255));
     }
     let mut fig = Figure::new(name);
     fig.notes.push(gate_note.to_string());
-    fig.notes.push(format!(
-        "{nx} x {ny} {} scan, {} bins of {:.2} mm; slice log-scaled over {DECADES} decades",
-        if t.scan().is_confocal() { "confocal" } else { "exhaustive (summed over lasers)" },
-        ax.bins,
-        ax.bin_width * 1e3
-    ));
+    let summed = if t.scan().lasers().len() > 1 && !t.scan().is_confocal() { " (summed over laser spots)" } else { "" };
+    fig.notes.push(format!("{}{summed}", t.scan().describe()));
+    fig.notes.push(format!("{}; slice log-scaled over {DECADES} decades", ax.describe()));
     fig.panels = vec![left, right];
     fig.render().map_err(viz)?.save_png(out).map_err(viz)
 }
@@ -172,11 +180,12 @@ fn list_figure(t: &Transient, name: &str, gate: Option<f64>, gate_note: &str, ou
     let ax = t.time();
     let x: Vec<f64> = (0..ax.bins).map(|k| ax.bin_center(k)).collect();
     let y = t.summed_histogram();
+    let noun = Quantity::of(t.data()).noun();
     let legs = if ax.includes_device_legs { " incl. device legs" } else { "" };
     let mut panel = Panel::line(&x, &y)
         .map_err(viz)?
         .with_title("summed histogram")
-        .with_labels(format!("path length{legs} (m)"), "counts")
+        .with_labels(format!("path length{legs} (m)"), noun)
         .with_size(640, 320);
     if let Some(g) = gate {
         panel = panel.with_marker(MarkerAxis::X, g, "gate", Rgb::RED);

@@ -103,6 +103,16 @@ fn bad<E: std::fmt::Display>(e: E) -> CliError {
     CliError::Input(e.to_string())
 }
 
+/// A library error as bad input, with the flag of this command that a refused start asks for.
+fn optim_error(e: nlos_optim::OptimError) -> CliError {
+    match &e {
+        nlos_optim::OptimError::Init(
+            nlos_init::InitError::NotConfocal { .. } | nlos_init::InitError::NotGrid { .. },
+        ) => bad(format!("{e} (`--init pf`, or leave --init out: `auto` chooses the phasor field for this capture)")),
+        _ => bad(e),
+    }
+}
+
 /// The settings of the run: `--config` (or, resuming, the run's own), then `--set`, then the flags.
 fn config(args: &Args) -> Result<Config, CliError> {
     let saved = match (&args.out, args.resume, &args.config) {
@@ -175,14 +185,26 @@ fn with_settings(config: &Config, set: &[String]) -> Result<Config, CliError> {
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let config = config(args)?;
     if args.print_config {
-        print!("{}", config.to_toml().map_err(bad)?);
+        outln!("{}", config.to_toml().map_err(bad)?.trim_end());
         return Ok(());
     }
     let (Some(data), Some(out)) = (&args.data, &args.out) else {
         return Err(bad("give the capture and --out DIR"));
     };
-    let prepared = Prepared::load(data, &config).map_err(bad)?;
-    let params = prepared.params(&config, Some(out.clone())).map_err(bad)?;
+    if args.resume {
+        pipeline::check_resumable(out).map_err(|e| bad(format!("--resume: {e}")))?;
+    }
+    let prepared = Prepared::load(data, &config).map_err(optim_error)?;
+    let params = prepared.params(&config, Some(out.clone())).map_err(optim_error)?;
+    if !args.quiet {
+        let full = &prepared.full;
+        eprintln!(
+            "capture: {}; {}; {}",
+            full.scan().describe(),
+            full.time().describe(),
+            nlos_transient::Quantity::of(full.data()).noun()
+        );
+    }
     for note in &prepared.notes {
         eprintln!("{note}");
     }
@@ -202,13 +224,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if start == Start::New {
         write_command(args, out)?;
     }
-    let outcome = pipeline::run(&prepared, &config, &params, start, hooks).map_err(bad)?;
+    let outcome = pipeline::run(&prepared, &config, &params, start, hooks).map_err(optim_error)?;
     reporter.finish();
     if args.glb {
         save(&outcome.mesh, &out.join("mesh.glb"))?;
     }
     let last = outcome.log.iterations.last();
-    println!(
+    outln!(
         "{}: {} faces, {} vertices after {} blocks in {} stages; loss {:.4e}; scale {:.4e}; stop: {}",
         out.join("mesh.obj").display(),
         outcome.mesh.n_faces(),
@@ -239,7 +261,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         })
         .collect();
     if !coarsened.is_empty() {
-        println!(
+        outln!(
             "budget: {} edges, so that every stage ran whole within schedule.reference_seconds = {} (seconds of \
              the 2-core reference machine, predicted from face counts)",
             coarsened.join(", "),
@@ -267,6 +289,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             CliError::Input(m) | CliError::Failure(m) => {
                 CliError::Failure(format!("the mesh is written, but not the report: {m}"))
             }
+            CliError::Closed => CliError::Closed,
         })?;
     }
     Ok(())
@@ -307,7 +330,7 @@ fn write_report(
         nlos_report::ReportError::MissingFile { .. } | nlos_report::ReportError::Json { .. } => bad(e),
         other => fail(other),
     })?;
-    println!("{}: {} figures", report.html.display(), report.images.len());
+    outln!("{}: {} figures", report.html.display(), report.images.len());
     Ok(())
 }
 

@@ -6,6 +6,8 @@
 //! of eq. 3 that simulates a measurement). It computes nothing itself.
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicUsize;
 
 use nlos_brdf::Model;
 use nlos_render::with_brdf;
@@ -15,6 +17,7 @@ use nlos_transient::{Format, PointSet, SPEED_OF_LIGHT, Scan, TimeAxis, Transient
 
 use crate::CliError;
 use crate::choices::{DeviceArg, ModeArg, VisibilityArg, brdf_parser};
+use crate::progress::Step;
 
 /// Arguments of `nlos render`.
 #[derive(Debug, clap::Args)]
@@ -144,6 +147,13 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             args.out.display()
         ))
     })?;
+    crate::check_output(&args.out, "--out")?;
+    if args.setup.is_none() && args.read.bin_width_ps.is_some() {
+        return Err(bad(
+            "--bin-width-ps is the bin width of the --setup capture (for files that do not store one); without \
+             --setup the default setup's 1.2 mm bins are used: give --setup FILE, or leave --bin-width-ps out",
+        ));
+    }
     let (scan, time) = match &args.setup {
         Some(file) => {
             let t = args.read.read(file)?;
@@ -187,17 +197,29 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if args.device == DeviceArg::Gpu && !nlos_render::gpu_supports(args.brdf) {
         return Err(bad(format!("--device gpu: --brdf {} has no GPU version; use --device cpu", args.brdf)));
     }
-    let mut renderer = Renderer::new(&positions, &triangles, &scan, &time, params).map_err(bad)?;
-    renderer.set_device(args.device.into()).map_err(bad)?;
     let brdf = AnyBrdf::unit(args.brdf, args.alpha).map_err(bad)?;
+    // Progress: each measurement's visibility (cached mode), then its transient.
+    let m = scan.measurements();
+    let done = Arc::new(AtomicUsize::new(0));
+    let passes = 1 + usize::from(matches!(visibility, Visibility::Cached { .. }));
+    let what = format!("render: {} triangles × {m} measurements", triangles.len());
+    let step = Step::counted(what, Arc::clone(&done), passes * m);
+    let mut renderer = Renderer::new_observed(&positions, &triangles, &scan, &time, params, Some(done)).map_err(bad)?;
+    renderer.set_device(args.device.into()).map_err(bad)?;
     let rendered: Transient = with_brdf!(brdf, b => renderer.forward_transient(&b)).map_err(bad)?;
+    step.finish();
     let out = match &model {
-        Some(m) => m.simulate(&rendered, args.seed).map_err(bad)?,
+        Some(m) => {
+            let step = Step::spinner("render: photon counts (SPAD model)");
+            let counts = m.simulate(&rendered, args.seed).map_err(bad)?;
+            step.finish();
+            counts
+        }
         None => rendered,
     };
     nlos_transient::write(&out, &args.out, format).map_err(CliError::output)?;
-    println!(
-        "{}: {} measurements × {} bins, total {:.6e}",
+    outln!(
+        "wrote {}: {} measurements × {} bins, total {:.6e}",
         args.out.display(),
         out.measurements(),
         out.bins(),

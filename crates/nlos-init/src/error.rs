@@ -8,19 +8,20 @@ use nlos_transient::TransientError;
 pub enum InitError {
     /// The method needs a confocal scan.
     #[error(
-        "{method} needs a confocal scan (laser and sensor spots coincide) but this capture is exhaustive; \
-         reconstruct it with the phasor field (`nlos_init::pf`; `--init pf`, or `auto`, the default, which \
-         chooses it), filtered backprojection or space carving"
+        "{method} needs a confocal scan (laser and sensor on the same spot) but this capture is a {scan} scan; \
+         start it from the phasor field (method `pf`), which takes any scan"
     )]
     NotConfocal {
         /// The method that refused the input.
         method: &'static str,
+        /// The capture's kind of scan ([`nlos_transient::Scan::kind`]): `one-laser`, `multi-laser`, `paired`.
+        scan: &'static str,
     },
     /// The method needs scan points on a regular grid.
     #[error(
         "{method} needs scan points on a regular nx × ny grid but this capture's points are an unstructured \
-         list (or, for the phasor field, span no area); use the phasor field (`--init pf`), which takes any \
-         points spanning an area, or resample the capture onto a grid"
+         list (or, for the phasor field, span no area); start it from the phasor field (method `pf`), which takes \
+         any points spanning an area, or resample the capture onto a grid"
     )]
     NotGrid {
         /// The method that refused the input.

@@ -64,7 +64,7 @@ pub(crate) fn prepare(
     merge: usize,
 ) -> Result<ConfocalGrid> {
     if !t.scan().is_confocal() {
-        return Err(InitError::NotConfocal { method });
+        return Err(InitError::NotConfocal { method, scan: t.scan().kind() });
     }
     let pts = t.scan().sensors();
     let Layout::Grid { nx, ny } = pts.layout else {

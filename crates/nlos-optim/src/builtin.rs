@@ -116,7 +116,7 @@ impl BuiltinScene {
         let paths = FIXTURE_FILES.map(|name| dir.join(name));
         let io = |path: &std::path::Path| {
             let path = path.to_path_buf();
-            move |source: std::io::Error| OptimError::Io { path, source }
+            move |source: std::io::Error| OptimError::Io { path, fix: OptimError::WRITE_FIX, source }
         };
         std::fs::create_dir_all(dir).map_err(io(dir))?;
         let truth = self.mesh()?;

@@ -64,10 +64,12 @@ pub enum OptimError {
         rollbacks: u32,
     },
     /// Reading or writing a file failed.
-    #[error("{}: {source}; check that the output directory exists and is writable", path.display())]
+    #[error("{}: {source}; {fix}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
+        /// What to check, for this file ([`OptimError::WRITE_FIX`] for the run's outputs).
+        fix: &'static str,
         /// The underlying error.
         #[source]
         source: std::io::Error,
@@ -129,7 +131,7 @@ pub enum OptimError {
         reason: String,
     },
     /// The capture file cannot be read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}", capture_message(path, source))]
     Capture {
         /// The capture file.
         path: PathBuf,
@@ -170,6 +172,18 @@ pub enum OptimError {
         /// Intersecting face pairs found.
         pairs: usize,
     },
+}
+
+/// The reader's message, with the file in front when the message does not name it already (most do: a path
+/// said twice reads as two files).
+fn capture_message(path: &std::path::Path, source: &nlos_transient::TransientError) -> String {
+    let (file, message) = (path.display().to_string(), source.to_string());
+    if message.contains(&file) { message } else { format!("{file}: {message}") }
+}
+
+impl OptimError {
+    /// What to check when an output of the run cannot be written ([`OptimError::Io`]).
+    pub const WRITE_FIX: &'static str = "check that the output directory exists and is writable";
 }
 
 /// Result alias of the crate.

@@ -241,21 +241,14 @@ impl Capture {
         py.detach(|| nlos_transient::write(&t, &path, format)).map_err(errors::capture)
     }
 
+    /// The scan and the time axis in the words every `nlos` message uses (`Scan::describe`,
+    /// `TimeAxis::describe`).
     fn __repr__(&self) -> String {
-        let geometry = match (&self.scan.pattern, self.scan.sensors().grid_dims()) {
-            (nlos_transient::ScanPattern::Confocal(_), Some((nx, ny))) => format!("confocal {nx} × {ny} grid"),
-            (nlos_transient::ScanPattern::Confocal(p), None) => format!("confocal, {} spots", p.len()),
-            (nlos_transient::ScanPattern::Exhaustive { lasers, sensors }, _) => {
-                format!("{} lasers × {} sensors", lasers.len(), sensors.len())
-            }
-            (nlos_transient::ScanPattern::Paired { lasers, .. }, _) => format!("{} laser/sensor pairs", lasers.len()),
-        };
         format!(
-            "Capture({geometry}, {} bins of {:.4} m from t0 = {:.4} m{})",
-            self.time.bins,
-            self.time.bin_width,
-            self.time.t0,
-            self.format.map_or_else(String::new, |f| format!(", read as {}", f.name()))
+            "Capture({}; {}{})",
+            self.scan.describe(),
+            self.time.describe(),
+            self.format.map_or_else(String::new, |f| format!("; read as {}", f.name()))
         )
     }
 }

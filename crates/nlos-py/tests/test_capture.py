@@ -134,7 +134,7 @@ def test_paired_captures_on_a_curved_wall_round_trip(tmp_path):
     c = c.with_normals(n_s, n_l)
     np.testing.assert_array_equal(c.laser_normals, n_l)
     np.testing.assert_array_equal(c.scan_normals, n_s)
-    assert "6 laser/sensor pairs" in repr(c)
+    assert "paired: 6 laser spots (a list), each recorded at its own sensor spot" in repr(c)
     for ext in ["npy", "exr"]:
         c.save(tmp_path / f"p.{ext}")
         back = nlos.load(tmp_path / f"p.{ext}")

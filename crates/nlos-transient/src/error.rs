@@ -51,6 +51,16 @@ pub enum TransientError {
         /// How to fix it.
         hint: String,
     },
+    /// A capture stored as two files lacks the second one beside the first.
+    #[error("{file}: needs its companion file {companion}, not found: {what}; put the two files in one folder")]
+    MissingCompanion {
+        /// The file given.
+        file: PathBuf,
+        /// Where the companion was looked for.
+        companion: PathBuf,
+        /// What the two files hold.
+        what: String,
+    },
     /// A field has a shape that does not fit the others.
     #[error("{file}: field `{field}` has shape {found}, expected {expected}")]
     WrongShape {

@@ -25,6 +25,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod describe;
 pub mod error;
 #[cfg(feature = "formats")]
 pub mod formats;
@@ -41,5 +42,6 @@ pub use error::{Result, TransientError};
 pub use formats::{Format, ReadOptions, detect, read, read_with, write};
 pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
 
-pub use time_axis::{SPEED_OF_LIGHT, TimeAxis};
+pub use describe::Quantity;
+pub use time_axis::{CAPTURE_SPEED_OF_LIGHT, SPEED_OF_LIGHT, TimeAxis};
 pub use transient::Transient;

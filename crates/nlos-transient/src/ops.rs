@@ -5,6 +5,11 @@ use crate::scan::{Scan, ScanPattern};
 use crate::time_axis::TimeAxis;
 use crate::transient::Transient;
 
+/// How far past path 0 (metres) an axis may start and still hold the direct light off the wall, or where it was
+/// before a gate removed it ([`Transient::zero_gate`]): the general-NLOS files start half a bin before path 0,
+/// the Stanford ones at 0; a few centimetres allow for a laser spot's size and calibration.
+pub const DIRECT_LIGHT_REACH: f64 = 0.05;
+
 impl Transient {
     /// Keeps bins `start..end` (end exclusive); `t0` moves to the start of bin `start`.
     ///
@@ -275,9 +280,20 @@ impl Transient {
     /// capture was taken for gated and fitted through a response estimated from its own first return, 6 mm
     /// off), so it has no gate. Neither has a capture without zero bins.
     ///
+    /// A gate removed a direct light, so the axis must reach back to where the direct light was: path 0, the
+    /// wall (within [`DIRECT_LIGHT_REACH`]), or an axis whose times include the device legs. A capture cut
+    /// from later bins (`nlos convert --crop-bins 500..900` of a simulation: its axis starts 0.6 m in, and its
+    /// zeros are the darkness before the first return) has none, however its first return rises: a flat
+    /// face's abrupt return, cut before its end, passed every other test.
+    ///
     /// Estimates that need bins without signal (the background, [`crate::sensor::BackgroundWindow`]) and
     /// the direct light's end start after the gate: its zeros are neither background nor signal.
     pub fn zero_gate(&self) -> Option<usize> {
+        let ax = self.time();
+        // Guard: no direct light could have been on an axis that starts past the wall.
+        if !ax.includes_device_legs && ax.t0 > DIRECT_LIGHT_REACH {
+            return None;
+        }
         let z = self.leading_zero_bins();
         if z == 0 || z + 16 > self.bins() {
             return None;

@@ -7,6 +7,11 @@ use crate::error::{Result, TransientError};
 /// Speed of light in vacuum, metres per second. Used to convert bin widths given in seconds.
 pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
 
+/// The speed of light the capture formats' reference code uses for bin widths (3e8 m/s): Stanford's 4 ps
+/// is 1.2 mm, f-k's and general-NLOS's 32 ps 9.6 mm. Picoseconds read and printed for a capture's bins use
+/// it ([`TimeAxis::bin_width_ps`]), so that they round-trip as typed.
+pub const CAPTURE_SPEED_OF_LIGHT: f64 = 3e8;
+
 /// The time axis of a transient, expressed as optical path length (metres, `c·t`).
 ///
 /// Bin `k` holds the **integral** of the time-resolved signal over path lengths

@@ -248,3 +248,39 @@ fn grid_spacing_of_a_grid_and_of_a_list() {
     let list = nlos_transient::PointSet::list(g.points.clone());
     assert_eq!(list.grid_spacing(), None);
 }
+
+/// A flat face's return (every measurement lit in the same bins, an abrupt rise and a long tail) on an axis from
+/// the wall, without background.
+fn flat_face_return() -> Transient {
+    let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.25, 0.25).expect("grid"));
+    let bins = 1200;
+    let time = TimeAxis::new(0.0, 0.0012, bins).expect("axis");
+    let data = (0..16 * bins)
+        .map(|i| {
+            let k = i % bins;
+            if k < 700 { 0.0 } else { (400.0 * (-((k - 700) as f32) / 300.0).exp()).round() }
+        })
+        .collect();
+    Transient::new(scan, time, data).expect("transient")
+}
+
+#[test]
+fn a_crop_is_not_a_gate() {
+    let sim = flat_face_return();
+    assert_eq!(sim.zero_gate(), None, "the whole simulation ends in zeros: no background");
+    // Cut from bin 500 to 900 (as `nlos convert --crop-bins 500..900`): zeros, then an abrupt return that
+    // lasts to the end of the axis. Only the axis, which starts 0.6 m from the wall, says no direct light
+    // was there to be removed.
+    let crop = sim.crop_bins(500, 900).expect("crop");
+    assert_eq!(crop.leading_zero_bins(), 200);
+    assert_eq!(crop.zero_gate(), None, "the darkness before the first return is not a gate");
+    // The same light on an axis from the wall, its first bins zeroed by a gate, with a background after it.
+    let mut gated = crop.clone();
+    gated.time_mut().t0 = 0.0;
+    for h in gated.data_mut().chunks_mut(400) {
+        for v in &mut h[200..] {
+            *v += 1.0;
+        }
+    }
+    assert_eq!(gated.zero_gate(), Some(200));
+}

@@ -109,7 +109,32 @@ fn general_nlos_errors_name_the_file_and_the_fix() -> R {
     // The setup beside the data is missing.
     std::fs::remove_file(dir.join("setup.mat")).expect("remove");
     match nlos_transient::read_with(&data, &options) {
-        Err(TransientError::Io { file, .. }) => assert_eq!(file, dir.join("setup.mat")),
+        Err(e @ TransientError::MissingCompanion { .. }) => {
+            assert!(
+                matches!(&e, TransientError::MissingCompanion { file, companion, .. }
+                    if *file == data && *companion == dir.join("setup.mat")),
+                "{e:?}"
+            );
+            assert!(e.to_string().contains("the laser and sensor spots are in setup.mat"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Given the setup alone, the error is about the setup, and names data.mat as what it needs.
+    general_nlos_files(&dir, 2, 2, 3);
+    std::fs::remove_file(&data).expect("remove");
+    match nlos_transient::read(dir.join("setup.mat")) {
+        Err(TransientError::MissingField { file, field, .. }) => {
+            assert_eq!((file, field.as_str()), (dir.join("setup.mat"), "bin width"));
+        }
+        other => panic!("{other:?}"),
+    }
+    match nlos_transient::read_with(dir.join("setup.mat"), &options) {
+        Err(e @ TransientError::MissingCompanion { .. }) => {
+            assert!(
+                e.to_string().starts_with(&format!("{}: needs its companion file", dir.join("setup.mat").display()))
+            );
+            assert!(e.to_string().contains("the histograms are in data.mat"), "{e}");
+        }
         other => panic!("{other:?}"),
     }
     // A setup whose grid does not match the data's.

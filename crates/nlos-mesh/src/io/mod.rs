@@ -57,22 +57,35 @@ pub fn read_any(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
     }
 }
 
-/// Writes `mesh` to `path` in the format named by the extension (`obj`, `ply` = binary little-endian PLY,
-/// `glb`), atomically.
+/// The lower-case extension of `path` when [`save`] can write it: `obj`, `ply` (binary little-endian PLY) or
+/// `glb`. Check it before the work that makes the mesh.
+///
+/// # Errors
+/// [`MeshError::Format`] naming the file for any other extension.
+pub fn check_save_extension(path: &Path) -> Result<String, MeshError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    if matches!(ext.as_str(), "obj" | "ply" | "glb") {
+        Ok(ext)
+    } else {
+        Err(MeshError::format(
+            &path.display().to_string(),
+            "extension",
+            "unknown mesh extension; use .obj, .ply or .glb",
+        ))
+    }
+}
+
+/// Writes `mesh` to `path` in the format named by the extension ([`check_save_extension`]), atomically.
+///
+/// # Errors
+/// As [`check_save_extension`]; [`MeshError::Io`] when the file cannot be written.
 pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError> {
     let path = path.as_ref();
-    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
+    let ext = check_save_extension(path)?;
     let bytes = match ext.as_str() {
-        "obj" => write_obj(mesh),
         "ply" => write_ply(mesh, PlyEncoding::BinaryLittleEndian),
         "glb" => write_glb(mesh),
-        _ => {
-            return Err(MeshError::format(
-                &path.display().to_string(),
-                "extension",
-                "unknown mesh extension; use .obj, .ply or .glb",
-            ));
-        }
+        _ => write_obj(mesh),
     };
     let io = |source| MeshError::Io { file: path.to_owned(), source };
     let tmp = path.with_extension(format!("{ext}.tmp"));

@@ -478,6 +478,20 @@ impl Config {
     pub fn overridden(&self, overrides: toml::Table) -> Result<Self> {
         let mut table: toml::Table =
             self.to_toml()?.parse().map_err(|e: toml::de::Error| config_error("config", e.to_string()))?;
+        // Each changed setting is checked on its own, so that an error names it rather than a line of a TOML
+        // document the user never wrote.
+        for (key, value) in leaves(&overrides, "") {
+            if !names(&table, &key) {
+                let known = leaves(&table, "").into_iter().map(|(k, _)| k).collect::<Vec<_>>();
+                return Err(config_error(&key, unknown_setting(&key, &known)));
+            }
+            let mut one = table.clone();
+            overlay(&mut one, nested(&key, value));
+            let text = toml::to_string(&one).map_err(|e| config_error(&key, e.to_string()))?;
+            if let Err(e) = toml::from_str::<Config>(&text) {
+                return Err(config_error(&key, e.message().trim_end().to_owned()));
+            }
+        }
         overlay(&mut table, overrides);
         let text = toml::to_string(&table).map_err(|e| config_error("config", e.to_string()))?;
         Self::from_toml(&text)
@@ -488,7 +502,9 @@ impl Config {
     /// # Errors
     /// [`OptimError::Io`] when the file cannot be read, and those of [`Config::from_toml`] (naming the file).
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|source| OptimError::Io { path: path.to_owned(), source })?;
+        let fix = "check the path of the settings file (TOML, as `nlos reconstruct --print-config` writes it)";
+        let text =
+            std::fs::read_to_string(path).map_err(|source| OptimError::Io { path: path.to_owned(), fix, source })?;
         Self::from_toml(&text).map_err(|e| match e {
             OptimError::Config { reason, .. } => config_error(&path.display().to_string(), reason),
             e => e,
@@ -579,6 +595,43 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
 ];
 
 /// Writes `top`'s fields over `base`'s, descending into the tables both have.
+/// Every value of `table` that is not itself a table, with its dotted key (`capture.gate`).
+fn leaves(table: &toml::Table, prefix: &str) -> Vec<(String, toml::Value)> {
+    table
+        .iter()
+        .flat_map(|(k, v)| {
+            let key = if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") };
+            match v {
+                toml::Value::Table(t) => leaves(t, &key),
+                v => vec![(key, v.clone())],
+            }
+        })
+        .collect()
+}
+
+/// The table that sets only the dotted `key` to `value`.
+fn nested(key: &str, value: toml::Value) -> toml::Table {
+    let mut parts = key.rsplit('.');
+    let mut table = toml::Table::new();
+    table.insert(parts.next().unwrap_or(key).to_owned(), value);
+    for part in parts {
+        let mut outer = toml::Table::new();
+        outer.insert(part.to_owned(), toml::Value::Table(table));
+        table = outer;
+    }
+    table
+}
+
+/// Why `key` is not a setting, with up to three settings of similar names (Jaro–Winkler ≥ 0.8) to try instead.
+fn unknown_setting(key: &str, known: &[String]) -> String {
+    let mut near: Vec<(f64, &str)> =
+        known.iter().map(|k| (strsim::jaro_winkler(key, k), k.as_str())).filter(|(s, _)| *s >= 0.8).collect();
+    near.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let names: Vec<&str> = near.iter().take(3).map(|(_, k)| *k).collect();
+    let hint = if names.is_empty() { String::new() } else { format!(" (did you mean {}?)", names.join(", ")) };
+    format!("no such setting{hint}; `nlos reconstruct --print-config` lists every setting")
+}
+
 fn overlay(base: &mut toml::Table, top: toml::Table) {
     for (key, value) in top {
         match (base.get_mut(&key), value) {

@@ -39,7 +39,7 @@ mod run_dir;
 mod start_response;
 use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
 use crate::{Schedule, SensorBackground, SensorFit};
-pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, run, saved_config};
+pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, check_resumable, run, saved_config};
 
 mod config;
 use config::config_error;

@@ -38,6 +38,18 @@ pub fn saved_config(dir: &Path) -> Result<Option<Config>> {
     if path.exists() { Config::load(&path).map(Some) } else { Ok(None) }
 }
 
+/// Checks that `dir` holds a run to resume (its checkpoint) before anything is read or written, so that a
+/// resume in the wrong directory fails at once and leaves it as it was.
+///
+/// # Errors
+/// [`OptimError::Checkpoint`] when the checkpoint is missing or cannot be read.
+pub fn check_resumable(dir: &Path) -> Result<()> {
+    let path = dir.join(crate::CHECKPOINT_FILE);
+    std::fs::File::open(&path)
+        .map(drop)
+        .map_err(|e| OptimError::Checkpoint { message: crate::reconstruct::checkpoint_unreadable(&e), path })
+}
+
 /// Runs the reconstruction of `prepared` with `config` and `params` (from [`Prepared::params`]) in the run
 /// directory `params.out_dir` (none: nothing is written).
 ///
@@ -91,5 +103,9 @@ pub fn run(
 
 /// Creates the run directory (and its parents).
 fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.to_owned(), source })
+    std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
+        path: dir.to_owned(),
+        fix: OptimError::WRITE_FIX,
+        source,
+    })
 }

@@ -152,7 +152,7 @@ pub(super) fn first_difference(
 /// Writes `bytes` to `path` atomically (temporary file in the same directory + rename).
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    let io = |source| OptimError::Io { path: path.to_owned(), source };
+    let io = |source| OptimError::Io { path: path.to_owned(), fix: OptimError::WRITE_FIX, source };
     std::fs::write(&tmp, bytes).map_err(io)?;
     std::fs::rename(&tmp, path).map_err(io)
 }

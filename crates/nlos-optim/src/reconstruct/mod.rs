@@ -268,9 +268,22 @@ pub fn reconstruct_with(
     // A start that intersects itself would leave collision-aware evolution nothing to guarantee.
     untangle(&mut state, IntersectionCheck::Start)?;
     if let Some(dir) = &params.out_dir {
-        std::fs::create_dir_all(dir).map_err(|source| OptimError::Io { path: dir.clone(), source })?;
+        std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
+            path: dir.clone(),
+            fix: OptimError::WRITE_FIX,
+            source,
+        })?;
     }
     run(measured, state, params, hooks)
+}
+
+/// Why a checkpoint could not be read, in words: a missing one means no run was started in the directory.
+pub(crate) fn checkpoint_unreadable(e: &std::io::Error) -> String {
+    if e.kind() == std::io::ErrorKind::NotFound {
+        "not found: no run was started in this directory, so there is nothing to resume".into()
+    } else {
+        format!("cannot be read: {e}")
+    }
 }
 
 /// Continues the run whose checkpoint is in `params.out_dir` (same measurement and parameters as the
@@ -288,8 +301,8 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
         });
     };
     let path = dir.join(CHECKPOINT_FILE);
-    let bytes = std::fs::read(&path).map_err(|source| OptimError::Io { path: path.clone(), source })?;
     let ck = |message: String| OptimError::Checkpoint { path: path.clone(), message };
+    let bytes = std::fs::read(&path).map_err(|e| ck(checkpoint_unreadable(&e)))?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| ck(e.to_string()))?;
     if state.version != CHECKPOINT_VERSION {
         return Err(ck(format!(

@@ -1,6 +1,9 @@
 //! The renderer: geometry in structure-of-arrays form, the forward pass (eq. 1–5 of Tsai et al. 2019) and
 //! the adjoint pass (Proposition 1, with the normal and area terms). See the crate docs for the derivation.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::Vec3;
 use nlos_transient::{Scan, TimeAxis, Transient};
 use rayon::prelude::*;
@@ -128,6 +131,8 @@ pub struct Renderer {
     /// The GPU that runs the forward and adjoint passes ([`Renderer::set_device`]), None for the CPU.
     #[cfg(feature = "gpu")]
     gpu: Option<gpu::Attached>,
+    /// Measurements finished by the CPU's visibility and forward passes ([`Renderer::new_observed`]).
+    progress: Option<Arc<AtomicUsize>>,
 }
 
 impl Renderer {
@@ -144,6 +149,24 @@ impl Renderer {
         scan: &Scan,
         time: &TimeAxis,
         params: RenderParams,
+    ) -> Result<Self> {
+        Self::new_observed(positions, triangles, scan, time, params, None)
+    }
+
+    /// [`Renderer::new`] that counts, in `progress`, every measurement its CPU passes finish: the cached
+    /// visibility's (once here, and at each [`Renderer::refresh_visibility`]) and each forward pass's. A
+    /// long render shows its progress from another thread by reading it (`nlos render`: a bar, or lines in
+    /// a log). GPU passes are not counted.
+    ///
+    /// # Errors
+    /// As [`Renderer::new`].
+    pub fn new_observed(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        scan: &Scan,
+        time: &TimeAxis,
+        params: RenderParams,
+        progress: Option<Arc<AtomicUsize>>,
     ) -> Result<Self> {
         scan.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
         time.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
@@ -194,6 +217,7 @@ impl Renderer {
             vis_generation: 0,
             #[cfg(feature = "gpu")]
             gpu: None,
+            progress,
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {
@@ -324,11 +348,19 @@ impl Renderer {
                 let total = level * level;
                 *out = ((visible * 255 + total / 2) / total) as u8;
             }
+            this.count_done(1);
         });
         self.cache = Some(cache);
         // Unique across renderers: a renderer made after another one was dropped may sit at its address.
         static REFRESHES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         self.vis_generation = REFRESHES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Adds `n` finished measurements to the progress counter, if any.
+    pub(in crate::render) fn count_done(&self, n: usize) {
+        if let Some(p) = &self.progress {
+            p.fetch_add(n, Ordering::Relaxed);
+        }
     }
 
     /// The scan.

@@ -5,7 +5,7 @@
 //! - `nlos` (text): the same JSON as the `.npy` sidecar without the `data`, `dtype` and `shape` entries
 //!   (schema: `docs/formats/npy-json.md`). This attribute is authoritative.
 //! - human-readable copies for EXR viewers: `nlos.t0`, `nlos.bin_width` (metres of path, double),
-//!   `nlos.bin_width_ps` (picoseconds, double), `nlos.pattern` (text), `nlos.measurements` and
+//!   `nlos.bin_width_ps` (picoseconds at the capture formats' c = 3e8 m/s, double), `nlos.pattern` (text), `nlos.measurements` and
 //!   `nlos.bins` (int).
 //!
 //! Reading accepts a single-layer scan-line or tiled image with one channel of any name, or a channel named
@@ -22,7 +22,6 @@ use exr::prelude::{
 
 use crate::error::{Result, TransientError};
 use crate::formats::sidecar::{self, Ctx};
-use crate::time_axis::SPEED_OF_LIGHT;
 use crate::transient::Transient;
 
 /// Name of the channel written.
@@ -285,7 +284,7 @@ pub fn write(transient: &Transient, file: &Path) -> Result<Vec<u8>> {
         (ATTRIBUTE, AttributeValue::Text(json)),
         ("nlos.t0", AttributeValue::F64(time.t0)),
         ("nlos.bin_width", AttributeValue::F64(time.bin_width)),
-        ("nlos.bin_width_ps", AttributeValue::F64(time.bin_width / SPEED_OF_LIGHT * 1e12)),
+        ("nlos.bin_width_ps", AttributeValue::F64(time.bin_width_ps())),
         ("nlos.pattern", AttributeValue::Text(text(pattern)?)),
     ];
     for (name, n) in [("nlos.measurements", m), ("nlos.bins", bins)] {

@@ -194,9 +194,7 @@ impl ReadOptions {
     }
 }
 
-/// The speed of light the capture formats' reference code uses for bin widths (3e8 m/s): Stanford's 4 ps
-/// is 1.2 mm, f-k's and general-NLOS's 32 ps 9.6 mm.
-pub const CAPTURE_SPEED_OF_LIGHT: f64 = 3e8;
+pub use crate::time_axis::CAPTURE_SPEED_OF_LIGHT;
 
 /// Reads a transient from a file in any supported format, detected from the content.
 ///

@@ -61,6 +61,7 @@ impl Renderer {
                     o.copy_from_slice(&l[1..=bins]);
                 }
             }
+            self.count_done(rows);
         });
         data
     }

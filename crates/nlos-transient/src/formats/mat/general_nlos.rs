@@ -55,7 +55,7 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path, options: &ReadOptions) -> Resul
     };
     let Some(bin_width) = options.bin_width else {
         return Err(TransientError::MissingField {
-            file: data_file,
+            file: file.to_path_buf(),
             field: "bin width".into(),
             hint: "general-NLOS files do not store their bin width; give it: `--bin-width-ps 32` on the command \
                    line (the published experiment's configuration says 32 ps), `bin_width_ps=32` in Python, \
@@ -63,10 +63,26 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path, options: &ReadOptions) -> Resul
                 .into(),
         });
     };
-    let other = read_file(if is_setup(m) { &data_file } else { &setup_file })?;
     let other_file = if is_setup(m) { &data_file } else { &setup_file };
+    let other = read_file(other_file).map_err(|e| companion_error(e, file, other_file, is_setup(m)))?;
     let other = MatFile::parse(&other, other_file)?;
     let (d, s) = if is_setup(m) { (&other, m) } else { (m, &other) };
+    from_pair(d, &data_file, s, &setup_file, bin_width)
+}
+
+/// A general-NLOS capture from its two parsed files (`d` is `data.mat` at `data_file`, `s` is `setup.mat` at
+/// `setup_file`; the names go into messages) with bins of `bin_width` metres of path.
+///
+/// # Errors
+/// As [`read`], the companion file aside.
+pub(super) fn from_pair(
+    d: &MatFile<'_>,
+    data_file: &Path,
+    s: &MatFile<'_>,
+    setup_file: &Path,
+    bin_width: f64,
+) -> Result<Transient> {
+    let (data_file, setup_file) = (data_file.to_path_buf(), setup_file.to_path_buf());
     let data = d.numeric("data", "general-NLOS data.mat holds the A×B×T histograms in `data`")?;
     let [a, b, bins] = dims3(&data, &data_file, "A×B×T (the laser/sensor pair grid × time bins)")?;
     let n = a * b;
@@ -108,6 +124,27 @@ pub(super) fn read(m: &MatFile<'_>, file: &Path, options: &ReadOptions) -> Resul
     let scan = Scan::paired(set(lasers), set(sensors));
     scan.validate().map_err(|e| with_file(e, &setup_file))?;
     Transient::new(scan, time, values).map_err(|e| with_file(e, &data_file))
+}
+
+/// A missing companion file, said as such: the capture is two files, and the one given needs the other beside it.
+fn companion_error(e: TransientError, given: &Path, other: &Path, given_is_setup: bool) -> TransientError {
+    match e {
+        TransientError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            let what = if given_is_setup {
+                "a general-NLOS capture is two files side by side, and this one, setup.mat, holds only the spots: \
+                 the histograms are in data.mat"
+            } else {
+                "a general-NLOS capture is two files side by side, and this one, data.mat, holds only the \
+                 histograms: the laser and sensor spots are in setup.mat"
+            };
+            TransientError::MissingCompanion {
+                file: given.to_path_buf(),
+                companion: other.to_path_buf(),
+                what: what.into(),
+            }
+        }
+        e => e,
+    }
 }
 
 fn beside(file: &Path, name: &str) -> PathBuf {

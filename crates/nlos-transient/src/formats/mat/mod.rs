@@ -167,6 +167,21 @@ pub fn read_general_nlos(bytes: &[u8], file: &Path, options: &super::ReadOptions
     general_nlos::read(&MatFile::parse(bytes, file)?, file, options)
 }
 
+/// Reads a general-NLOS capture from the bytes of its two files (`data.mat`, then `setup.mat`; `dir` is where
+/// messages say they are) with bins of `bin_width` metres of path: the reader without the file system, for
+/// fuzzing and for captures held in memory.
+///
+/// # Errors
+/// As [`read_general_nlos`], the companion file aside; [`TransientError::InvalidValue`] for a bin width that is
+/// not finite and positive.
+pub fn read_general_nlos_pair(data: &[u8], setup: &[u8], dir: &Path, bin_width: f64) -> Result<Transient> {
+    let (data_file, setup_file) = (dir.join(general_nlos::DATA_FILE), dir.join(general_nlos::SETUP_FILE));
+    general_nlos::check_bin_width(bin_width, &data_file)?;
+    let d = MatFile::parse(data, &data_file)?;
+    let s = MatFile::parse(setup, &setup_file)?;
+    general_nlos::from_pair(&d, &data_file, &s, &setup_file, bin_width)
+}
+
 /// One numeric variable of a MAT v5 file, for arrays that are not captures (depth and normal maps; NaN and
 /// infinities are "no value" and come back as NaN): the variable `name`, or the file's only numeric variable
 /// when `name` is None. Returns the values in **C order** (an `H×W` MATLAB matrix comes back as rows of W,
