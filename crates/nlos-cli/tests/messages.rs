@@ -118,11 +118,11 @@ fn a_cropped_simulation_is_not_taken_for_a_gated_capture() {
     let dir = scratch("crop");
     let scan = Scan::confocal(PointSet::wall_grid(8, 8, 0.25, 0.25).expect("grid"));
     let bins = 1200;
-    // Photon counts of a flat face at 0.42 m: an abrupt first return at bin 700 and a long tail.
+    // Photon counts of a flat face at 0.42 m: an abrupt first return at bin 700 and a long tail to bin 1000.
     let data = (0..64 * bins)
         .map(|i| {
             let k = i % bins;
-            if k < 700 { 0.0 } else { (400.0 * (-((k - 700) as f32) / 300.0).exp()).round() }
+            if !(700..1000).contains(&k) { 0.0 } else { (400.0 * (-((k - 700) as f32) / 300.0).exp()).round() }
         })
         .collect();
     let t = Transient::new(scan, TimeAxis::new(0.0, 0.0012, bins).expect("axis"), data).expect("transient");

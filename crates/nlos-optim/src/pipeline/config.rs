@@ -480,6 +480,9 @@ impl Config {
             self.to_toml()?.parse().map_err(|e: toml::de::Error| config_error("config", e.to_string()))?;
         // Each changed setting is checked on its own, so that an error names it rather than a line of a TOML
         // document the user never wrote.
+        if let Some((key, what)) = REPLACED.iter().find(|(key, _)| names(&overrides, key)) {
+            return Err(config_error(key, format!("{key} is no longer a setting: {what}")));
+        }
         for (key, value) in leaves(&overrides, "") {
             if !names(&table, &key) {
                 let known = leaves(&table, "").into_iter().map(|(k, _)| k).collect::<Vec<_>>();
