@@ -2,29 +2,16 @@
 //! captures in `shared/data/measured` (skipped with a message when absent).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use glam::Vec3;
 use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
 
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{nlos, stderr, stdout};
 
 /// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::scratch("cli", name)
 }
 
 /// A confocal 8 × 6 grid with a background, direct light at the start and a hidden return at 0.8–0.85 m of path.

@@ -3,28 +3,16 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 use glam::Vec3;
 use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
 
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{nlos, stderr, stdout};
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("messages-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::scratch("messages", name)
 }
 
 fn s(p: &Path) -> &str {
