@@ -52,7 +52,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Print the format, scan geometry, time axis, total counts and peak depth of a capture.
+    /// Print the format, scan geometry, time axis, values (photon counts or intensity), background and peak
+    /// depth of a capture.
     Info {
         /// The capture file (any readable format, detected from its content).
         file: PathBuf,

@@ -100,6 +100,50 @@ fn the_readme_commands_exist_and_run() {
     assert!(ran >= 6, "{ran} commands ran");
 }
 
+/// The commands docs/usage.md quotes in its text (`nlos init --rim-radius R`): real subcommands, real flags.
+#[test]
+fn the_commands_usage_quotes_exist() {
+    let doc = std::fs::read_to_string(root().join("docs/usage.md")).expect("usage.md");
+    let quoted: Vec<Vec<String>> = doc
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter_map(|span| span.strip_prefix("nlos "))
+        .map(|c| c.split_whitespace().map(str::to_owned).collect::<Vec<_>>())
+        .filter(|w| !w.is_empty())
+        .collect();
+    assert!(quoted.len() >= 8, "{quoted:?}");
+    for words in &quoted {
+        let flags = flags_of(&words[0]);
+        for flag in words.iter().filter(|w| w.starts_with("--")) {
+            let flag = flag.split('=').next().unwrap_or(flag);
+            assert!(
+                flags.contains(&flag.to_owned()),
+                "`nlos {}`: {flag} is not a flag of nlos {}",
+                words.join(" "),
+                words[0]
+            );
+        }
+    }
+}
+
+/// What `nlos --help` says of the subcommands and the exit status, and the README of the PyTorch layer.
+#[test]
+fn the_summaries_name_every_start_and_the_exit_status() {
+    let o = nlos(&["--help".to_owned()]);
+    let help = String::from_utf8_lossy(&o.stdout).into_owned();
+    for line in help.lines().filter(|l| l.trim_start().starts_with("init") || l.trim_start().starts_with("reconstruct"))
+    {
+        for method in ["LCT", "f-k", "phasor field", "space carving"] {
+            assert!(line.contains(method), "{method} missing from: {line}");
+        }
+    }
+    assert!(help.contains("Exit status: 0 on success; 2 for bad input"), "{help}");
+    let readme = std::fs::read_to_string(root().join("README.md")).expect("README");
+    assert!(readme.contains("Exit status: 0 success, 2 bad input"), "the README says no exit status");
+    assert!(readme.contains("`import nlos.torch`"), "the README does not say how to reach nlos.torch");
+}
+
 /// The figure after `before` in `doc`, as written (`0.851`).
 fn figure_after<'a>(doc: &'a str, before: &str) -> &'a str {
     let at = doc.find(before).unwrap_or_else(|| panic!("docs/usage.md no longer says {before:?}"));

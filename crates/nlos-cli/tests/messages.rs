@@ -97,6 +97,17 @@ fn info_says_what_the_capture_is_in_its_own_words() {
     let v: serde_json::Value = serde_json::from_str(&stdout(&nlos(&["info", "--json", s(&file)]))).expect("json");
     assert_eq!(v["quantity"], "intensity");
     assert_eq!(v["peak"]["direct_light_gate_m"], serde_json::Value::Null);
+    // A paired capture read with the bin width as typed: it comes back as typed, and its scan is paired.
+    let Some(general) = nlos_testdata::shared("measured/general_nlos/data.mat") else { return };
+    let o = nlos(&["info", s(&general), "--bin-width-ps", "32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("512 bins of 9.6 mm (32 ps) of path length"), "{out}");
+    assert!(
+        out.contains("scan:          paired: 4096 laser spots (a list), each recorded at its own sensor spot"),
+        "{out}"
+    );
+    assert!(out.contains("sum of values: 8979788 (photon counts)"), "{out}");
 }
 
 /// A simulation cut from later bins (`convert --crop-bins`) is not a capture gated before it reached us: no
