@@ -293,6 +293,19 @@ impl Scan {
         }
     }
 
+    /// Whether the laser spots outnumber the sensor spots (several lasers seen by one sensor spot; never on a
+    /// confocal or paired scan, whose sets have one length).
+    pub fn lasers_are_dense(&self) -> bool {
+        self.lasers().len() > self.sensors().len()
+    }
+
+    /// The denser of the laser and sensor sets ([`Scan::lasers_are_dense`]; the sensors on a tie): the points
+    /// that resolve the scene laterally — the scan points of a confocal scan, the sensor grid of a one-laser
+    /// capture, the laser spots of a paired scan.
+    pub fn dense_points(&self) -> &PointSet {
+        if self.lasers_are_dense() { self.lasers() } else { self.sensors() }
+    }
+
     /// `(laser index, sensor index)` of measurement `m`.
     ///
     /// # Panics

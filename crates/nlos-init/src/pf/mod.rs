@@ -207,8 +207,7 @@ fn pf_with(t: &Transient, params: &PfParams, planar: bool, interpolate: bool) ->
                 PointSet::list(lasers.points.iter().zip(&sensors.points).map(|(l, s)| 0.5 * (*l + *s)).collect());
             &midpoints
         }
-        _ if lasers.len() > sensors.len() => lasers,
-        _ => sensors,
+        _ => scan.dense_points(),
     };
     let columns = Columns::of(dense).ok_or(InitError::NotGrid { method: METHOD })?;
     let positive = |name: &'static str, v: f64| {

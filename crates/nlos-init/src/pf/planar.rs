@@ -66,8 +66,8 @@ impl Planar {
         if !(flat(lasers) && flat(sensors)) || matches!(scan.pattern, nlos_transient::ScanPattern::Paired { .. }) {
             return None;
         }
-        let lasers_dense = lasers.len() > sensors.len();
-        let dense = if lasers_dense { lasers } else { sensors };
+        let lasers_dense = scan.lasers_are_dense();
+        let dense = scan.dense_points();
         let Layout::Grid { nx, ny } = dense.layout else { return None };
         if nx != columns.nx || ny != columns.ny || dense.len() != nx * ny {
             return None;

@@ -421,9 +421,7 @@ pub const MAX_START_SLOPE: f64 = 2.75;
 /// it has none. The general-NLOS capture's 4,096 pairs over 1.5 × 1.8 m are 26 mm apart: its first edge is
 /// 23 mm, not 14 mm from its bins, and its start 3,200 faces rather than 8,600.
 fn wall_spacing(scan: &nlos_transient::Scan) -> f64 {
-    let (lasers, sensors) = (scan.lasers(), scan.sensors());
-    let dense = if lasers.len() > sensors.len() { lasers } else { sensors };
-    dense.spacing().unwrap_or(0.0)
+    scan.dense_points().spacing().unwrap_or(0.0)
 }
 
 /// A volumetric method of the start ([`Prepared::volume`]).
