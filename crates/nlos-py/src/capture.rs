@@ -10,7 +10,7 @@ use numpy::PyArray2;
 use numpy::ndarray::Array2;
 use pyo3::prelude::*;
 
-use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
+use nlos_transient::{Format, PatternKind, PointSet, Scan, TimeAxis, Transient};
 
 use crate::{arrays, errors};
 
@@ -148,18 +148,16 @@ impl Capture {
             sensor_set.layout = nlos_transient::Layout::Grid { nx, ny };
         }
         let lasers = laser_points.map(|l| arrays::points("laser_points", l, None).map(PointSet::list)).transpose()?;
-        let scan = match (pattern, lasers) {
-            (None | Some("confocal"), None) => Scan::confocal(sensor_set),
-            (None | Some("exhaustive"), Some(l)) => Scan::exhaustive(l, sensor_set),
-            (Some("paired"), Some(l)) => Scan::paired(l, sensor_set),
-            (Some(p @ ("exhaustive" | "paired")), None) => {
-                return Err(value(format!("pattern: {p:?} needs laser_points")));
+        let kind = pattern.map(str::parse::<PatternKind>).transpose().map_err(|e| value(format!("pattern: {e}")))?;
+        let scan = match (kind, lasers) {
+            (None | Some(PatternKind::Confocal), None) => Scan::confocal(sensor_set),
+            (None | Some(PatternKind::Exhaustive), Some(l)) => Scan::exhaustive(l, sensor_set),
+            (Some(PatternKind::Paired), Some(l)) => Scan::paired(l, sensor_set),
+            (Some(p @ (PatternKind::Exhaustive | PatternKind::Paired)), None) => {
+                return Err(value(format!("pattern: \"{p}\" needs laser_points")));
             }
-            (Some("confocal"), Some(_)) => {
+            (Some(PatternKind::Confocal), Some(_)) => {
                 return Err(value("pattern: \"confocal\" takes no laser_points".to_string()));
-            }
-            (Some(other), _) => {
-                return Err(value(format!("pattern: {other:?} is not \"confocal\", \"exhaustive\" or \"paired\"")));
             }
         };
         scan.validate().map_err(errors::capture)?;

@@ -153,6 +153,18 @@ mod tests {
     }
 
     #[test]
+    fn pattern_names_parse_back() {
+        for kind in crate::PatternKind::ALL {
+            assert_eq!(kind.name().parse::<crate::PatternKind>().expect("a name"), kind);
+            assert_eq!(kind.to_string(), kind.name());
+        }
+        let e = "pairs".parse::<crate::PatternKind>().expect_err("not a name");
+        assert!(e.to_string().contains("\"pairs\" is not \"confocal\", \"exhaustive\" or \"paired\""), "{e}");
+        let grid = PointSet::wall_grid(2, 2, 0.1, 0.1).expect("grid");
+        assert_eq!(Scan::paired(grid.clone(), grid).pattern.kind(), crate::PatternKind::Paired);
+    }
+
+    #[test]
     fn picoseconds_round_trip_as_typed() {
         // 32 ps given on the command line become 9.6 mm at the capture formats' c; they read back as 32 ps.
         let axis = TimeAxis::new(0.0, 32e-12 * CAPTURE_SPEED_OF_LIGHT, 512).expect("axis");

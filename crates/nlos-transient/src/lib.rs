@@ -40,7 +40,7 @@ pub mod transient;
 pub use error::{Result, TransientError};
 #[cfg(feature = "formats")]
 pub use formats::{Format, ReadOptions, detect, read, read_with, write};
-pub use scan::{Layout, Measurement, PointSet, Scan, ScanPattern};
+pub use scan::{Layout, Measurement, PatternKind, PointSet, Scan, ScanPattern};
 
 pub use describe::Quantity;
 pub use time_axis::{CAPTURE_SPEED_OF_LIGHT, SPEED_OF_LIGHT, TimeAxis};

@@ -226,6 +226,65 @@ pub enum ScanPattern {
     },
 }
 
+/// The kind of a [`ScanPattern`], by the name the file formats and the Python package use for it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PatternKind {
+    /// [`ScanPattern::Confocal`]: `confocal`.
+    Confocal,
+    /// [`ScanPattern::Exhaustive`]: `exhaustive`.
+    Exhaustive,
+    /// [`ScanPattern::Paired`]: `paired`.
+    Paired,
+}
+
+impl PatternKind {
+    /// Every kind, in the order of [`ScanPattern`].
+    pub const ALL: [Self; 3] = [Self::Confocal, Self::Exhaustive, Self::Paired];
+
+    /// The name: `confocal`, `exhaustive` or `paired`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Confocal => "confocal",
+            Self::Exhaustive => "exhaustive",
+            Self::Paired => "paired",
+        }
+    }
+}
+
+impl std::fmt::Display for PatternKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is no [`PatternKind`]'s (its message names the three).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0:?} is not \"confocal\", \"exhaustive\" or \"paired\"")]
+pub struct UnknownPattern(pub String);
+
+impl std::str::FromStr for PatternKind {
+    type Err = UnknownPattern;
+
+    /// Parses a name of [`PatternKind::name`].
+    ///
+    /// # Errors
+    /// [`UnknownPattern`] for any other.
+    fn from_str(s: &str) -> std::result::Result<Self, UnknownPattern> {
+        Self::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| UnknownPattern(s.to_owned()))
+    }
+}
+
+impl ScanPattern {
+    /// The pattern's kind.
+    pub fn kind(&self) -> PatternKind {
+        match self {
+            Self::Confocal(_) => PatternKind::Confocal,
+            Self::Exhaustive { .. } => PatternKind::Exhaustive,
+            Self::Paired { .. } => PatternKind::Paired,
+        }
+    }
+}
+
 /// Scan geometry: the pattern of wall points plus optional device positions.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scan {
@@ -256,11 +315,7 @@ impl Scan {
 
     /// The pattern's name as the file formats write it: `confocal`, `exhaustive` or `paired`.
     pub fn pattern_name(&self) -> &'static str {
-        match self.pattern {
-            ScanPattern::Confocal(_) => "confocal",
-            ScanPattern::Exhaustive { .. } => "exhaustive",
-            ScanPattern::Paired { .. } => "paired",
-        }
+        self.pattern.kind().name()
     }
 
     /// Whether laser and sensor spots coincide.

@@ -18,7 +18,7 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 use crate::error::{Result, TransientError};
-use crate::scan::{Layout, PointSet, Scan, ScanPattern};
+use crate::scan::{Layout, PatternKind, PointSet, Scan, ScanPattern};
 use crate::time_axis::TimeAxis;
 
 /// The value of the `format` key.
@@ -586,14 +586,15 @@ pub(crate) fn parse(json: &[u8], ctx: &Ctx<'_>) -> Result<Header> {
     let scan = object(ctx, req(ctx, top, "scan", "scan", "add the scan geometry object")?, "scan")?;
     const PATTERNS: &str = "\"confocal\", \"exhaustive\" or \"paired\"";
     let pattern = req(ctx, scan, "pattern", "scan.pattern", PATTERNS)?;
-    let paired = pattern.as_str() == Some("paired");
-    let sets = match pattern.as_str() {
-        Some("confocal") => {
+    let kind = pattern.as_str().and_then(|p| p.parse::<PatternKind>().ok());
+    let paired = kind == Some(PatternKind::Paired);
+    let sets = match kind {
+        Some(PatternKind::Confocal) => {
             only_keys(ctx, scan, &["pattern", "points", "laser_device", "sensor_device"], "scan")?;
             let p = req(ctx, scan, "points", "scan.points", "the confocal scan points")?;
             vec![point_set(ctx, p, "scan.points")?]
         }
-        Some("exhaustive" | "paired") => {
+        Some(PatternKind::Exhaustive | PatternKind::Paired) => {
             only_keys(ctx, scan, &["pattern", "lasers", "sensors", "laser_device", "sensor_device"], "scan")?;
             let l = req(ctx, scan, "lasers", "scan.lasers", "the laser points")?;
             let s = req(ctx, scan, "sensors", "scan.sensors", "the sensor points")?;
@@ -607,7 +608,7 @@ pub(crate) fn parse(json: &[u8], ctx: &Ctx<'_>) -> Result<Header> {
             }
             sets
         }
-        _ => return Err(ctx.wrong_type("scan.pattern", PATTERNS, pattern)),
+        None => return Err(ctx.wrong_type("scan.pattern", PATTERNS, pattern)),
     };
     let laser_device = device(ctx, scan, "laser_device")?;
     let sensor_device = device(ctx, scan, "sensor_device")?;
