@@ -2,7 +2,6 @@
 //! (skipped with a message when `shared/data` is absent), and bad input (exit 2, `error:` naming the file).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use glam::Vec3;
 use nlos_mesh::{SurfaceMesh, shapes};
@@ -10,20 +9,12 @@ use nlos_mesh::{SurfaceMesh, shapes};
 use nlos_testdata::mat5;
 use serde_json::Value;
 
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{nlos, stderr};
 
 /// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("eval-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::scratch("eval", name)
 }
 
 /// A 0.6 m square grid plane centred on the z axis at depth `z`.

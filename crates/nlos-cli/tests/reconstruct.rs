@@ -2,12 +2,15 @@
 //! optimiser and the outputs; resuming a finished run; bad arguments.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_render::{Kernel, RenderParams, Renderer, Visibility};
 use nlos_transient::{Format, PointSet, Scan, TimeAxis};
+
+mod common;
+use common::{nlos, text};
 
 /// A one-stage, one-block, two-step schedule on a coarse mesh: a run of seconds.
 const FAST: [&str; 8] = [
@@ -21,15 +24,9 @@ const FAST: [&str; 8] = [
     "schedule.shape_iterations=2",
 ];
 
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
-}
-
+/// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("reconstruct-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::scratch("reconstruct", name)
 }
 
 /// A 0.2 m square facing the wall at 0.35 m, rendered on a 12 × 12 confocal scan, 256 bins of 4 mm.
@@ -49,10 +46,6 @@ fn square_capture(file: &Path, scan: Scan) -> PathBuf {
     let t = renderer.forward_transient(&Lambertian::new(1.0f32).expect("brdf")).expect("render");
     nlos_transient::write(&t, file, Format::Tal).expect("write");
     file.to_path_buf()
-}
-
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
 #[test]

@@ -2,24 +2,17 @@
 //! capture file, photon counts are integers with the requested budget, and bad arguments are input errors.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use glam::Vec3;
 use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
 
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
-}
+mod common;
+use common::{nlos, text};
 
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
+/// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    common::scratch("render", name)
 }
 
 /// A 0.2 m square facing the wall at 0.3 m, and a small setup capture (10 × 10 scan, 300 bins of 4 mm).

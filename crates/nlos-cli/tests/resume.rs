@@ -3,7 +3,7 @@
 //! same seed ("A run killed mid-way (SIGKILL) and resumed ends with the same result").
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -11,15 +11,12 @@ use nlos_brdf::Lambertian;
 use nlos_render::{Kernel, RenderParams, Renderer, Visibility};
 use nlos_transient::{Format, PointSet, Scan, TimeAxis};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("resume-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
+mod common;
+use common::text;
 
-fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+/// A fresh scratch folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("resume", name)
 }
 
 /// A 0.2 m square with a 3 cm ridge, 0.35 m from the wall, on a 12 × 12 confocal scan, 256 bins of 4 mm.

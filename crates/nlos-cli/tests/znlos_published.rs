@@ -9,12 +9,14 @@
 //! a printed reason when the shared data are absent (unless `NLOS_REQUIRE_DATA=1`).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use glam::Vec3;
 use nlos_mesh::map_metrics::{MapGrid, MapLayout, normals_from_depth};
 use nlos_transient::formats::mat::{read_array, znlos_wall};
 use serde_json::Value;
+
+mod common;
+use common::nlos;
 
 /// The three published files, or None (skip printed).
 fn files() -> Option<[PathBuf; 3]> {
@@ -23,10 +25,6 @@ fn files() -> Option<[PathBuf; 3]> {
         nlos_testdata::skip("../shared/data/znlos/ (the published Z-NLOS bunny and its maps) is absent");
     }
     f
-}
-
-fn nlos(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_nlos")).args(args).output().expect("run nlos")
 }
 
 fn eval_json(args: &[&str]) -> Value {
