@@ -169,7 +169,7 @@ fn grid_figure(
     }
     let mut fig = Figure::new(name);
     fig.notes.push(gate_note.to_string());
-    let summed = if t.scan().lasers().len() > 1 && !t.scan().is_confocal() { " (summed over laser spots)" } else { "" };
+    let summed = if t.scan().kind() == "multi-laser" { " (summed over laser spots)" } else { "" };
     fig.notes.push(format!("{}{summed}", t.scan().describe()));
     fig.notes.push(format!("{}; slice log-scaled over {DECADES} decades", ax.describe()));
     fig.panels = vec![left, right];
