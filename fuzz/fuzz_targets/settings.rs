@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use nlos_optim::pipeline::{Config, Prepared, Volumetric};
+use nlos_optim::pipeline::{Config, Method, Prepared};
 
 #[path = "common/mod.rs"]
 mod common;
@@ -15,5 +15,5 @@ fuzz_target!(|data: &[u8]| {
     let _ = config.to_toml();
     let Ok(prepared) = Prepared::new(common::capture().clone(), &config) else { return };
     let _ = prepared.params(&config, None);
-    let _ = prepared.surface_params(Volumetric::Lct);
+    let _ = prepared.surface_params(Method::Lct);
 });

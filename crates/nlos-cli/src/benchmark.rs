@@ -17,7 +17,8 @@ use nlos_mesh::map_metrics::MapMetrics;
 use nlos_transient::Format;
 
 use crate::CliError;
-use crate::eval::{GtLayout, MapPlace, VolumeMethod, score_maps, truth_maps, volume_surface};
+use crate::eval::{GtLayout, MapPlace, score_maps, truth_maps, volume_surface};
+use nlos_init::Method;
 
 /// Arguments of `nlos benchmark`.
 #[derive(Debug, clap::Args)]
@@ -125,7 +126,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             table.push(line);
             Ok(())
         };
-        for (method, label) in [(VolumeMethod::Lct, "LCT"), (VolumeMethod::Fk, "f-k")] {
+        for (method, label) in [(Method::Lct, "LCT"), (Method::Fk, "f-k")] {
             let t = Instant::now();
             let mesh = volume_surface(&s.capture, method)?;
             score(label, &mesh, t.elapsed().as_secs_f64())?;

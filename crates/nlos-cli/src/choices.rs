@@ -2,6 +2,7 @@
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use nlos_brdf::Model;
+use nlos_init::{InitMethod, Method};
 
 /// `--brdf`: the reflectance model, by the names and aliases of [`Model`] (its `FromStr`).
 pub(crate) fn brdf_parser() -> impl TypedValueParser<Value = Model> {
@@ -12,6 +13,21 @@ pub(crate) fn brdf_parser() -> impl TypedValueParser<Value = Model> {
             .fold(PossibleValue::new(m.name()), |v, (alias, _)| v.alias(alias))
     };
     PossibleValuesParser::new(Model::ALL.map(value)).try_map(|s| s.parse::<Model>())
+}
+
+/// `nlos eval --method`: a start method by name, each listed with its summary ([`Method::ALL`]).
+pub(crate) fn method_parser() -> impl TypedValueParser<Value = Method> {
+    PossibleValuesParser::new(Method::ALL.map(|m| PossibleValue::new(m.name()).help(m.summary())))
+        .try_map(|s| s.parse::<Method>())
+}
+
+/// `nlos init --method`: `auto` or a start method by name ([`method_parser`]).
+pub(crate) fn start_parser() -> impl TypedValueParser<Value = InitMethod> {
+    let auto = PossibleValue::new("auto").help(
+        "LCT on a confocal scan over a regular grid, the phasor field on every other scan (as `nlos reconstruct`)",
+    );
+    let named = Method::ALL.map(|m| PossibleValue::new(m.name()).help(m.summary()));
+    PossibleValuesParser::new(std::iter::once(auto).chain(named)).map(InitMethod::from)
 }
 
 /// `--visibility`: how occlusion between the surface and the wall is computed.

@@ -12,7 +12,8 @@
 //! the Z-NLOS scenes). `--volume CAPTURE --method lct|fk` scores a volumetric reconstruction of the capture
 //! (its surface: the arg-max depth of the kept columns) by the same code.
 
-use nlos_optim::pipeline::{Config, Prepared, Volumetric};
+use nlos_init::Method;
+use nlos_optim::pipeline::{Config, Prepared};
 use std::path::{Path, PathBuf};
 
 use nlos_mesh::map_metrics::{MapGrid, MapLayout, MapMetrics, Maps, evaluate_maps, mesh_maps};
@@ -21,15 +22,6 @@ use nlos_mesh::{MeshError, SurfaceMesh};
 
 use crate::CliError;
 use crate::progress::Step;
-
-/// The volumetric method of `--volume`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum VolumeMethod {
-    /// Light-cone transform (the settings of `nlos init`).
-    Lct,
-    /// f-k migration.
-    Fk,
-}
 
 /// How the ground-truth map files lay out their pixels ([`MapLayout`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -87,8 +79,8 @@ pub(crate) struct Args {
     #[arg(long, value_name = "CAPTURE", conflicts_with = "mesh")]
     volume: Option<PathBuf>,
     /// The volumetric method of --volume.
-    #[arg(long, value_enum, default_value = "lct")]
-    method: VolumeMethod,
+    #[arg(long, value_parser = crate::choices::method_parser(), default_value = "lct")]
+    method: Method,
     /// Rays per side of the grid over the wall's scan area [−0.25, 0.25]² m (1 to 4096), with --gt.
     #[arg(long, default_value_t = 128, value_name = "N")]
     grid: usize,
@@ -127,18 +119,14 @@ fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
 /// settings for compact objects (`SurfaceParams::object`, as `nlos reconstruct`'s LCT start), for LCT and
 /// f-k alike, so that both are scored by the same extraction. (With Otsu's threshold alone f-k keeps 6 % of
 /// the bunny at Tsai et al. 2019's setup's pixels, the compact-object settings 25 %.)
-pub(crate) fn volume_surface(capture: &Path, method: VolumeMethod) -> Result<SurfaceMesh, CliError> {
+pub(crate) fn volume_surface(capture: &Path, method: Method) -> Result<SurfaceMesh, CliError> {
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
     // Prepared as `nlos reconstruct` prepares a capture (gate, last return, the depth the start may reach).
     let prepared = Prepared::new(t, &Config::default()).map_err(|e| fail(e.to_string()))?;
-    let method = match method {
-        VolumeMethod::Lct => Volumetric::Lct,
-        VolumeMethod::Fk => Volumetric::Fk,
-    };
     let volume = prepared.volume(method, nlos_init::Model::Lambert, None).map_err(|e| fail(e.to_string()))?;
     // The LCT start's extraction (compact-object settings, max depth, the step allowed by the spacing).
-    let surface = prepared.surface_params(Volumetric::Lct);
+    let surface = prepared.surface_params(Method::Lct);
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 

@@ -3,29 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_init::{Gate, InitError, Model, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface};
-use nlos_optim::pipeline::{Config, InitMethod, Prepared, Setting, Volumetric};
+use nlos_init::{
+    Gate, InitError, InitMethod, Method, Model, PfParams, SurfaceParams, Threshold, Volume, volume_to_surface,
+};
+use nlos_optim::pipeline::{Config, Prepared, Setting};
 use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, ScalarGrid, Scale};
 
 use crate::CliError;
 use crate::progress::Step;
-
-/// The volumetric method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum Method {
-    /// LCT on a confocal scan over a regular grid, the phasor field on every other scan (as `nlos reconstruct`).
-    Auto,
-    /// Light-cone transform with Wiener deconvolution (O'Toole et al. 2018).
-    Lct,
-    /// f-k migration (Lindell et al. 2019).
-    Fk,
-    /// Laplacian-filtered backprojection.
-    Fbp,
-    /// Phasor-field reconstruction (Liu et al. 2019): any scan, confocal or not, grid or list.
-    Pf,
-    /// Space carving from first-returning photons (Tsai et al. 2017); confocal or exhaustive.
-    Carve,
-}
 
 /// Arguments of `nlos init`.
 #[derive(Debug, clap::Args)]
@@ -36,8 +21,8 @@ pub(crate) struct Args {
     /// any).
     file: PathBuf,
     /// Reconstruction method.
-    #[arg(long, value_enum, default_value = "auto")]
-    method: Method,
+    #[arg(long, value_parser = crate::choices::start_parser(), default_value = "auto")]
+    method: InitMethod,
     /// Where to write the surface mesh (format from the extension: .obj, .ply, .glb). A PNG with the
     /// front view and the depth map is written beside it (same name, .png).
     #[arg(long, value_name = "MESH")]
@@ -173,31 +158,19 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     };
     config.capture.max_depth = args.max_depth.map_or(Setting::AUTO, Setting::Value);
     // The preparation notes what `auto` chooses; a method given by name needs no such note.
-    config.init = match args.method {
-        Method::Auto => InitMethod::Auto,
-        Method::Fk => InitMethod::Fk,
-        Method::Pf => InitMethod::Pf,
-        Method::Carve => InitMethod::Carve,
-        Method::Lct | Method::Fbp => InitMethod::Lct,
-    };
+    config.init = args.method.clone();
     let prepared = Prepared::new(t, &config).map_err(optim_error)?;
     step.finish();
     for note in &prepared.notes {
         eprintln!("{note}");
     }
-    let method = match args.method {
-        Method::Auto => match InitMethod::Auto.resolve(prepared.full.scan()).0 {
-            InitMethod::Lct => Volumetric::Lct,
-            _ => Volumetric::Pf,
-        },
-        Method::Lct => Volumetric::Lct,
-        Method::Fk => Volumetric::Fk,
-        Method::Fbp => Volumetric::Fbp,
-        Method::Pf => Volumetric::Pf,
-        Method::Carve => Volumetric::Carve,
+    let method = match &args.method {
+        InitMethod::Volume(method) => *method,
+        // The parser takes `auto` and the methods' names only.
+        InitMethod::Auto | InitMethod::Mesh(_) => Method::for_scan(prepared.full.scan()).0,
     };
-    let step = Step::spinner(format!("init: {} volume", format!("{method:?}").to_lowercase()));
-    let vol = if method == Volumetric::Pf {
+    let step = Step::spinner(format!("init: {method} volume"));
+    let vol = if method == Method::Pf {
         let defaults = PfParams::default();
         let params = PfParams {
             reflectance,

@@ -42,10 +42,10 @@ pub(crate) struct Args {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
     /// Initial surface: `auto` (the light-cone transform on a confocal scan on a regular grid, the phasor
-    /// field on any other scan; the choice and why go to the log and `settings.toml`), `lct` (the settings
-    /// for compact objects), `fk`, `pf` (phasor field: any scan pattern and wall), `carve` (space carving from
-    /// first returns), or a mesh file (OBJ/PLY/GLB) whose faces face the wall [default: auto].
-    #[arg(long, value_name = "auto|lct|fk|pf|carve|MESH")]
+    /// field on any other scan; the choice and why go to the log and `settings.toml`), a method of `nlos init
+    /// --method` by name (`lct`, `pf`, …: `nlos init --help` lists them), or a mesh file (OBJ/PLY/GLB) whose
+    /// faces face the wall [default: auto].
+    #[arg(long, value_name = "auto|METHOD|MESH")]
     init: Option<InitMethod>,
     /// Reflectance model to fit (GGX's α starts at `reflectance.alpha`; `retroreflective` also weights the
     /// LCT start for a 1/r² return, as the Stanford captures' reference code does for every scene but the

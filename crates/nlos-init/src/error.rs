@@ -82,6 +82,12 @@ pub enum InitError {
         /// What is inconsistent.
         reason: String,
     },
+    /// A start method's name that is none of [`crate::Method::ALL`].
+    #[error("{got:?} is not a start method: give {}", crate::method::one_of())]
+    UnknownMethod {
+        /// The name given.
+        got: String,
+    },
     /// An error from `nlos-transient` (reading or transforming the capture).
     #[error(transparent)]
     Transient(#[from] TransientError),

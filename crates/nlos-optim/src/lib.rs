@@ -45,7 +45,6 @@ pub mod error;
 pub mod params;
 pub mod pipeline;
 pub mod prune;
-pub mod radiometry;
 pub mod reconstruct;
 pub mod reflectance;
 pub mod regularizer;

@@ -246,13 +246,11 @@ pub fn residual_patches(
     }
     let t = Transient::new(measured.scan().clone(), *measured.time(), residual)
         .map_err(|source| OptimError::Transient { context: "the residual's histograms", source })?;
-    // A confocal grid takes the LCT (its Wiener filter sharpens); every other scan the phasor field, which
-    // needs no grid and no confocal pairing.
-    let confocal_grid = t.scan().is_confocal() && t.scan().sensors().grid_dims().is_some();
-    let volume = if confocal_grid {
-        lct(&t, &LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() })
-    } else {
-        pf(&t, &PfParams { gate: Gate::None, depth_noise: nlos_init::DepthNoise::Off, ..PfParams::default() })
+    // The start's method for this scan (`nlos_init::Method::for_scan`): the LCT on a confocal grid (its
+    // Wiener filter sharpens), the phasor field on every other scan; ungated, unweighted.
+    let volume = match nlos_init::Method::for_scan(t.scan()).0 {
+        nlos_init::Method::Lct => lct(&t, &LctParams { snr: params.snr, gate: Gate::None, ..LctParams::default() }),
+        _ => pf(&t, &PfParams { gate: Gate::None, depth_noise: nlos_init::DepthNoise::Off, ..PfParams::default() }),
     };
     let vol = match volume {
         Ok(v) => v,

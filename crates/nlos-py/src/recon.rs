@@ -11,7 +11,7 @@ use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use nlos_optim::pipeline::{self, Config, Prepared, Start, Volumetric};
+use nlos_optim::pipeline::{self, Config, Method, Prepared, Start};
 use nlos_optim::{Hooks, Progress};
 
 use crate::capture::Capture;
@@ -42,7 +42,8 @@ pub(crate) fn default_settings() -> PyResult<String> {
     serde_json::to_string(&Config::default()).map_err(|e| ConfigError::new_err(e.to_string()))
 }
 
-/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"`, `"fbp"` or `"pf"`, on the capture
+/// A volumetric reconstruction of a capture: `method` `"lct"` (with `snr`), `"fk"`, `"fbp"`, `"pf"` or `"carve"`
+/// (`nlos_init::Method`), on the capture
 /// prepared as `nlos reconstruct` and `nlos init` prepare it with the default settings (`Prepared::volume`:
 /// direct light gated automatically). Returns `(volume, axes)`: the volume (nx, ny, nz) float32 and
 /// `{"x"|"y"|"z": (first voxel centre, spacing)}` in metres.
@@ -55,17 +56,7 @@ pub(crate) fn volume<'py>(
     snr: Option<f64>,
 ) -> PyResult<(Py<PyArray3<f32>>, Bound<'py, PyDict>)> {
     let t = capture.transient(py)?;
-    let method = match method {
-        "lct" => Volumetric::Lct,
-        "fk" => Volumetric::Fk,
-        "fbp" => Volumetric::Fbp,
-        "pf" => Volumetric::Pf,
-        other => {
-            return Err(pyo3::exceptions::PyValueError::new_err(format!(
-                "method: {other:?} is not \"lct\", \"fk\", \"fbp\" or \"pf\""
-            )));
-        }
-    };
+    let method: Method = method.parse().map_err(|e| pyo3::exceptions::PyValueError::new_err(format!("method: {e}")))?;
     let config = Config::default();
     let vol = py
         .detach(|| Prepared::new(t, &config).and_then(|p| p.volume(method, nlos_init::Model::Lambert, snr)))

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use nlos_brdf::Model;
+pub use nlos_init::{InitMethod, Method};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{OptimError, Result};
@@ -46,89 +47,6 @@ impl fmt::Display for Setting {
             Self::Word(Word::Auto) => f.write_str("auto"),
             Self::Word(Word::Off) => f.write_str("off"),
             Self::Value(v) => write!(f, "{v}"),
-        }
-    }
-}
-
-/// Where the optimisation starts.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(from = "String", into = "String")]
-pub enum InitMethod {
-    /// LCT on a confocal scan over a regular grid (the light-cone transform's home), the phasor field on
-    /// every other scan ([`InitMethod::resolve`]).
-    Auto,
-    /// The light-cone transform's volume, extracted with the settings for compact objects
-    /// ([`nlos_init::SurfaceParams::object`]).
-    Lct,
-    /// The f-k migration's volume.
-    Fk,
-    /// The phasor field's volume (Liu et al. 2019; [`nlos_init::pf`]): any scan.
-    Pf,
-    /// Space carving from first returns.
-    Carve,
-    /// A mesh file (OBJ, PLY, GLB) whose faces face the wall.
-    Mesh(PathBuf),
-}
-
-impl FromStr for InitMethod {
-    type Err = std::convert::Infallible;
-    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
-        Ok(match s {
-            "auto" => Self::Auto,
-            "lct" => Self::Lct,
-            "fk" => Self::Fk,
-            "pf" => Self::Pf,
-            "carve" => Self::Carve,
-            path => Self::Mesh(path.into()),
-        })
-    }
-}
-
-impl InitMethod {
-    /// What `auto` chooses for `scan`, with the reason in words: [`InitMethod::Lct`] on a confocal scan whose
-    /// points form a regular grid (the LCT's resampling needs both), [`InitMethod::Pf`] on everything else.
-    /// Any other method is returned as it is.
-    pub fn resolve(&self, scan: &nlos_transient::Scan) -> (Self, &'static str) {
-        match self {
-            Self::Auto if scan.is_confocal() && scan.sensors().grid_dims().is_some() => {
-                (Self::Lct, "a confocal scan on a regular grid: the light-cone transform")
-            }
-            Self::Auto if scan.is_confocal() => {
-                (Self::Pf, "a confocal scan whose points are no regular grid: the phasor field")
-            }
-            Self::Auto if matches!(scan.pattern, nlos_transient::ScanPattern::Paired { .. }) => {
-                (Self::Pf, "a paired scan (laser spot i with sensor spot i): the phasor field")
-            }
-            Self::Auto => (Self::Pf, "a non-confocal scan (lasers × sensors): the phasor field"),
-            other => (other.clone(), "as set"),
-        }
-    }
-}
-
-impl From<String> for InitMethod {
-    fn from(s: String) -> Self {
-        match s.parse() {
-            Ok(m) => m,
-            Err(e) => match e {},
-        }
-    }
-}
-
-impl From<InitMethod> for String {
-    fn from(m: InitMethod) -> Self {
-        m.to_string()
-    }
-}
-
-impl fmt::Display for InitMethod {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Auto => f.write_str("auto"),
-            Self::Lct => f.write_str("lct"),
-            Self::Fk => f.write_str("fk"),
-            Self::Pf => f.write_str("pf"),
-            Self::Carve => f.write_str("carve"),
-            Self::Mesh(p) => write!(f, "{}", p.display()),
         }
     }
 }

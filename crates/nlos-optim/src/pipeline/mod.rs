@@ -24,10 +24,7 @@
 
 use std::path::{Path, PathBuf};
 
-use nlos_init::{
-    CarveParams, FbpParams, FkParams, Gate, Model, PfParams, SurfaceParams, Volume, carve, fbp, fk, lct, pf,
-    volume_to_surface,
-};
+use nlos_init::{Gate, Model, PfParams, SurfaceParams, Volume, pf, volume_to_surface};
 use nlos_mesh::SurfaceMesh;
 use nlos_render::{Device, SplatRule, Visibility};
 use nlos_transient::Transient;
@@ -152,7 +149,7 @@ impl Prepared {
         if config.init == InitMethod::Auto {
             notes.push(format!("init auto: {why} (\"{method}\"; init = \"lct\", \"pf\", … chooses another)"));
         }
-        let (schedule, note) = schedule.for_start(method == InitMethod::Pf);
+        let (schedule, note) = schedule.for_start(method == InitMethod::Volume(Method::Pf));
         notes.extend(note);
         Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes, schedule })
     }
@@ -343,25 +340,14 @@ impl Prepared {
     }
 
     /// The volume of `method` on [`Prepared::full`] (gated, rebinned, cut at an explicit max depth: the
-    /// preparation every start shares), LCT and filtered backprojection weighted for `material`
-    /// ([`crate::radiometry::lct_params`]; `snr` replaces LCT's Wiener SNR). `nlos reconstruct`, `nlos init`,
+    /// preparation every start shares), weighted for `reflectance` ([`Method::volume`]; `snr` replaces the
+    /// LCT's Wiener SNR). `nlos reconstruct`, `nlos init`,
     /// `nlos eval --volume` and the Python package take their volumes here.
     ///
     /// # Errors
     /// [`OptimError::Init`] when the method fails (not a confocal grid, an empty volume).
-    pub fn volume(&self, method: Volumetric, reflectance: Model, snr: Option<f64>) -> Result<Volume> {
-        // `full` is gated already; the methods' own automatic gate finds no direct light left in it.
-        Ok(match method {
-            Volumetric::Lct => {
-                let mut p = crate::radiometry::lct_params(reflectance);
-                p.snr = snr.unwrap_or(p.snr);
-                lct(&self.full, &p)?
-            }
-            Volumetric::Fk => fk(&self.full, &FkParams::default())?,
-            Volumetric::Pf => self.pf_volume(&PfParams { reflectance, ..PfParams::default() })?,
-            Volumetric::Fbp => fbp(&self.full, &FbpParams { reflectance, ..FbpParams::default() })?,
-            Volumetric::Carve => carve(&self.full, &CarveParams::default())?,
-        })
+    pub fn volume(&self, method: Method, reflectance: Model, snr: Option<f64>) -> Result<Volume> {
+        Ok(method.volume(&self.full, reflectance, snr)?)
     }
 
     /// The phasor field's volume of [`Prepared::full`] with `params` (its gate and max depth are the
@@ -383,11 +369,8 @@ impl Prepared {
     /// makes between two columns. On the 64 × 64 captures over 0.5–2 m (spacing 8–31 mm) that is the fixed
     /// 5 cm up to 18 mm and 8.6 cm at 31 mm; on the published 8 × 8 Z-NLOS bunny (12.5 cm) a fixed 5 cm tore
     /// every cell of its sloping surface apart but two.
-    pub fn surface_params(&self, method: Volumetric) -> SurfaceParams {
-        let base = match method {
-            Volumetric::Lct | Volumetric::Pf => SurfaceParams::object(),
-            _ => SurfaceParams::default(),
-        };
+    pub fn surface_params(&self, method: Method) -> SurfaceParams {
+        let base = method.surface_params();
         let spacing = wall_spacing(self.full.scan());
         let max_depth_jump = base.max_depth_jump.map(|j| j.max(MAX_START_SLOPE * spacing));
         SurfaceParams { max_depth: base.max_depth.or(self.surface_depth), max_depth_jump, ..base }
@@ -399,12 +382,10 @@ impl Prepared {
     /// # Errors
     /// [`OptimError::Init`] when the volume or its surface fails, [`OptimError::Mesh`] for an unreadable mesh.
     pub fn initial_surface(&self, config: &Config) -> Result<SurfaceMesh> {
-        let method = match config.init.resolve(self.full.scan()).0 {
-            InitMethod::Lct | InitMethod::Auto => Volumetric::Lct,
-            InitMethod::Fk => Volumetric::Fk,
-            InitMethod::Pf => Volumetric::Pf,
-            InitMethod::Carve => Volumetric::Carve,
-            InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(&file)?),
+        let method = match &config.init {
+            InitMethod::Auto => Method::for_scan(self.full.scan()).0,
+            InitMethod::Volume(method) => *method,
+            InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(file)?),
         };
         let volume = self.volume(method, config.reflectance.model, None)?;
         Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
@@ -422,21 +403,6 @@ pub const MAX_START_SLOPE: f64 = 2.75;
 /// 23 mm, not 14 mm from its bins, and its start 3,200 faces rather than 8,600.
 fn wall_spacing(scan: &nlos_transient::Scan) -> f64 {
     scan.dense_points().spacing().unwrap_or(0.0)
-}
-
-/// A volumetric method of the start ([`Prepared::volume`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Volumetric {
-    /// The light-cone transform with Wiener deconvolution (O'Toole et al. 2018).
-    Lct,
-    /// f-k migration (Lindell et al. 2019).
-    Fk,
-    /// The phasor field (Liu et al. 2019): any scan.
-    Pf,
-    /// Laplacian-filtered backprojection.
-    Fbp,
-    /// Space carving from first returns (Tsai et al. 2017).
-    Carve,
 }
 
 #[cfg(test)]
@@ -520,25 +486,16 @@ mod tests {
         assert!(from_raw > 1.5, "the floor {from_raw} holds the late return");
     }
 
-    /// `init = "auto"`: LCT on confocal grids only, the phasor field on every other scan; other methods as set.
+    /// The settings file spells the start as `nlos init --method` and `nlos reconstruct --init` do.
     #[test]
-    fn auto_init_takes_lct_on_confocal_grids_and_the_phasor_field_elsewhere() {
-        use nlos_transient::{PointSet, Scan};
-        let grid = PointSet::wall_grid(8, 8, 0.25, 0.25).expect("grid");
-        let list = PointSet::list(grid.points.clone());
-        let one = PointSet::list(vec![glam::Vec3::ZERO]);
-        for (scan, want) in [
-            (Scan::confocal(grid.clone()), InitMethod::Lct),
-            (Scan::confocal(list), InitMethod::Pf),
-            (Scan::exhaustive(one.clone(), grid.clone()), InitMethod::Pf),
-            (Scan::exhaustive(grid.clone(), grid.clone()), InitMethod::Pf),
-            (Scan::paired(grid.clone(), grid.clone()), InitMethod::Pf),
-        ] {
-            assert_eq!(InitMethod::Auto.resolve(&scan).0, want, "{scan:?}");
-            assert_eq!(InitMethod::Fk.resolve(&scan).0, InitMethod::Fk);
-        }
+    fn init_is_written_by_name() {
         assert_eq!(Config::default().init, InitMethod::Auto);
-        for (text, want) in [("auto", InitMethod::Auto), ("pf", InitMethod::Pf), ("lct", InitMethod::Lct)] {
+        for (text, want) in [
+            ("auto", InitMethod::Auto),
+            ("pf", InitMethod::Volume(Method::Pf)),
+            ("fbp", InitMethod::Volume(Method::Fbp)),
+            ("start.obj", InitMethod::Mesh("start.obj".into())),
+        ] {
             let c = Config::from_toml(&format!("init = \"{text}\"\n")).expect("parse");
             assert_eq!(c.init, want);
             assert_eq!(c.init.to_string(), text);
