@@ -62,9 +62,9 @@ pub use nlos_render::Loss;
 pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
 pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
-    CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord,
-    Outcome, Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason,
-    describe_device, reconstruct, reconstruct_with, resume,
+    BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
+    IntersectionCheck, IntersectionRecord, IterationRecord, Next, Outcome, Plan, Progress, ProgressEvent, ProgressFn,
+    RUN_LOG_FILE, RunLog, StageRecord, StepKind, StopReason, describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};

@@ -1,18 +1,11 @@
 //! The coarse-to-fine schedule ([`Schedule`]): the stages' target edge lengths and summed bins, the sizing to a
-//! capture, and the run's budget of reference seconds — a cost predicted from face counts in seconds of the
-//! reference machine (2 cores), not a wall-clock limit, so that a run stays a deterministic function of its
-//! inputs on every machine.
+//! capture and to its start, and the run's budget of reference seconds — a cost predicted from face counts in
+//! seconds of the reference machine (2 cores), not a wall-clock limit, so that a run stays a deterministic
+//! function of its inputs on every machine. What the budget decides during a run is the planner's
+//! ([`crate::Plan`]).
 
 /// How many times `max_blocks_per_stage` a run started from the phasor field may take ([`Schedule::for_start`]).
 pub const PHASOR_START_BLOCKS: u32 = 2;
-/// Seconds per face, per measurement and per logged shape step that a block costs on the reference machine
-/// (2 cores), everything in the block included (reflectance steps, pruning, evolution, visibility), when
-/// the data are fitted through a sensor response: 1.2–1.6e-7 over every block of the three Stanford
-/// captures' default runs (4,096 measurements, 2,048 bins of 4 ps).
-pub const BLOCK_COST_SENSOR_S: f64 = 1.4e-7;
-/// The same for a fit of intensities by L2 (no sensor response): measured on the shared bunny's default
-/// run at Tsai et al. 2019's setup (6.0–8.6e-8 per block).
-pub const BLOCK_COST_L2_S: f64 = 7.0e-8;
 /// The first stage's target edge length in scan spacings at least ([`Schedule::sized_to`]).
 pub const EDGE_PER_SPACING: f64 = 0.9;
 /// The first stage's target edge length in bins (of path) at least ([`Schedule::sized_to`]).
@@ -26,9 +19,9 @@ pub const FACES_PER_MEASUREMENT: usize = 15;
 /// then a reflectance block of `reflectance_iterations` steps) until the loss falls by less than `rel_tol`
 /// (relative) over a block or `max_blocks_per_stage` blocks ran; the run stops after `max_stages` stages,
 /// or when the next stage would exceed `max_faces` faces. Stages after the first are planned at their start
-/// for the budget of reference seconds ([`Schedule::planned_edge`]): when the stages left would not fit
+/// for the budget of reference seconds ([`crate::Plan::planned_edge`]): when the stages left would not fit
 /// `reference_seconds` whole at the schedule's edges, they refine by less, so that every stage runs all its
-/// blocks; only when not even that fits do blocks stop at the budget ([`Schedule::block_fits`]).
+/// blocks; only when not even that fits do blocks stop at the budget ([`crate::Plan::block_fits`]).
 ///
 /// Coarse to fine in time as well: a stage sums consecutive bins of the capture while the summed bin stays
 /// within `rebin_fraction` of its target edge length, in path length ([`Schedule::rebin`]). A face of the
@@ -67,8 +60,8 @@ pub struct Schedule {
     pub rebin_fraction: f64,
     /// Seconds of the reference machine (2 cores) the blocks may take (default 480: ten minutes less what the
     /// start, the residual patches and the stage changes take; 0: no budget). Each stage after the first is
-    /// planned so that it and the stages after it fit whole ([`Schedule::planned_edge`]); a block is started
-    /// only when the blocks so far and its own predicted time fit ([`Schedule::block_fits`]). Predicted from
+    /// planned so that it and the stages after it fit whole ([`crate::Plan::planned_edge`]); a block is started
+    /// only when the blocks so far and its own predicted time fit ([`crate::Plan::block_fits`]). Predicted from
     /// face counts, not timed, so the run stays a deterministic function of its inputs on every machine.
     pub reference_seconds: f64,
 }
@@ -164,78 +157,6 @@ impl Schedule {
              schedule.max_blocks_per_stage; the start lies farther from the surface than the LCT's)"
         );
         (Schedule { max_blocks_per_stage: blocks, ..*self }, Some(note))
-    }
-
-    /// Predicted seconds of the reference machine for `face_steps` (the sum over shape steps of the mesh's
-    /// faces) on `measurements` histograms, through a sensor response or not ([`BLOCK_COST_SENSOR_S`],
-    /// [`BLOCK_COST_L2_S`]).
-    pub fn predicted_seconds(face_steps: f64, measurements: usize, sensor: bool) -> f64 {
-        face_steps * measurements as f64 * if sensor { BLOCK_COST_SENSOR_S } else { BLOCK_COST_L2_S }
-    }
-
-    /// Whether a block on a mesh of about `faces` faces may start when the blocks so far took `face_steps`
-    /// ([`Schedule::reference_seconds`]): their predicted seconds and the block's (`shape_iterations` steps)
-    /// within the budget. A stage ends early when its next block does not fit, and the next stage is not
-    /// started when its first block does not.
-    pub fn block_fits(&self, face_steps: f64, faces: f64, measurements: usize, sensor: bool) -> bool {
-        let steps = f64::from(self.shape_iterations);
-        self.reference_seconds <= 0.0
-            || Self::predicted_seconds(face_steps + faces * steps, measurements, sensor) <= self.reference_seconds
-    }
-
-    /// Predicted seconds of one stage on a mesh of `faces` faces, all its blocks run.
-    fn stage_seconds(&self, faces: f64, measurements: usize, sensor: bool) -> f64 {
-        let steps = f64::from(self.max_blocks_per_stage) * f64::from(self.shape_iterations);
-        Self::predicted_seconds(faces * steps, measurements, sensor)
-    }
-
-    /// The target edge of stage `stage` ≥ 1, planned at its start so that it and the stages after it fit
-    /// the time budget whole ([`Schedule::reference_seconds`]): `previous` is the edge of the stage before, `area`
-    /// the mesh's area now (m²) and `face_steps` the shape steps' faces so far. The remaining stages refine
-    /// by a common growth `g ≤ growth`, the largest for which all their blocks (`max_blocks_per_stage` each,
-    /// on the faces of the current area at their edges) are predicted to fit what the budget has left
-    /// (bisection; deterministic). Never finer than the stage's own edge ([`Schedule::target_edge_length`]);
-    /// `g = 1` (the previous edge again) when not even that fits, and the blocks then stop at the budget
-    /// ([`Schedule::block_fits`]). Without a budget, the stage's own edge. Why: a large object (the S and U
-    /// capture's two letters, 0.14 m²) at the default edges would need 12,600 faces in the third stage and
-    /// about 900 s; cutting the stage short, or skipping it, left its refinement undone, whereas a
-    /// slightly coarser third stage runs every block.
-    pub fn planned_edge(
-        &self,
-        stage: u32,
-        previous: f64,
-        area: f64,
-        face_steps: f64,
-        measurements: usize,
-        sensor: bool,
-    ) -> f64 {
-        let own = self.target_edge_length(stage);
-        if self.reference_seconds <= 0.0 || stage == 0 || !(area.is_finite() && area > 0.0) {
-            return own;
-        }
-        let left = self.reference_seconds - Self::predicted_seconds(face_steps, measurements, sensor);
-        let stages = self.max_stages.saturating_sub(stage);
-        let cost = |g: f64| -> f64 {
-            (1..=stages)
-                .map(|j| {
-                    let edge = (previous / g.powi(j as i32)).max(self.target_edge_length(stage + j - 1));
-                    self.stage_seconds(faces_at(area, edge), measurements, sensor)
-                })
-                .sum()
-        };
-        let growth = self.growth.max(1.0);
-        if cost(growth) <= left {
-            return (previous / growth).max(own);
-        }
-        if cost(1.0) > left {
-            return previous.max(own);
-        }
-        let (mut lo, mut hi) = (1.0, growth);
-        for _ in 0..50 {
-            let mid = 0.5 * (lo + hi);
-            if cost(mid) <= left { lo = mid } else { hi = mid }
-        }
-        (previous / lo).max(own)
     }
 }
 

@@ -9,7 +9,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{OptimError, ReconstructParams, Schedule, SensorBackground, SensorFit, StopReason, reconstruct};
+use nlos_optim::{OptimError, Plan, ReconstructParams, Schedule, SensorBackground, SensorFit, StopReason, reconstruct};
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::sensor::BinKernel;
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -98,15 +98,17 @@ fn the_time_budget_stops_blocks_deterministically() {
     assert_eq!(free.stop, StopReason::MaxStages);
     // What two blocks of the first stage cost, predicted: their logged face counts.
     let first: Vec<usize> = free.log.iterations.iter().take(6).map(|r| r.faces).collect();
-    let two = Schedule::predicted_seconds(first.iter().sum::<usize>() as f64, measured.measurements(), false);
-    let three = two + Schedule::predicted_seconds(3.0 * first[5] as f64, measured.measurements(), false);
+    let plan = Plan::new(params.schedule, measured.measurements(), false);
+    let two = plan.predicted_seconds(first.iter().sum::<usize>() as f64);
+    let three = two + plan.predicted_seconds(3.0 * first[5] as f64);
     params.schedule.reference_seconds = 0.5 * (two + three);
     let cut = reconstruct(&measured, &start, &params).unwrap();
     assert_eq!(cut.stop, StopReason::TimeBudget);
     assert_eq!((cut.blocks_done, cut.log.iterations.len()), (2, 6), "two blocks of three steps");
     let again = reconstruct(&measured, &start, &params).unwrap();
     assert_eq!(positions(&again.mesh), positions(&cut.mesh));
-    assert!(Schedule::default().block_fits(0.0, 1e4, 4096, true), "a 10k-face block fits an empty budget");
+    let plan = Plan::new(Schedule::default(), 4096, true);
+    assert!(plan.block_fits(0.0, 1e4), "a 10k-face block fits an empty budget");
 }
 
 fn positions(mesh: &SurfaceMesh) -> Vec<Vec3> {
@@ -165,7 +167,7 @@ fn a_bad_time_budget_is_a_typed_error_naming_the_setting() {
     }
 }
 
-/// `Schedule::planned_edge`: the stages left refine by the largest common growth whose blocks fit what the
+/// `Plan::planned_edge`: the stages left refine by the largest common growth whose blocks fit what the
 /// budget has left — the schedule's own edges when they fit, coarser ones (never finer than the schedule's,
 /// never coarser than the stage before) when they do not, and the previous edge when nothing fits.
 /// What it catches: a plan that overruns the budget, one that coarsens more than it must, or one that
@@ -173,28 +175,28 @@ fn a_bad_time_budget_is_a_typed_error_naming_the_setting() {
 #[test]
 fn later_stages_are_planned_to_fit_the_budget_whole() {
     let s = Schedule::default();
-    let (m, sensor) = (4096, true);
+    let plan = Plan::new(s, 4096, true);
     let (e0, e1, e2) = (s.target_edge_length(0), s.target_edge_length(1), s.target_edge_length(2));
     let stage_cost = |edge: f64, area: f64| {
         let steps = f64::from(s.max_blocks_per_stage * s.shape_iterations);
-        Schedule::predicted_seconds(nlos_optim::faces_at(area, edge) * steps, m, sensor)
+        plan.predicted_seconds(nlos_optim::faces_at(area, edge) * steps)
     };
     // A small object (the chart's 0.03 m²): the schedule's own edges.
-    assert_eq!(s.planned_edge(1, e0, 0.03, 2e5, m, sensor), e1);
+    assert_eq!(plan.planned_edge(1, e0, 0.03, 2e5), e1);
     // Without a budget, or at stage 0: the schedule's.
-    let free = Schedule { reference_seconds: 0.0, ..s };
-    assert_eq!(free.planned_edge(1, e0, 10.0, 2e5, m, sensor), e1);
-    assert_eq!(s.planned_edge(0, e0, 10.0, 0.0, m, sensor), e0);
+    let free = Plan { schedule: Schedule { reference_seconds: 0.0, ..s }, ..plan };
+    assert_eq!(free.planned_edge(1, e0, 10.0, 2e5), e1);
+    assert_eq!(plan.planned_edge(0, e0, 10.0, 0.0), e0);
     // A large one (the S and U's 0.14 m² after a first stage of 2.3·10⁵ face-steps): coarser, and exactly
     // what fits — stages 1 and 2 at the common growth fill what is left, a hair finer would not fit.
     let (area, done) = (0.14, 2.3e5);
-    let left = s.reference_seconds - Schedule::predicted_seconds(done, m, sensor);
-    let edge = s.planned_edge(1, e0, area, done, m, sensor);
+    let left = s.reference_seconds - plan.predicted_seconds(done);
+    let edge = plan.planned_edge(1, e0, area, done);
     assert!(edge > e1 && edge < e0, "{edge}");
     let g = e0 / edge;
-    let plan = |g: f64| stage_cost((e0 / g).max(e1), area) + stage_cost((e0 / (g * g)).max(e2), area);
-    assert!(plan(g) <= left * (1.0 + 1e-9), "{} > {left}", plan(g));
-    assert!(plan(g * 1.001) > left, "the growth is the largest that fits");
+    let cost = |g: f64| stage_cost((e0 / g).max(e1), area) + stage_cost((e0 / (g * g)).max(e2), area);
+    assert!(cost(g) <= left * (1.0 + 1e-9), "{} > {left}", cost(g));
+    assert!(cost(g * 1.001) > left, "the growth is the largest that fits");
     // Nothing left: the previous edge again (the blocks then stop at the budget).
-    assert_eq!(s.planned_edge(1, e0, area, 1e7, m, sensor), e0);
+    assert_eq!(plan.planned_edge(1, e0, area, 1e7), e0);
 }

@@ -1,6 +1,7 @@
 //! The steps of one block of the loop ([`super::run`]), as the module doc names them: the shape block
-//! (with the collision-aware evolution of its displacement), the reflectance block, the block's end
-//! (relative decrease, time budget), pruning and residual patches, and the bookkeeping.
+//! (with the collision-aware evolution of its displacement), the reflectance block, pruning and residual
+//! patches, and the bookkeeping; what the block's end decides (relative decrease, time budget) and whether
+//! the next stage starts are the planner's ([`super::plan`]).
 
 use std::sync::RwLock;
 use std::time::Instant;
@@ -11,11 +12,11 @@ use nlos_render::Renderer;
 use nlos_transient::Transient;
 
 use super::checkpoint::{State, write_outputs};
+use super::plan::{BlockEnd, Next, Plan};
 use super::topology::{append, collision_step, drop_faces, mesh_of, surface_area, untangle};
 use super::{
     Attempt, Evolve, EvolveRecord, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent,
-    StepKind, StopReason, evaluate, face_steps, planned_edge, progress, report, rollback, rollback_refl,
-    set_albedo_weights,
+    StepKind, evaluate, progress, report, rollback, rollback_refl, set_albedo_weights,
 };
 use crate::adam::VertexAdam;
 use crate::boundary_smoothing::BoundarySmoothing;
@@ -26,7 +27,6 @@ use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_patches};
-use crate::schedule::faces_at;
 
 /// What every block of a run shares: its settings and what was decided from them once.
 pub(super) struct RunCtx<'a> {
@@ -39,13 +39,15 @@ pub(super) struct RunCtx<'a> {
     pub(super) refl_iters: u32,
     /// Iterations the schedule allows (the progress bar's length).
     pub(super) planned: u64,
+    /// The budget planner: stage edges, whether blocks and stages fit, when the run stops.
+    pub(super) plan: Plan,
     start: Instant,
     /// Run time before this process's part of the run (a resumed run's earlier time).
     t_base: f64,
 }
 
 impl<'a> RunCtx<'a> {
-    pub(super) fn new(st: &State, params: &'a ReconstructParams) -> Self {
+    pub(super) fn new(st: &State, params: &'a ReconstructParams, plan: Plan) -> Self {
         let sch = params.schedule;
         // A Lambertian (or retroreflective) albedo is a pure scale factor: with the scale solved in closed form
         // its gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ
@@ -64,6 +66,7 @@ impl<'a> RunCtx<'a> {
             fit_brdf,
             refl_iters,
             planned,
+            plan,
             start: Instant::now(),
             t_base: st.elapsed_s,
         }
@@ -276,34 +279,6 @@ pub(super) fn reflectance_block(
     Ok(())
 }
 
-/// What the end of a block decides.
-pub(super) struct BlockEnd {
-    /// The stage ends with this block (converged, its last block, or the next block would not fit the budget).
-    pub(super) stage_ends: bool,
-    /// The next stage's first block would not fit the time budget.
-    pub(super) next_over_budget: bool,
-    /// No block follows this one.
-    pub(super) last_block: bool,
-}
-
-/// Step 5a: the relative-decrease test and the time budget (predicted from face counts, so deterministic):
-/// the next block of this stage, and the first of the next stage at its estimated face count, must fit.
-pub(super) fn block_end(st: &State, ctx: &RunCtx<'_>, b: &Block<'_>) -> BlockEnd {
-    let (params, sch) = (ctx.params, ctx.params.schedule);
-    let rel = (b.first - b.last) / b.first.abs().max(f64::MIN_POSITIVE);
-    // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
-    let converged = !(rel >= sch.rel_tol);
-    let done = face_steps(st);
-    let fits = |faces: f64| sch.block_fits(done, faces, b.measured.measurements(), params.sensor.is_some());
-    let over_budget = !fits(st.triangles.len() as f64);
-    let stage_ends = converged || st.block_in_stage + 1 >= sch.max_blocks_per_stage || over_budget;
-    let next_edge = planned_edge(st, params, b.measured, st.stage + 1, b.target);
-    let next_faces = faces_at(surface_area(&st.positions, &st.triangles), next_edge);
-    let next_over_budget = stage_ends && !fits(next_faces);
-    let last_block = stage_ends && (st.stage + 1 >= sch.max_stages || next_over_budget);
-    BlockEnd { stage_ends, next_over_budget, last_block }
-}
-
 /// The mesh of a stage as fitted, before residual patches joined it.
 type StageMesh = (Vec<Vec3>, Vec<[u32; 3]>);
 
@@ -405,7 +380,7 @@ pub(super) fn bookkeeping(
     end: &BlockEnd,
     stage_mesh: Option<StageMesh>,
 ) -> Result<()> {
-    let (params, sch) = (ctx.params, ctx.params.schedule);
+    let params = ctx.params;
     untangle(st, IntersectionCheck::BlockEnd)?;
     st.blocks_done += 1;
     if end.stage_ends {
@@ -418,16 +393,8 @@ pub(super) fn bookkeeping(
         }
         st.stage += 1;
         st.block_in_stage = 0;
-        if st.stage >= sch.max_stages {
-            st.finished = Some(StopReason::MaxStages);
-        } else {
-            let l = planned_edge(st, params, b.measured, st.stage, b.target);
-            let est = faces_at(surface_area(&st.positions, &st.triangles), l);
-            if est > sch.max_faces as f64 {
-                st.finished = Some(StopReason::FaceLimit);
-            } else if end.next_over_budget {
-                st.finished = Some(StopReason::TimeBudget);
-            }
+        if let Next::Stop(reason) = ctx.plan.next_stage(st, end, b.target) {
+            st.finished = Some(reason);
         }
     } else {
         st.block_in_stage += 1;

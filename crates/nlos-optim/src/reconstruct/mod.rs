@@ -71,6 +71,7 @@ mod block;
 pub(crate) mod checkpoint;
 mod evaluation;
 mod log;
+mod plan;
 mod rollback;
 mod topology;
 
@@ -78,6 +79,7 @@ use block::{Block, RunCtx};
 use checkpoint::*;
 use evaluation::*;
 pub use log::*;
+pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Next, Plan};
 use rollback::*;
 use topology::*;
 
@@ -373,12 +375,12 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     data_normaliser(params, data)?;
     st.max_stages_hint = params.schedule.max_stages;
     let mut evolve: Option<&mut dyn Evolve> = hooks.evolve.take();
-    let ctx = RunCtx::new(&st, params);
+    let ctx = RunCtx::new(&st, params, Plan::new(params.schedule, measured.measurements(), params.sensor.is_some()));
 
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
     let mut stage_data: Option<StageData> = None;
     while st.finished.is_none() {
-        let target = stage_edge(&mut st, params, measured);
+        let target = ctx.plan.stage_edge(&mut st, |edge| StageData::bins_summed(measured, params, edge));
         let sd: &StageData = match stage_data.take() {
             Some(d) if d.stage == st.stage => stage_data.insert(d),
             _ => stage_data.insert(StageData::new(measured, params, st.stage, target, background)?),
@@ -424,7 +426,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         if ctx.refl_iters > 0 {
             block::reflectance_block(&mut st, &ctx, &mut b, &mut hooks)?;
         }
-        let end = block::block_end(&st, &ctx, &b);
+        let end = ctx.plan.block_end(&st, target, b.first, b.last);
         let stage_mesh = block::prune_and_patch(&mut st, &ctx, &b, &end)?;
         block::bookkeeping(&mut st, &ctx, &b, &end, stage_mesh)?;
         // The block's stage: `bookkeeping` has moved `st` to the next stage when this block ended one.
@@ -440,37 +442,6 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
     }
     Ok(outcome(&st, mesh, st.finished.unwrap_or(StopReason::MaxStages)))
-}
-
-/// The shape steps' faces so far (what the time budget counts, [`crate::Schedule::predicted_seconds`]).
-fn face_steps(st: &State) -> f64 {
-    st.log.iterations.iter().map(|r| r.faces as f64).sum()
-}
-
-/// The edge stage `stage` would be planned at now, after a stage of edge `previous`
-/// ([`crate::Schedule::planned_edge`]).
-fn planned_edge(st: &State, params: &ReconstructParams, measured: &Transient, stage: u32, previous: f64) -> f64 {
-    let area = surface_area(&st.positions, &st.triangles);
-    let sensor = params.sensor.is_some();
-    params.schedule.planned_edge(stage, previous, area, face_steps(st), measured.measurements(), sensor)
-}
-
-/// The target edge of the current stage: as recorded when it started (a resumed run keeps it), or planned
-/// now and recorded ([`StageRecord`]).
-fn stage_edge(st: &mut State, params: &ReconstructParams, measured: &Transient) -> f64 {
-    if let Some(r) = st.log.stages.iter().find(|r| r.stage == st.stage) {
-        return r.edge_length;
-    }
-    let sch = &params.schedule;
-    let previous = st.log.stages.last().map_or_else(|| sch.target_edge_length(0), |r| r.edge_length);
-    let edge = planned_edge(st, params, measured, st.stage, previous);
-    st.log.stages.push(StageRecord {
-        stage: st.stage,
-        edge_length: edge,
-        schedule_edge_length: sch.target_edge_length(st.stage),
-        bins_summed: StageData::bins_summed(measured, params, edge),
-    });
-    edge
 }
 
 /// The outcome of a run in state `st` with its mesh.
