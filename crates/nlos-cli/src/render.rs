@@ -194,8 +194,9 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         VisibilityArg::Off => Visibility::Off,
     };
     let params = RenderParams { kernel, sampling, visibility, two_sided: args.two_sided };
-    if args.device == DeviceArg::Gpu && !nlos_render::gpu_supports(args.brdf) {
-        return Err(bad(format!("--device gpu: --brdf {} has no GPU version; use --device cpu", args.brdf)));
+    if args.device == DeviceArg::Gpu {
+        nlos_render::gpu_support(args.brdf, &params)
+            .map_err(|why| bad(format!("--device gpu: {why}; use --device cpu")))?;
     }
     let brdf = AnyBrdf::unit(args.brdf, args.alpha).map_err(bad)?;
     // Progress: each measurement's visibility (cached mode), then its transient.

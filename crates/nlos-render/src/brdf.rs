@@ -31,34 +31,20 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn lobe_alpha(&self) -> Option<f32> {
         None
     }
-    /// The model as the GPU backend evaluates it, None where it has no GPU version ([`gpu_supports`]).
-    fn gpu_model(&self) -> Option<GpuModel> {
-        None
-    }
+    /// The same BRDF as an [`AnyBrdf`] (what the GPU backend reads its terms from, [`AnyBrdf::gpu_terms`]).
+    fn to_any(&self) -> AnyBrdf;
 }
 
-/// Whether the GPU backend (feature `gpu`) evaluates `model`: the Lambertian and retroreflective models
-/// ([`GpuModel`]), not GGX. The one place that says so: the renderer sends other models' calls to the CPU, and
-/// settings that ask for the GPU with another model are refused with this reason.
-pub const fn gpu_supports(model: Model) -> bool {
-    matches!(model, Model::Lambert | Model::Retroreflective)
-}
-
-/// A BRDF the GPU backend (feature `gpu`) evaluates: its kind and parameters.
+/// A BRDF as the GPU backend's shader (feature `gpu`, `shader.wgsl`) evaluates it: which of its models
+/// (`kind`: the shader's `Params.brdf`) and that model's terms.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GpuModel {
-    /// [`Lambertian`] of this albedo.
-    Lambertian {
-        /// ρ.
-        albedo: f32,
-    },
-    /// [`Retroreflective`] of this return and lobe width (radians).
-    Retroreflective {
-        /// ρ.
-        albedo: f32,
-        /// σ.
-        lobe_width: f32,
-    },
+pub(crate) struct GpuTerms {
+    /// The shader's model: 0 Lambertian, 1 retroreflective.
+    pub(crate) kind: u32,
+    /// ρ.
+    pub(crate) albedo: f32,
+    /// `1/σ²` of the retroreflective lobe of width σ (0 for the Lambertian).
+    pub(crate) inv_w2: f32,
 }
 
 impl RenderBrdf for Lambertian<f32> {
@@ -74,8 +60,8 @@ impl RenderBrdf for Lambertian<f32> {
     fn param_grad_array(g: &LambertianGrad<f32>) -> [f32; 4] {
         [g.albedo, 0.0, 0.0, 0.0]
     }
-    fn gpu_model(&self) -> Option<GpuModel> {
-        Some(GpuModel::Lambertian { albedo: self.albedo() })
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Lambertian(*self)
     }
 }
 
@@ -104,6 +90,9 @@ impl RenderBrdf for Ggx<f32> {
     fn lobe_alpha(&self) -> Option<f32> {
         (self.specular() > 0.0).then_some(self.alpha())
     }
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Ggx(*self)
+    }
 }
 
 impl RenderBrdf for Retroreflective<f32> {
@@ -119,8 +108,8 @@ impl RenderBrdf for Retroreflective<f32> {
     fn param_grad_array(g: &RetroreflectiveGrad<f32>) -> [f32; 4] {
         [g.albedo, 0.0, 0.0, 0.0]
     }
-    fn gpu_model(&self) -> Option<GpuModel> {
-        Some(GpuModel::Retroreflective { albedo: self.albedo(), lobe_width: self.lobe_width() })
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Retroreflective(*self)
     }
 }
 
@@ -173,6 +162,18 @@ impl AnyBrdf {
     pub fn unit(model: Model, alpha: f32) -> Result<Self> {
         let albedo = if model == Model::Ggx { 0.0 } else { 1.0 };
         Self::new(model, albedo, 1.0, alpha)
+    }
+
+    /// The BRDF as the GPU backend's shader evaluates it, None for a model it has no version of (GGX). The one
+    /// place that maps a BRDF to the shader: [`gpu_support`] asks it which models run on the GPU.
+    pub(crate) fn gpu_terms(&self) -> Option<GpuTerms> {
+        match self {
+            AnyBrdf::Lambertian(b) => Some(GpuTerms { kind: 0, albedo: b.albedo(), inv_w2: 0.0 }),
+            AnyBrdf::Retroreflective(b) => {
+                Some(GpuTerms { kind: 1, albedo: b.albedo(), inv_w2: 1.0 / (b.lobe_width() * b.lobe_width()) })
+            }
+            AnyBrdf::Ggx(_) => None,
+        }
     }
 
     /// Parameter names, in the order of [`AnyBrdf::params`] and of [`crate::Gradient::brdf`].

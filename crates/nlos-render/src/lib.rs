@@ -164,7 +164,7 @@ pub mod loss;
 pub mod render;
 mod visibility;
 
-pub use brdf::{AnyBrdf, GpuModel, RenderBrdf, gpu_supports};
+pub use brdf::{AnyBrdf, RenderBrdf};
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;
@@ -172,5 +172,5 @@ pub use loss::Loss;
 pub use render::gpu::GpuRenderer;
 pub use render::{
     DeterministicRule, Device, Gradient, LossAndGradient, RenderParams, Renderer, RowSpan, Sampling, SplatRule,
-    Visibility, describe_device, silence_display_probe,
+    Visibility, describe_device, gpu_support, silence_display_probe,
 };

@@ -30,13 +30,12 @@ impl Prepared {
         if !(1..=64).contains(&max_level) {
             return Err(config_error("render.max_level", format!("{max_level}: from 1 to 64")));
         }
-        p.sampling = SamplingSchedule::Splat(SplatRule { max_level, ..SplatRule::default() });
+        let rule = SplatRule { max_level, ..SplatRule::default() };
+        p.sampling = SamplingSchedule::Splat(rule);
         p.device = config.render.device;
-        if p.device == Device::Gpu && !nlos_render::gpu_supports(r.model) {
-            return Err(config_error(
-                "render.device",
-                format!("\"gpu\": the reflectance model \"{}\" has no GPU version; use \"auto\" or \"cpu\"", r.model),
-            ));
+        if p.device == Device::Gpu {
+            let why = nlos_render::gpu_support(r.model, &p.render.with_sampling(nlos_render::Sampling::Splat(rule)));
+            why.map_err(|why| config_error("render.device", format!("\"gpu\": {why}; use \"auto\" or \"cpu\"")))?;
         }
         p.schedule = self.schedule;
         let o = &config.optimiser;

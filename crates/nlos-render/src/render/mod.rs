@@ -8,12 +8,13 @@ use glam::Vec3;
 use nlos_transient::{Scan, TimeAxis, Transient};
 use rayon::prelude::*;
 
-use crate::brdf::RenderBrdf;
+use crate::brdf::{AnyBrdf, RenderBrdf};
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::render::cpu::soa::{self, BLOCK, Isa, Soa};
 use crate::visibility::Bvh;
+use nlos_brdf::Model;
 
 pub(crate) mod cpu;
 #[cfg(feature = "gpu")]
@@ -44,6 +45,36 @@ pub fn describe_device(device: Device, params: &RenderParams) -> String {
             "the CPU (render.device = \"auto\": this build has no GPU backend)".into()
         }
     }
+}
+
+/// Whether the GPU backend (feature `gpu`) runs a renderer with settings `params` for the reflectance model
+/// `model`, or why not, in words naming what to change: the splat rule with the tent kernel, cached or no
+/// visibility, and a model the shader evaluates ([`AnyBrdf`]'s GPU terms: Lambertian and retroreflective, not
+/// GGX). The one place that decides: the renderer sends calls it refuses to the CPU, and settings that
+/// require the GPU for them (`render.device = "gpu"`, `nlos render --device gpu`) are refused with this reason.
+///
+/// # Errors
+/// The reason, when the GPU backend does not run these settings.
+pub fn gpu_support(model: Model, params: &RenderParams) -> std::result::Result<(), String> {
+    gpu_settings(params)?;
+    // A model runs on the GPU when its BRDF has the shader's terms (the roughness is irrelevant to that).
+    match AnyBrdf::unit(model, 0.5).ok().and_then(|b| b.gpu_terms()) {
+        Some(_) => Ok(()),
+        None => {
+            Err(format!("the reflectance model \"{model}\" has no GPU version (lambert and retroreflective have one)"))
+        }
+    }
+}
+
+/// Whether the renderer's settings, whatever the BRDF, have a GPU version ([`gpu_support`]).
+fn gpu_settings(p: &RenderParams) -> std::result::Result<(), String> {
+    if !(matches!(p.sampling, Sampling::Splat(_)) && p.kernel == Kernel::Tent) {
+        return Err("only the splat rule with the tent kernel runs on the GPU (Sampling::Splat)".into());
+    }
+    if p.visibility == Visibility::Live {
+        return Err("live shadow rays do not run on the GPU: use Visibility::Cached or Off".into());
+    }
+    Ok(())
 }
 
 /// Turns off Mesa's Vulkan device-selection layer on a machine without a display session, so that looking
@@ -411,8 +442,8 @@ impl Renderer {
 
     /// Chooses where [`Renderer::forward`] and [`Renderer::adjoint`] (and so the loss-and-gradient) run: the
     /// CPU, or a GPU through the feature `gpu`'s backend ([`crate::GpuRenderer`], one adapter shared by the
-    /// process). The GPU runs the splat rule with the tent kernel and cached or no visibility, for BRDFs with a
-    /// [`crate::GpuModel`]; a call it cannot take (another BRDF, a device error) runs on the CPU, and a device
+    /// process). The GPU runs what [`gpu_support`] accepts (the splat rule with the tent kernel, cached or no
+    /// visibility, the Lambertian and retroreflective models); a call it cannot take (another BRDF, a device error) runs on the CPU, and a device
     /// error is reported once on stderr. Results on a GPU match the CPU's to f32 rounding and repeat bit for
     /// bit on the same device; the CPU path is unchanged. Everything else (steady state, per-triangle shares,
     /// visibility) stays on the CPU.

@@ -4,8 +4,9 @@
 //!
 //! What it covers: [`Sampling::Splat`] with the tent kernel (the optimiser's rule), visibility
 //! [`Visibility::Off`] or [`Visibility::Cached`] (the cache is computed on the CPU and uploaded when it changes),
-//! one- or two-sided faces, per-face weights, confocal and general scans, and the BRDFs that report a
-//! [`GpuModel`] (Lambertian, retroreflective). Anything else is a [`RenderError::Gpu`] naming what to change.
+//! one- or two-sided faces, per-face weights, confocal and general scans, and the BRDFs with the shader's terms
+//! (`AnyBrdf::gpu_terms`: Lambertian, retroreflective); [`crate::gpu_support`] says so. Anything else is a
+//! [`RenderError::Gpu`] naming what to change.
 //!
 //! Deterministic: the forward pass sums each bin in 64-bit fixed point (integer atomics, so the order of the
 //! additions does not matter), the adjoint gives every (triangle, range of measurements) its own sums and adds
@@ -18,7 +19,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use bytemuck::{Pod, Zeroable};
 
 use super::*;
-use crate::brdf::GpuModel;
+use crate::brdf::GpuTerms;
 
 /// Threads of a workgroup (the shader's `WG`).
 const WG: u32 = 256;
@@ -272,12 +273,11 @@ impl GpuRenderer {
 
     /// Checks what `r` asks for, uploads its triangles, wall and visibility, and builds the pipelines.
     fn prepare<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Setup> {
-        supported(&r.params).map_err(RenderError::Gpu)?;
+        super::gpu_settings(&r.params).map_err(RenderError::Gpu)?;
         let axis = r.splat_axis(&r.kernel).ok_or_else(|| gpu_err("internal: the splat rule without a tent axis"))?;
         let has_vis = matches!(r.params.visibility, Visibility::Cached { .. });
-        let (brdf_kind, albedo, inv_w2) = match brdf.gpu_model() {
-            Some(GpuModel::Lambertian { albedo }) => (0, albedo, 0.0),
-            Some(GpuModel::Retroreflective { albedo, lobe_width }) => (1, albedo, 1.0 / (lobe_width * lobe_width)),
+        let GpuTerms { kind: brdf_kind, albedo, inv_w2 } = match brdf.to_any().gpu_terms() {
+            Some(terms) => terms,
             None => {
                 return Err(gpu_err(format!(
                     "the BRDF {} has no GPU version (Lambertian and retroreflective have one); render on the CPU",
@@ -556,28 +556,17 @@ fn shared() -> Shared {
         .clone()
 }
 
-/// Whether the renderer's settings have a GPU version (the BRDF is checked per call).
-pub(super) fn supported(p: &RenderParams) -> std::result::Result<(), String> {
-    if !(matches!(p.sampling, Sampling::Splat(_)) && p.kernel == Kernel::Tent) {
-        return Err("only the splat rule with the tent kernel runs on the GPU (Sampling::Splat)".into());
-    }
-    if p.visibility == Visibility::Live {
-        return Err("live shadow rays do not run on the GPU: use Visibility::Cached or Off".into());
-    }
-    Ok(())
-}
-
 /// Where a renderer with settings `p` runs for `render.device = "gpu"` (`required`) or `"auto"`, and why
 /// ([`super::describe_device`]).
 pub(super) fn describe(required: bool, p: &RenderParams) -> String {
     let name = |g: &Arc<Mutex<GpuRenderer>>| g.lock().map_or_else(|_| "a GPU".to_string(), |g| g.adapter.clone());
     match required {
-        true => match (supported(p), shared()) {
+        true => match (super::gpu_settings(p), shared()) {
             (Err(why), _) => format!("none: render.device = \"gpu\", but {why}"),
             (Ok(()), Err(e)) => format!("none: render.device = \"gpu\", but {e}"),
             (Ok(()), Ok((g, _))) => format!("the GPU {} (render.device = \"gpu\")", name(&g)),
         },
-        false => match (supported(p), shared()) {
+        false => match (super::gpu_settings(p), shared()) {
             (Err(why), _) => format!("the CPU (render.device = \"auto\": {why})"),
             (Ok(()), Err(e)) => format!("the CPU (render.device = \"auto\": {e})"),
             (Ok(()), Ok((g, false))) => format!(
@@ -619,12 +608,12 @@ pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached
     let wrap = |gpu| Some(Attached { gpu, failed: AtomicBool::new(false) });
     match device {
         Device::Cpu => Ok(None),
-        Device::Auto => Ok(match (supported(p), shared()) {
+        Device::Auto => Ok(match (super::gpu_settings(p), shared()) {
             (Ok(()), Ok((gpu, true))) => wrap(gpu),
             _ => None,
         }),
         Device::Gpu => {
-            supported(p).map_err(RenderError::Gpu)?;
+            super::gpu_settings(p).map_err(RenderError::Gpu)?;
             let (gpu, _) = shared().map_err(|e| RenderError::Gpu(e.trim_start_matches("GPU backend: ").to_string()))?;
             Ok(wrap(gpu))
         }
@@ -634,7 +623,7 @@ pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached
 impl Attached {
     /// The GPU's forward pass, None where it does not apply (the BRDF has no GPU version, the device failed).
     pub(super) fn forward<B: RenderBrdf>(&self, r: &Renderer, brdf: &B) -> Option<Vec<f32>> {
-        self.run::<B, _>(|g| g.forward(r, brdf))
+        self.run(brdf, |g| g.forward(r, brdf))
     }
 
     /// The GPU's adjoint pass, None where it does not apply.
@@ -642,11 +631,11 @@ impl Attached {
         if d_loss.len() != r.len() {
             return None; // the CPU path reports the mismatch
         }
-        self.run::<B, _>(|g| g.adjoint(r, brdf, d_loss))
+        self.run(brdf, |g| g.adjoint(r, brdf, d_loss))
     }
 
-    fn run<B: RenderBrdf, T>(&self, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
-        if !crate::gpu_supports(B::MODEL) || self.failed.load(Ordering::Relaxed) {
+    fn run<B: RenderBrdf, T>(&self, brdf: &B, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
+        if brdf.to_any().gpu_terms().is_none() || self.failed.load(Ordering::Relaxed) {
             return None;
         }
         let out = match self.gpu.lock() {
