@@ -31,7 +31,7 @@ pub trait RenderBrdf: Brdf<Scalar = f32> {
     fn lobe_alpha(&self) -> Option<f32> {
         None
     }
-    /// The same BRDF as an [`AnyBrdf`] (what the GPU backend reads its terms from, [`AnyBrdf::gpu_terms`]).
+    /// The same BRDF as an [`AnyBrdf`] (what the GPU backend reads the shader's terms from).
     fn to_any(&self) -> AnyBrdf;
 }
 

@@ -2,24 +2,30 @@
 //! the adjoint pass (Proposition 1, with the normal and area terms). See the crate docs for the derivation.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::AtomicUsize;
 
 use glam::Vec3;
 use nlos_transient::{Scan, TimeAxis, Transient};
-use rayon::prelude::*;
 
 use crate::brdf::{AnyBrdf, RenderBrdf};
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
-use crate::render::cpu::soa::{self, BLOCK, Isa, Soa};
-use crate::visibility::Bvh;
+use crate::render::cpu::soa::{self, Isa};
 use nlos_brdf::Model;
 
+#[cfg(feature = "gpu")]
+mod backend;
 pub(crate) mod cpu;
 #[cfg(feature = "gpu")]
 pub(crate) mod gpu;
 mod params;
+pub(crate) mod scene;
+
+#[cfg(feature = "gpu")]
+use backend::Backend;
+use cpu::CpuBackend;
+use scene::Scene;
 
 use cpu::lobe::Lobe;
 pub use params::*;
@@ -100,70 +106,18 @@ const M_CHUNK: usize = 8;
 /// length of every f32 sum.
 const FLUSH: usize = 16;
 
-/// Per-measurement wall geometry, structure of arrays.
-#[derive(Debug, Clone)]
-struct Wall {
-    l: Vec<Vec3>,
-    n_l: Vec<Vec3>,
-    s: Vec<Vec3>,
-    n_s: Vec<Vec3>,
-    confocal: bool,
-}
-
-/// Triangles as structure of arrays.
-#[derive(Debug, Clone, Default)]
-struct Tris {
-    v0: Vec<Vec3>,
-    e1: Vec<Vec3>,
-    e2: Vec<Vec3>,
-    /// Unnormalised geometric normal `e1 × e2` (|N| = 2 × area).
-    n: Vec<Vec3>,
-    /// Longest edge.
-    e_max: Vec<f32>,
-    valid: Vec<bool>,
-    /// The same geometry, one array per coordinate, for the block kernels.
-    soa: Soa,
-}
-
-/// A transient renderer for one mesh topology, scan and time axis.
+/// A transient renderer for one mesh topology, scan and time axis: the scene (backend-neutral geometry) and the
+/// backends its passes run on — the CPU's always, a GPU's once attached ([`Renderer::set_device`]).
 ///
 /// Build once per topology ([`Renderer::new`]), move vertices with [`Renderer::set_positions`], render with
 /// [`Renderer::forward`], differentiate with [`Renderer::adjoint`] or [`Renderer::loss_and_gradient`].
 #[derive(Debug)]
 pub struct Renderer {
-    triangles: Vec<[u32; 3]>,
-    n_vertices: usize,
-    tris: Tris,
-    total_area: f32,
-    wall: Wall,
-    scan: Scan,
-    time: TimeAxis,
-    params: RenderParams,
-    kernel: KernelEval,
-    bvh: Option<Bvh>,
-    /// Visible fraction × 255 per (measurement, triangle), measurement-major, triangles in the block order
-    /// (`tris.soa.order`, kept by `set_positions` while the cache exists).
-    cache: Option<Vec<u8>>,
-    /// Instruction set of the block kernels (runtime-detected).
-    isa: Isa,
-    /// Fraction of the stratified samples drawn from the glossy lobe (0: area sampling only).
-    lobe_fraction: f32,
-    /// Per-triangle reflectance factors (mesh triangle order), None = all 1.
-    face_weights: Option<Vec<f32>>,
-    /// Bounding box of every laser and sensor spot (the splat rule's distance bound).
-    spots: (Vec3, Vec3),
-    /// Splat rule: the subdivision level of each block of `BLOCK` storage slots, and of each mesh triangle
-    /// (its block's level); empty for the other rules.
-    block_levels: Vec<u32>,
-    tri_levels: Vec<u32>,
-    /// Which visibility refresh the cache holds, unique in the process (the GPU backend uploads the cache
-    /// again when it changes; 0: none yet).
-    vis_generation: u64,
+    scene: Scene,
+    cpu: CpuBackend,
     /// The GPU that runs the forward and adjoint passes ([`Renderer::set_device`]), None for the CPU.
     #[cfg(feature = "gpu")]
-    gpu: Option<gpu::Attached>,
-    /// Measurements finished by the CPU's visibility and forward passes ([`Renderer::new_observed`]).
-    progress: Option<Arc<AtomicUsize>>,
+    gpu: Option<gpu::GpuBackend>,
 }
 
 impl Renderer {
@@ -199,62 +153,12 @@ impl Renderer {
         params: RenderParams,
         progress: Option<Arc<AtomicUsize>>,
     ) -> Result<Self> {
-        scan.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
-        time.validate().map_err(|e| RenderError::InvalidSetup(e.to_string()))?;
-        if scan.measurements() == 0 {
-            return Err(RenderError::InvalidSetup("the scan has no measurements".into()));
-        }
-        check_params(&params)?;
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                if v as usize >= positions.len() {
-                    return Err(RenderError::IndexOutOfRange { triangle: t, vertex: v, vertices: positions.len() });
-                }
-            }
-        }
-        let m = scan.measurements();
-        let mut wall = Wall {
-            l: Vec::with_capacity(m),
-            n_l: Vec::with_capacity(m),
-            s: Vec::with_capacity(m),
-            n_s: Vec::with_capacity(m),
-            confocal: scan.is_confocal(),
-        };
-        for i in 0..m {
-            let g = scan.measurement(i);
-            wall.l.push(g.laser);
-            wall.n_l.push(g.laser_normal);
-            wall.s.push(g.sensor);
-            wall.n_s.push(g.sensor_normal);
-        }
-        let mut r = Self {
-            triangles: triangles.to_vec(),
-            n_vertices: positions.len(),
-            tris: Tris::default(),
-            total_area: 0.0,
-            wall,
-            scan: scan.clone(),
-            time: *time,
-            params,
-            kernel: KernelEval::new(params.kernel, time.t0, time.bin_width, time.bins),
-            bvh: None,
-            cache: None,
-            isa: Isa::detect(),
-            lobe_fraction: 0.0,
-            face_weights: None,
-            spots: spot_box(scan),
-            block_levels: Vec::new(),
-            tri_levels: Vec::new(),
-            vis_generation: 0,
+        Ok(Self {
+            scene: Scene::new(positions, triangles, scan, time, params, progress)?,
+            cpu: CpuBackend::detect(),
             #[cfg(feature = "gpu")]
             gpu: None,
-            progress,
-        };
-        r.set_positions(positions)?;
-        if matches!(params.visibility, Visibility::Cached { .. }) {
-            r.refresh_visibility();
-        }
-        Ok(r)
+        })
     }
 
     /// Moves the vertices (same topology). With [`Visibility::Live`] the BVH is rebuilt; with
@@ -263,150 +167,27 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::TopologyChanged`] for a different vertex count, [`RenderError::NonFiniteVertex`].
     pub fn set_positions(&mut self, positions: &[Vec3]) -> Result<()> {
-        if positions.len() != self.n_vertices {
-            return Err(RenderError::TopologyChanged { expected: self.n_vertices, got: positions.len() });
-        }
-        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(RenderError::NonFiniteVertex { index: i, value: positions[i].to_array() });
-        }
-        let nt = self.triangles.len();
-        let mut tris = Tris {
-            v0: Vec::with_capacity(nt),
-            e1: Vec::with_capacity(nt),
-            e2: Vec::with_capacity(nt),
-            n: Vec::with_capacity(nt),
-            e_max: Vec::with_capacity(nt),
-            valid: Vec::with_capacity(nt),
-            soa: Soa::default(),
-        };
-        let mut area = 0.0f64;
-        for &[a, b, c] in &self.triangles {
-            let (p0, p1, p2) = (positions[a as usize], positions[b as usize], positions[c as usize]);
-            let (e1, e2) = (p1 - p0, p2 - p0);
-            let n = e1.cross(e2);
-            let len = n.length();
-            // Guard: a zero-area (or overflowing) face has no integral and no defined normal: skipped.
-            let valid = len > 0.0 && len.is_finite();
-            if valid {
-                area += 0.5 * f64::from(len);
-            }
-            tris.v0.push(p0);
-            tris.e1.push(e1);
-            tris.e2.push(e2);
-            tris.n.push(n);
-            tris.e_max.push(e1.length().max(e2.length()).max((p2 - p1).length()));
-            tris.valid.push(valid);
-        }
-        // The visibility cache is stored in the block order, which is therefore kept while the cache is.
-        let keep = (self.cache.is_some() && matches!(self.params.visibility, Visibility::Cached { .. }))
-            .then(|| std::mem::take(&mut self.tris.soa.order));
-        tris.soa = Soa::new(&tris.v0, &tris.e1, &tris.e2, &tris.n, &tris.valid, keep);
-        self.tris = tris;
-        self.total_area = area as f32;
-        if self.params.visibility == Visibility::Live {
-            self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
-        }
-        self.update_levels();
-        Ok(())
-    }
-
-    /// Each triangle's level under the splat rule ([`SplatRule`]) at the positions of `t` (mesh order), None
-    /// for the other rules.
-    fn splat_levels(&self, t: &Tris) -> Option<Vec<u32>> {
-        let Sampling::Splat(rule) = self.params.sampling else { return None };
-        let tol = rule.max_deviation * self.time.bin_width as f32;
-        let (lo, hi) = self.spots;
-        let level = |i: usize| -> u32 {
-            if !t.valid[i] {
-                return 1;
-            }
-            let e = t.e_max[i];
-            let r = [t.v0[i], t.v0[i] + t.e1[i], t.v0[i] + t.e2[i]]
-                .iter()
-                .map(|p| (lo - *p).max(*p - hi).max(Vec3::ZERO).length())
-                .fold(f32::INFINITY, f32::min)
-                - e;
-            // Guard: a triangle touching a spot's box has no useful bound: the finest level (1e-4 m keeps the
-            // arithmetic finite).
-            let deviation = (2.0 / r.max(1e-4)) * e * e / 6.0;
-            let n = (deviation / tol).sqrt().ceil();
-            if n < rule.max_level as f32 { (n as u32).max(1) } else { rule.max_level }
-        };
-        Some((0..t.valid.len()).map(level).collect())
-    }
-
-    /// The splat rule's levels ([`SplatRule`]) for the current positions and block order: a block runs the
-    /// largest level of its triangles.
-    fn update_levels(&mut self) {
-        let Some(level) = self.splat_levels(&self.tris) else { return };
-        let order = &self.tris.soa.order;
-        self.block_levels =
-            order.chunks(BLOCK).map(|blk| blk.iter().map(|&i| level[i as usize]).max().unwrap_or(1)).collect();
-        let mut tri = vec![1u32; order.len()];
-        for (slot, &i) in order.iter().enumerate() {
-            tri[i as usize] = self.block_levels[slot / BLOCK];
-        }
-        self.tri_levels = tri;
+        self.scene.set_positions(positions)
     }
 
     /// Rebuilds the BVH at the current positions and, in [`Visibility::Cached`] mode, recomputes the cache.
     pub fn refresh_visibility(&mut self) {
-        if self.params.visibility == Visibility::Off {
-            return;
-        }
-        self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
-        let Visibility::Cached { level } = self.params.visibility else { return };
-        // Regroup the triangles by their current normals; the cache is stored in that order (row m, slot i:
-        // mesh triangle order[i]), so the block kernels read it contiguously.
-        let t = &self.tris;
-        self.tris.soa = Soa::new(&t.v0, &t.e1, &t.e2, &t.n, &t.valid, None);
-        self.update_levels();
-        let nt = self.tris.v0.len();
-        let mut cache = vec![0u8; nt * self.wall.l.len()];
-        let this = &*self;
-        cache.par_chunks_mut(nt.max(1)).enumerate().for_each(|(m, row)| {
-            let fr = this.frame(m);
-            for (slot, out) in row.iter_mut().enumerate() {
-                let t = this.mesh_triangle(slot);
-                if this.orientation(t, &fr).is_none() {
-                    continue;
-                }
-                let mut visible = 0u32;
-                this.centroids(level, |u, v, _| {
-                    let x = this.point(t, u, v);
-                    visible += u32::from(this.visible_live(x, t, &fr));
-                });
-                let total = level * level;
-                *out = ((visible * 255 + total / 2) / total) as u8;
-            }
-            this.count_done(1);
-        });
-        self.cache = Some(cache);
-        // Unique across renderers: a renderer made after another one was dropped may sit at its address.
-        static REFRESHES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
-        self.vis_generation = REFRESHES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    }
-
-    /// Adds `n` finished measurements to the progress counter, if any.
-    pub(in crate::render) fn count_done(&self, n: usize) {
-        if let Some(p) = &self.progress {
-            p.fetch_add(n, Ordering::Relaxed);
-        }
+        self.scene.refresh_visibility();
     }
 
     /// The scan.
     pub fn scan(&self) -> &Scan {
-        &self.scan
+        &self.scene.scan
     }
 
     /// The time axis.
     pub fn time(&self) -> &TimeAxis {
-        &self.time
+        &self.scene.time
     }
 
     /// The parameters.
     pub fn params(&self) -> &RenderParams {
-        &self.params
+        &self.scene.params
     }
 
     /// Multiple importance sampling of glossy surfaces in [`Sampling::Stratified`] mode (confocal scans; off
@@ -429,15 +210,7 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::InvalidParameter`] unless `0 ≤ lobe_fraction < 1`.
     pub fn set_lobe_sampling(&mut self, lobe_fraction: f32) -> Result<()> {
-        if !(0.0..1.0).contains(&lobe_fraction) {
-            return Err(RenderError::InvalidParameter {
-                name: "lobe_fraction",
-                value: f64::from(lobe_fraction),
-                reason: "must be in [0, 1)",
-            });
-        }
-        self.lobe_fraction = lobe_fraction;
-        Ok(())
+        self.scene.set_lobe_sampling(lobe_fraction)
     }
 
     /// Chooses where [`Renderer::forward`] and [`Renderer::adjoint`] (and so the loss-and-gradient) run: the
@@ -454,7 +227,7 @@ impl Renderer {
     pub fn set_device(&mut self, device: Device) -> Result<()> {
         #[cfg(feature = "gpu")]
         {
-            self.gpu = gpu::attach(device, &self.params)?;
+            self.gpu = gpu::attach(device, &self.scene.params)?;
             Ok(())
         }
         #[cfg(not(feature = "gpu"))]
@@ -486,45 +259,22 @@ impl Renderer {
     /// [`RenderError::LengthMismatch`] unless there is one factor per triangle,
     /// [`RenderError::InvalidParameter`] for a negative or non-finite factor.
     pub fn set_face_weights(&mut self, weights: Option<&[f32]>) -> Result<()> {
-        if let Some(w) = weights {
-            if w.len() != self.triangles.len() {
-                return Err(RenderError::LengthMismatch {
-                    what: "face weights",
-                    expected: self.triangles.len(),
-                    got: w.len(),
-                });
-            }
-            if let Some(bad) = w.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
-                return Err(RenderError::InvalidParameter {
-                    name: "face weight",
-                    value: f64::from(*bad),
-                    reason: "must be finite and ≥ 0 (a reflectance factor)",
-                });
-            }
-        }
-        self.face_weights = weights.map(<[f32]>::to_vec);
-        Ok(())
+        self.scene.set_face_weights(weights)
     }
 
     /// The per-triangle reflectance factors set by [`Renderer::set_face_weights`], if any.
     pub fn face_weights(&self) -> Option<&[f32]> {
-        self.face_weights.as_deref()
-    }
-
-    /// Triangle t's reflectance factor (1 without factors).
-    #[inline(always)]
-    fn face_weight(&self, t: usize) -> f32 {
-        self.face_weights.as_ref().map_or(1.0, |w| w[t])
+        self.scene.face_weights.as_deref()
     }
 
     /// Number of skipped degenerate triangles.
     pub fn degenerate_triangles(&self) -> usize {
-        self.tris.valid.iter().filter(|v| !**v).count()
+        self.scene.degenerate_triangles()
     }
 
     /// Number of values of a transient (measurements × bins).
     pub fn len(&self) -> usize {
-        self.wall.l.len() * self.time.bins
+        self.scene.len()
     }
 
     /// Whether the transient is empty (never: the scan and time axis are validated non-empty).
@@ -536,10 +286,12 @@ impl Renderer {
     /// product of eq. (2) (see the crate docs for the scale convention).
     pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
         #[cfg(feature = "gpu")]
-        if let Some(out) = self.gpu.as_ref().and_then(|g| g.forward(self, brdf)) {
+        if let Some(out) =
+            self.gpu.as_ref().and_then(|g| g.attempt::<B, _>(&self.scene, |g| g.forward(&self.scene, brdf)))
+        {
             return out;
         }
-        self.forward_with(brdf, &self.kernel)
+        self.cpu.forward(&self.scene, brdf)
     }
 
     /// [`Renderer::forward`] wrapped as a [`Transient`] with the renderer's scan and time axis.
@@ -547,7 +299,7 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::InvalidSetup`] if the transient crate rejects the combination (it should not).
     pub fn forward_transient<B: RenderBrdf>(&self, brdf: &B) -> Result<Transient> {
-        Transient::new(self.scan.clone(), self.time, self.forward(brdf))
+        Transient::new(self.scene.scan.clone(), self.scene.time, self.forward(brdf))
             .map_err(|e| RenderError::InvalidSetup(e.to_string()))
     }
 
@@ -558,11 +310,15 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
     pub fn adjoint<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        // A wrong length is the CPU pass's error to report.
         #[cfg(feature = "gpu")]
-        if let Some(out) = self.gpu.as_ref().and_then(|g| g.adjoint(self, brdf, d_loss)) {
+        if d_loss.len() == self.len()
+            && let Some(out) =
+                self.gpu.as_ref().and_then(|g| g.attempt::<B, _>(&self.scene, |g| g.adjoint(&self.scene, brdf, d_loss)))
+        {
             return Ok(out);
         }
-        self.adjoint_with(brdf, d_loss, &self.kernel)
+        self.cpu.adjoint(&self.scene, brdf, d_loss)
     }
 
     /// Steady-state (time-integrated) intensity, one value per measurement: `S(l, s) = ∫_S f(x) v(x,l) v(x,s)
@@ -571,7 +327,7 @@ impl Renderer {
     /// measurement; this is the simplest one. Equals the time sum of [`Renderer::forward`] (any kernel)
     /// whenever the time axis holds every path length; the same samples and visibility as the transient.
     pub fn forward_steady<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
-        self.forward_with(brdf, &KernelEval::steady())
+        self.cpu.view(&self.scene).forward_with(brdf, &KernelEval::steady())
     }
 
     /// Adjoint of [`Renderer::forward_steady`]: given `d_loss[m] = dE/dS_m` (one per measurement), dE/d(vertices)
@@ -580,7 +336,7 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` does not hold one value per measurement.
     pub fn adjoint_steady<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
-        self.adjoint_with(brdf, d_loss, &KernelEval::steady())
+        self.cpu.view(&self.scene).adjoint_with(brdf, d_loss, &KernelEval::steady())
     }
 
     /// [`Renderer::loss_and_gradient`] for steady-state measurements (`measured`: one value per measurement).
@@ -618,7 +374,18 @@ impl Renderer {
         Ok(LossAndGradient { loss: e, gradient, rendered })
     }
 
-    // ----- internals -----
+    /// The forward pass of one mesh triangle: its share of [`Renderer::forward`] (same samples, kernel and
+    /// visibility; summed over every triangle it equals the forward pass up to f32 rounding). Sparse: one
+    /// [`RowSpan`] per measurement the triangle reaches, holding the bins from its first to its last
+    /// non-zero one. Used to ask what the loss would be without a face (boundary pruning in `nlos-optim`).
+    ///
+    /// Degenerate triangles (skipped by the forward pass) give no rows.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidParameter`] when `triangle` is not a triangle of the mesh.
+    pub fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
+        self.cpu.view(&self.scene).forward_triangle(brdf, triangle)
+    }
 }
 
 /// Calls `f` for the `n²` congruent sub-triangles of level n (n per edge): the "up" sub-triangle with corner
@@ -639,14 +406,6 @@ fn subtriangles(n: u32, mut f: impl FnMut(soa::Sub)) {
             }
         }
     }
-}
-
-/// Componentwise bounding box of every laser and sensor spot of the scan.
-fn spot_box(scan: &Scan) -> (Vec3, Vec3) {
-    (0..scan.measurements()).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), i| {
-        let g = scan.measurement(i);
-        (lo.min(g.laser).min(g.sensor), hi.max(g.laser).max(g.sensor))
-    })
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Unit tests of the renderer's internals (kernel instantiations, the visibility cache, block culling).
 
 use super::*;
-use crate::render::cpu::soa::Packed;
+use crate::render::cpu::soa::{BLOCK, Packed};
 use nlos_brdf::{Fresnel, Ggx};
 use nlos_transient::PointSet;
 
@@ -38,7 +38,7 @@ fn avx2_and_baseline_kernels_agree_bitwise() {
             let fast = r.forward(&brdf);
             let adj: Vec<f32> = (0..fast.len()).map(|i| (i as f32 * 0.37).sin()).collect();
             let g_fast = r.adjoint(&brdf, &adj).expect("ok");
-            r.isa = Isa::baseline();
+            r.cpu.isa = Isa::baseline();
             assert_eq!(fast, r.forward(&brdf), "forward ({kernel:?})");
             assert_eq!(g_fast, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({kernel:?})");
             assert!(fast.iter().any(|v| *v > 0.0));
@@ -87,7 +87,7 @@ fn cache_survives_set_positions() {
     let mut moved = Renderer::new(&p0, &f, &scan, &time, params).expect("valid");
     moved.set_positions(&p1).expect("finite");
     let fresh = Renderer::new(&p1, &f, &scan, &time, params).expect("valid");
-    assert_ne!(moved.tris.soa.order, fresh.tris.soa.order, "the jitter must regroup some triangles");
+    assert_ne!(moved.scene.tris.soa.order, fresh.scene.tris.soa.order, "the jitter must regroup some triangles");
     let (a, b) = (moved.forward(&brdf), fresh.forward(&brdf));
     let num: f64 = a.iter().zip(&b).map(|(x, y)| f64::from(x - y).powi(2)).sum();
     let den: f64 = b.iter().map(|y| f64::from(*y).powi(2)).sum();
@@ -141,7 +141,7 @@ fn block_culling_is_exact() {
             let g = r.adjoint(&brdf, &adj).expect("ok");
             let active = (0..scan.measurements())
                 .flat_map(|m| (0..f.len()).step_by(BLOCK).map(move |t0| (m, t0)))
-                .filter(|(m, t0)| !r.tris.soa.culled(*t0, &r.frame(*m)))
+                .filter(|(m, t0)| !r.scene.tris.soa.culled(*t0, &r.scene.frame(*m)))
                 .count();
             let total = scan.measurements() * f.len().div_ceil(BLOCK);
             assert!(active < total && active > 0, "some blocks culled, not all: {active} of {total}");
@@ -151,17 +151,74 @@ fn block_culling_is_exact() {
             for m in 0..scan.measurements() {
                 for t0 in (0..f.len()).step_by(BLOCK) {
                     let t1 = (t0 + BLOCK).min(f.len());
-                    if r.pack(&[m], t0, t1, &mut pk) {
+                    if r.cpu.view(&r.scene).pack(&[m], t0, t1, &mut pk) {
                         packed += pk.len;
                         kept += t1 - t0;
                     }
                 }
             }
             assert!(packed > 0 && packed < kept, "packing must leave some triangles out: {packed} of {kept}");
-            r.tris.soa.disable_culling();
+            r.scene.tris.soa.disable_culling();
             assert_eq!(culled, r.forward(&brdf), "forward ({sampling:?}, {visibility:?})");
             assert_eq!(g, r.adjoint(&brdf, &adj).expect("ok"), "adjoint ({sampling:?}, {visibility:?})");
             assert!(culled.iter().any(|v| *v > 0.0));
         }
     }
+}
+
+/// The backend seam: the CPU runs every setting, the GPU what `gpu_support` accepts, and through the trait
+/// both render the same scene — the CPU bit for bit as the renderer does, the GPU to f32 rounding. Skipped
+/// (with a line saying so) where no GPU adapter is found.
+#[cfg(feature = "gpu")]
+#[test]
+fn both_backends_render_the_same_scene_through_the_seam() {
+    use super::backend::Backend;
+    use nlos_brdf::Lambertian;
+    let mut p = Vec::new();
+    let mut f = Vec::new();
+    for i in 0..40u32 {
+        let (x, y) = ((i % 8) as f32 * 0.03 - 0.12, (i / 8) as f32 * 0.03 - 0.07);
+        let z = 0.35 + 0.04 * (7.0 * x).sin();
+        p.extend([Vec3::new(x, y, z), Vec3::new(x + 0.03, y, z + 0.01), Vec3::new(x, y + 0.03, z - 0.01)]);
+        f.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.3, 0.3).expect("grid"));
+    let time = TimeAxis::new(0.5, 0.004, 200).expect("axis");
+    let params = RenderParams {
+        kernel: Kernel::Tent,
+        sampling: Sampling::Splat(SplatRule::default()),
+        visibility: Visibility::Cached { level: 1 },
+        two_sided: true,
+    };
+    let r = Renderer::new(&p, &f, &scan, &time, params).expect("valid");
+    let live = RenderParams { visibility: Visibility::Live, ..params };
+    for model in Model::ALL {
+        assert_eq!(r.cpu.supports(model, &live), Ok(()), "the CPU runs {model} with live visibility");
+    }
+    let gpu = match gpu::attach(Device::Gpu, &params) {
+        Ok(Some(g)) => g,
+        Ok(None) | Err(_) => {
+            eprintln!("skipped: no GPU adapter (the CPU side of the seam is checked above)");
+            return;
+        }
+    };
+    assert!(gpu.supports(Model::Ggx, &params).is_err());
+    assert!(gpu.supports(Model::Lambert, &live).is_err());
+    assert_eq!(gpu.supports(Model::Retroreflective, &params), Ok(()));
+    let brdf = Lambertian::new(0.7f32).expect("valid");
+    let on_cpu = Backend::forward(&r.cpu, &r.scene, &brdf).expect("the CPU's pass");
+    assert_eq!(on_cpu, r.forward(&brdf), "the renderer without a GPU runs the CPU's pass");
+    let on_gpu = Backend::forward(&gpu, &r.scene, &brdf).expect("the GPU's pass");
+    let peak = on_cpu.iter().copied().fold(0.0f32, f32::max);
+    assert!(peak > 0.0);
+    let worst = on_cpu.iter().zip(&on_gpu).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst <= 1e-4 * peak, "forward: {worst} against a peak of {peak}");
+    let d: Vec<f32> = (0..on_cpu.len()).map(|i| (i as f32 * 0.37).sin()).collect();
+    let (a, b) = (
+        Backend::adjoint(&r.cpu, &r.scene, &brdf, &d).expect("cpu"),
+        Backend::adjoint(&gpu, &r.scene, &brdf, &d).expect("gpu"),
+    );
+    let scale = a.vertices.iter().map(|g| g.length()).fold(0.0f32, f32::max);
+    let worst = a.vertices.iter().zip(&b.vertices).map(|(x, y)| (*x - *y).length()).fold(0.0f32, f32::max);
+    assert!(scale > 0.0 && worst <= 1e-3 * scale, "adjoint: {worst} against {scale}");
 }

@@ -1,7 +1,7 @@
 //! The adjoint pass (Proposition 1 of Tsai et al. 2019, with the normal and area terms): the gradient of a
 //! loss with respect to the vertices, the reflectance parameters and the per-face weights, per rule.
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use super::*;
@@ -11,7 +11,7 @@ use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{self, Acc, BLOCK, Packed, Scratch, TentAxis};
 use crate::render::cpu::splat::{self, Knots};
 
-impl Renderer {
+impl Cpu<'_> {
     /// The adjoint pass with kernel `k` (its bin count sets the row length of `d_loss`).
     pub(in crate::render) fn adjoint_with<B: RenderBrdf>(
         &self,
@@ -123,40 +123,6 @@ impl Renderer {
             a
         });
         Ok(self.distribute::<B>(&per_tri, dp))
-    }
-
-    /// The gradient from the per-slot sums of the adjoint (`Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx, sign·Σ dE/dN`
-    /// per storage slot) and the summed BRDF parameter terms: the edge terms and the vertex distribution, serial in
-    /// slot order (deterministic), and the per-face weights' derivatives.
-    pub(in crate::render) fn distribute<B: RenderBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
-        let nt = self.tris.v0.len();
-        // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
-        // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.
-        let mut dv = vec![DVec3::ZERO; self.n_vertices];
-        let mut faces = vec![0.0f32; nt];
-        for (slot, g) in per_tri.iter().enumerate() {
-            let t = self.mesh_triangle(slot);
-            let v3 = |k: usize| DVec3::new(g[k], g[k + 1], g[k + 2]);
-            let (g0, g1, g2, g_n) = (v3(0), v3(3), v3(6), v3(9));
-            let (e1, e2) = (self.tris.e1[t].as_dvec3(), self.tris.e2[t].as_dvec3());
-            // The triangle's integrand w_t·f_s(n̂)·Q(N) is homogeneous of degree 1 in N = e1 × e2 (Q holds
-            // (N·a)(N·b)/|N|, f_s sees N only through n̂ = N/|N|) and the time kernel does not see N, so by
-            // Euler's theorem N·dE/dN = Σ (dE/dI)·(the triangle's contribution) = w_t·dE/dw_t.
-            let w = self.face_weight(t);
-            if w > 0.0 {
-                faces[t] = (e1.cross(e2).dot(g_n) / f64::from(w)) as f32;
-            }
-            let (d_e1, d_e2) = (e2.cross(g_n), g_n.cross(e1));
-            let [i0, i1, i2] = self.triangles[t];
-            dv[i0 as usize] += g0 - d_e1 - d_e2;
-            dv[i1 as usize] += g1 + d_e1;
-            dv[i2 as usize] += g2 + d_e2;
-        }
-        Gradient {
-            vertices: dv.iter().map(|g| g.as_vec3()).collect(),
-            brdf: dp[..B::PARAM_NAMES.len()].iter().map(|g| *g as f32).collect(),
-            faces,
-        }
     }
 
     /// Adjoint pass of measurement m (padded adjoint row `adj`) for sub-triangle `sub` of the splat rule over

@@ -11,7 +11,7 @@ use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
 use crate::render::cpu::splat::{self, Knots};
 
-impl Renderer {
+impl Cpu<'_> {
     /// The forward pass with kernel `k` (its bin count sets the histogram length).
     pub(in crate::render) fn forward_with<B: RenderBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
         let bins = k.bins();
@@ -66,16 +66,8 @@ impl Renderer {
         data
     }
 
-    /// The forward pass of one mesh triangle: its share of [`Renderer::forward`] (same samples, kernel and
-    /// visibility; summed over every triangle it equals the forward pass up to f32 rounding). Sparse: one
-    /// [`RowSpan`] per measurement the triangle reaches, holding the bins from its first to its last
-    /// non-zero one. Used to ask what the loss would be without a face (boundary pruning in `nlos-optim`).
-    ///
-    /// Degenerate triangles (skipped by the forward pass) give no rows.
-    ///
-    /// # Errors
-    /// [`RenderError::InvalidParameter`] when `triangle` is not a triangle of the mesh.
-    pub fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
+    /// [`Renderer::forward_triangle`].
+    pub(in crate::render) fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
         let nt = self.tris.v0.len();
         if triangle >= nt {
             return Err(RenderError::InvalidParameter {

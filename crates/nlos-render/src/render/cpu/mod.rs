@@ -2,8 +2,82 @@
 //! ([`forward`], [`adjoint`]: blocks of triangles swept over chunks of measurements), the sampling rules
 //! ([`sampling`], [`lobe`]), the structure-of-arrays blocks and their vector kernels ([`soa`]) and the
 //! splat rule's closed-form time integration ([`splat`]). `super::gpu` is the other backend.
+//!
+//! The passes are methods of [`Cpu`], a view of the [`Scene`] with the instruction set of the block kernels;
+//! the scene's own geometric queries (a measurement's frame, points, orientation, live visibility, levels)
+//! are in [`sampling`], shared with the visibility cache.
 
 use super::*;
+
+/// The CPU backend: rayon over blocks of triangles and chunks of measurements, with the block kernels of the
+/// instruction set found at run time. Runs every setting of the renderer.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CpuBackend {
+    /// Instruction set of the block kernels (runtime-detected).
+    pub(in crate::render) isa: Isa,
+}
+
+impl CpuBackend {
+    /// The backend with the best instruction set of this CPU.
+    pub(in crate::render) fn detect() -> Self {
+        Self { isa: Isa::detect() }
+    }
+
+    /// The passes' view of `scene`.
+    pub(in crate::render) fn view<'a>(&self, scene: &'a Scene) -> Cpu<'a> {
+        Cpu { scene, isa: self.isa }
+    }
+
+    /// The forward pass on the CPU, which cannot fail.
+    pub(in crate::render) fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Vec<f32> {
+        self.view(scene).forward_with(brdf, &scene.kernel)
+    }
+
+    /// The adjoint pass on the CPU.
+    ///
+    /// # Errors
+    /// [`RenderError::LengthMismatch`] for a `d_loss` of another length than the transient's.
+    pub(in crate::render) fn adjoint<B: RenderBrdf>(
+        &self,
+        scene: &Scene,
+        brdf: &B,
+        d_loss: &[f32],
+    ) -> Result<Gradient> {
+        self.view(scene).adjoint_with(brdf, d_loss, &scene.kernel)
+    }
+}
+
+/// The CPU as one of several backends (with the feature `gpu`; without it the renderer has only the CPU's
+/// passes and calls them directly).
+#[cfg(feature = "gpu")]
+impl Backend for CpuBackend {
+    fn supports(&self, _model: Model, _params: &RenderParams) -> std::result::Result<(), String> {
+        Ok(())
+    }
+
+    fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
+        Ok(CpuBackend::forward(self, scene, brdf))
+    }
+
+    fn adjoint<B: RenderBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        CpuBackend::adjoint(self, scene, brdf, d_loss)
+    }
+}
+
+/// The CPU passes' view of a [`Scene`]: the scene's fields and queries (through `Deref`) and the instruction
+/// set of the block kernels.
+#[derive(Clone, Copy)]
+pub(in crate::render) struct Cpu<'a> {
+    scene: &'a Scene,
+    pub(in crate::render) isa: Isa,
+}
+
+impl std::ops::Deref for Cpu<'_> {
+    type Target = Scene;
+    fn deref(&self) -> &Scene {
+        self.scene
+    }
+}
 
 mod adjoint;
 mod forward;

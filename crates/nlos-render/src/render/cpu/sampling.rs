@@ -9,7 +9,7 @@ use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{BLOCK, Frame, TentAxis};
 use nlos_transient::rng::SplitMix64;
 
-impl Renderer {
+impl Scene {
     #[inline(always)]
     pub(in crate::render) fn frame(&self, m: usize) -> Frame {
         Frame { l: self.wall.l[m], n_l: self.wall.n_l[m], s: self.wall.s[m], n_s: self.wall.n_s[m] }

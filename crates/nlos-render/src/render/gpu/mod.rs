@@ -192,6 +192,11 @@ impl GpuRenderer {
     /// [`RenderError::Gpu`] when the renderer's settings or the BRDF have no GPU version, a buffer exceeds the
     /// device's limits, or the device fails.
     pub fn forward<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Vec<f32>> {
+        self.forward_scene(&r.scene, brdf)
+    }
+
+    /// [`GpuRenderer::forward`] of a scene.
+    fn forward_scene<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Vec<f32>> {
         let setup = self.prepare(r, brdf)?;
         let nm = r.wall.l.len();
         let bins = r.time.bins;
@@ -220,6 +225,11 @@ impl GpuRenderer {
     /// [`RenderError::LengthMismatch`] when `d_loss` is not one value per (measurement, bin); otherwise as
     /// [`GpuRenderer::forward`].
     pub fn adjoint<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        self.adjoint_scene(&r.scene, brdf, d_loss)
+    }
+
+    /// [`GpuRenderer::adjoint`] of a scene.
+    fn adjoint_scene<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         let nm = r.wall.l.len();
         let expected = nm * r.time.bins;
         if d_loss.len() != expected {
@@ -272,7 +282,7 @@ impl GpuRenderer {
     }
 
     /// Checks what `r` asks for, uploads its triangles, wall and visibility, and builds the pipelines.
-    fn prepare<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Setup> {
+    fn prepare<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Setup> {
         super::gpu_settings(&r.params).map_err(RenderError::Gpu)?;
         let axis = r.splat_axis(&r.kernel).ok_or_else(|| gpu_err("internal: the splat rule without a tent axis"))?;
         let has_vis = matches!(r.params.visibility, Visibility::Cached { .. });
@@ -390,7 +400,7 @@ impl GpuRenderer {
     }
 
     /// Uploads the renderer's visibility cache (as words of four bytes) unless the device holds this refresh.
-    fn upload_visibility(&mut self, r: &Renderer) -> Result<()> {
+    fn upload_visibility(&mut self, r: &Scene) -> Result<()> {
         let Some(cache) = &r.cache else {
             return Err(gpu_err("Visibility::Cached without a cache: call Renderer::refresh_visibility"));
         };
@@ -596,16 +606,17 @@ pub(super) unsafe fn silence_display_probe() {
     }
 }
 
-/// A renderer's handle on the shared GPU; a device error sends it to the CPU for good (reported once).
+/// The GPU backend: a renderer's handle on the process's shared GPU. A device error sends the renderer to
+/// the CPU for good (reported once).
 #[derive(Debug)]
-pub(crate) struct Attached {
+pub(crate) struct GpuBackend {
     gpu: Arc<Mutex<GpuRenderer>>,
     failed: AtomicBool,
 }
 
 /// The GPU for `device` and settings `p` (None: the CPU).
-pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached>> {
-    let wrap = |gpu| Some(Attached { gpu, failed: AtomicBool::new(false) });
+pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<GpuBackend>> {
+    let wrap = |gpu| Some(GpuBackend { gpu, failed: AtomicBool::new(false) });
     match device {
         Device::Cpu => Ok(None),
         Device::Auto => Ok(match (super::gpu_settings(p), shared()) {
@@ -620,29 +631,15 @@ pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<Attached
     }
 }
 
-impl Attached {
-    /// The GPU's forward pass, None where it does not apply (the BRDF has no GPU version, the device failed).
-    pub(super) fn forward<B: RenderBrdf>(&self, r: &Renderer, brdf: &B) -> Option<Vec<f32>> {
-        self.run(brdf, |g| g.forward(r, brdf))
-    }
-
-    /// The GPU's adjoint pass, None where it does not apply.
-    pub(super) fn adjoint<B: RenderBrdf>(&self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Option<Gradient> {
-        if d_loss.len() != r.len() {
-            return None; // the CPU path reports the mismatch
-        }
-        self.run(brdf, |g| g.adjoint(r, brdf, d_loss))
-    }
-
-    fn run<B: RenderBrdf, T>(&self, brdf: &B, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Option<T> {
-        if brdf.to_any().gpu_terms().is_none() || self.failed.load(Ordering::Relaxed) {
+impl GpuBackend {
+    /// Runs `pass` on the GPU where it applies: None when this backend does not support the BRDF's model with
+    /// the scene's settings ([`Backend::supports`]), when it failed before, or when the pass fails now (reported
+    /// once on stderr); the renderer then runs the pass on the CPU.
+    pub(super) fn attempt<B: RenderBrdf, T>(&self, scene: &Scene, pass: impl FnOnce(&Self) -> Result<T>) -> Option<T> {
+        if self.supports(B::MODEL, &scene.params).is_err() || self.failed.load(Ordering::Relaxed) {
             return None;
         }
-        let out = match self.gpu.lock() {
-            Ok(mut g) => f(&mut g),
-            Err(_) => Err(gpu_err("the device's lock was poisoned by a panic")),
-        };
-        match out {
+        match pass(self) {
             Ok(v) => Some(v),
             Err(e) => {
                 if !self.failed.swap(true, Ordering::Relaxed) {
@@ -651,5 +648,27 @@ impl Attached {
                 None
             }
         }
+    }
+
+    /// The shared GPU, locked for one pass.
+    fn locked<T>(&self, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Result<T> {
+        match self.gpu.lock() {
+            Ok(mut g) => f(&mut g),
+            Err(_) => Err(gpu_err("the device's lock was poisoned by a panic")),
+        }
+    }
+}
+
+impl Backend for GpuBackend {
+    fn supports(&self, model: Model, params: &RenderParams) -> std::result::Result<(), String> {
+        crate::gpu_support(model, params)
+    }
+
+    fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
+        self.locked(|g| g.forward_scene(scene, brdf))
+    }
+
+    fn adjoint<B: RenderBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+        self.locked(|g| g.adjoint_scene(scene, brdf, d_loss))
     }
 }
