@@ -167,8 +167,8 @@ fn block_culling_is_exact() {
 }
 
 /// The backend seam: the CPU runs every setting, the GPU what `gpu_support` accepts, and through the trait
-/// both render the same scene — the CPU bit for bit as the renderer does, the GPU to f32 rounding. Skipped
-/// (with a line saying so) where no GPU adapter is found.
+/// both render the same scene — the CPU bit for bit as the renderer does, the GPU to f32 rounding. The GPU
+/// half is skipped (with a line saying so) where no adapter is found, unless `NLOS_REQUIRE_GPU=1`.
 #[cfg(feature = "gpu")]
 #[test]
 fn both_backends_render_the_same_scene_through_the_seam() {
@@ -197,6 +197,7 @@ fn both_backends_render_the_same_scene_through_the_seam() {
     }
     let gpu = match gpu::attach(Device::Gpu, &params) {
         Ok(Some(g)) => g,
+        Err(e) if std::env::var("NLOS_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("NLOS_REQUIRE_GPU=1 but {e}"),
         Ok(None) | Err(_) => {
             eprintln!("skipped: no GPU adapter (the CPU side of the seam is checked above)");
             return;
