@@ -83,10 +83,12 @@ pub enum InitError {
         reason: String,
     },
     /// A start method's name that is none of [`crate::Method::ALL`].
-    #[error("{got:?} is not a start method: give {}", crate::method::one_of())]
+    #[error("{got:?} is not a start method: give {known}")]
     UnknownMethod {
         /// The name given.
         got: String,
+        /// The methods' names (`"lct", "fk", … or "carve"`).
+        known: String,
     },
     /// An error from `nlos-transient` (reading or transforming the capture).
     #[error(transparent)]

@@ -139,7 +139,7 @@ pub fn lct_params(reflectance: Model) -> LctParams {
 }
 
 /// The methods' names as a sentence lists them: `"lct", "fk", … or "carve"`.
-pub(crate) fn one_of() -> String {
+fn one_of() -> String {
     let names: Vec<String> = Method::ALL.iter().map(|m| format!("{:?}", m.name())).collect();
     match names.split_last() {
         Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
@@ -159,7 +159,10 @@ impl FromStr for Method {
     /// # Errors
     /// [`InitError::UnknownMethod`] for any other name.
     fn from_str(s: &str) -> Result<Self> {
-        Method::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| InitError::UnknownMethod { got: s.into() })
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| InitError::UnknownMethod { got: s.into(), known: one_of() })
     }
 }
 
