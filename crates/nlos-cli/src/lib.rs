@@ -43,7 +43,8 @@ use nlos_transient::TransientError;
     version,
     about,
     after_help = "Exit status: 0 on success; 2 for bad input (an unreadable, truncated or malformed file, an \
-                  argument out of range, a usage error); 1 for other failures (an output that cannot be written)."
+                  argument out of range, a usage error); 1 for other failures (an output that cannot be written, a \
+                  reconstruction that kept almost no surface: its files are written, and the message says why)."
 )]
 struct Cli {
     #[command(subcommand)]

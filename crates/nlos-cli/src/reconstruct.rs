@@ -292,7 +292,8 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             CliError::Closed => CliError::Closed,
         })?;
     }
-    Ok(())
+    // Everything is written; a run that kept almost no surface still ends as a failure, saying why.
+    outcome.check_surface_kept().map_err(|e| CliError::Failure(e.to_string()))
 }
 
 /// Writes `command.json` (the run's command line and ground truth) in the output directory; the library

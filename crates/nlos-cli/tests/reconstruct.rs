@@ -600,3 +600,41 @@ fn a_batch_log_has_a_line_per_block_and_no_driver_errors() {
     assert!(quiet.status.success(), "{}", text(&quiet));
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains("progress:"), "{}", text(&quiet));
 }
+
+/// Never exit status 0 with almost no surface: the shared general-NLOS capture thinned to every 4th spot each
+/// way (256 of its 4,096 pairs; the spots form a 64 × 64 grid in the file's order) either ends with a mesh
+/// that keeps at least `nlos_optim::MIN_SURFACE_KEPT` of its start's area, or fails (exit 1) saying what was
+/// kept and where to look — with everything written. What it catches: a run that ends in a sliver (2 faces of
+/// 0.006 cm² from a start of 0.43 m² before the check) reported as a result.
+#[test]
+fn a_run_never_succeeds_with_almost_no_surface() {
+    let Some(general) = nlos_testdata::shared("measured/general_nlos/data.mat") else { return };
+    let dir = scratch("sparse");
+    let full = dir.join("full.npy");
+    let o = nlos(&["convert", general.to_str().expect("utf-8"), "--bin-width-ps", "32", full.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = nlos_transient::read(&full).expect("read back");
+    let keep: Vec<usize> = (0..64).step_by(4).flat_map(|iy| (0..64).step_by(4).map(move |ix| 64 * iy + ix)).collect();
+    let subset = |set: &PointSet| PointSet {
+        points: keep.iter().map(|&i| set.points[i]).collect(),
+        normals: keep.iter().map(|&i| set.normals[i]).collect(),
+        ..PointSet::list(Vec::new())
+    };
+    let scan = Scan::paired(subset(t.scan().lasers()), subset(t.scan().sensors()));
+    let data: Vec<f32> = keep.iter().flat_map(|&m| t.histogram(m).iter().copied()).collect();
+    let thin = nlos_transient::Transient::new(scan, *t.time(), data).expect("thinned");
+    let file = dir.join("thin.npy");
+    nlos_transient::write(&thin, &file, Format::NpyJson).expect("write");
+    let out = dir.join("run");
+    let o = nlos(&["reconstruct", file.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8"), "--quiet"]);
+    let mesh = nlos_mesh::io::load(out.join("mesh.obj")).expect("the mesh is written either way");
+    let start = nlos_mesh::io::load(out.join("init.obj")).expect("the start is written");
+    let kept = mesh.surface_area() / start.surface_area();
+    if o.status.success() {
+        assert!(kept >= nlos_optim::MIN_SURFACE_KEPT, "exit 0 with {kept:.2e} of the start's area: {}", text(&o));
+    } else {
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains("almost no surface") && text(&o).contains("init.obj"), "{}", text(&o));
+        assert!(out.join("report.html").exists(), "the report is written before the failure");
+    }
+}

@@ -44,6 +44,26 @@ pub enum OptimError {
         /// The value.
         value: f32,
     },
+    /// A finished run kept almost no surface ([`crate::Outcome::check_surface_kept`]).
+    #[error(
+        "the run kept almost no surface: {faces} faces, {:.3} cm², {:.1} % of the {start_faces} faces and {:.0} cm² \
+         it started from; {why}. The start does not match the capture: look at the start (`init.obj` beside the \
+         mesh) and at its volume (`nlos init --volume`), \
+         or give your own start (`nlos reconstruct --init MESH`)",
+        1e4 * .area, 100.0 * .area / .start_area, 1e4 * .start_area
+    )]
+    SurfaceLost {
+        /// Faces of the final mesh.
+        faces: usize,
+        /// Its area (m²).
+        area: f64,
+        /// Faces of the start.
+        start_faces: usize,
+        /// Its area (m²).
+        start_area: f64,
+        /// What deleted the rest, in words.
+        why: String,
+    },
     /// The mesh has no faces (initially, or after removing unlit faces).
     #[error("the mesh has no faces ({context}); start from a larger initial surface in front of the wall")]
     EmptyMesh {

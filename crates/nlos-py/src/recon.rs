@@ -149,6 +149,8 @@ pub(crate) fn reconstruct<'py>(
         return Err(e);
     }
     let outcome = outcome.map_err(errors::optim)?;
+    // The run directory holds everything by now; a run that kept almost no surface raises, saying why.
+    outcome.check_surface_kept().map_err(errors::optim)?;
     let result = PyDict::new(py);
     let (v, f) = crate::mesh::to_arrays(py, &outcome.mesh)?;
     result.set_item("vertices", v)?;

@@ -72,6 +72,19 @@ pub struct RunLog {
     /// Collision handling per block: the remeshing's refused operations and the shape steps' limited motion.
     #[serde(default)]
     pub collisions: Vec<EvolveRecord>,
+    /// The start the run was given (after its own self-intersections were removed); None in logs written
+    /// before it was recorded.
+    #[serde(default)]
+    pub start: Option<StartRecord>,
+}
+
+/// The surface a run started from: what [`crate::Outcome::check_surface_kept`] compares the result with.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StartRecord {
+    /// Faces.
+    pub faces: usize,
+    /// Area (m²).
+    pub area: f64,
 }
 
 /// A stage as it was started: its target edge, planned for the time budget, beside the schedule's own.

@@ -203,6 +203,40 @@ pub struct Outcome {
     pub albedo: Option<AlbedoMap>,
 }
 
+/// The least share of its start's area a finished run must keep ([`Outcome::check_surface_kept`]).
+pub const MIN_SURFACE_KEPT: f64 = 0.05;
+
+impl Outcome {
+    /// Whether the run kept a surface: at least [`MIN_SURFACE_KEPT`] of its start's area ([`RunLog::start`]).
+    /// Why: pruning deletes the faces the data do not support, and a start the data do not support at all
+    /// ends as a few slivers that look like a result — the shared general-NLOS capture thinned to every 4th
+    /// spot each way ended with 2 faces of 0.006 cm² from a start of 0.43 m², and the command said nothing.
+    /// An interrupted run, or one whose log has no start, is not judged.
+    ///
+    /// # Errors
+    /// [`OptimError::SurfaceLost`]: what was kept, what deleted the rest, and what to look at.
+    pub fn check_surface_kept(&self) -> Result<()> {
+        let Some(start) = self.log.start else { return Ok(()) };
+        let area = self.mesh.surface_area();
+        if self.stop == StopReason::Interrupted || !(start.area > 0.0) || area >= MIN_SURFACE_KEPT * start.area {
+            return Ok(());
+        }
+        let pruned: usize = self.prune.iter().map(|r| r.removed).sum();
+        let why = if pruned > 0 {
+            format!("boundary pruning deleted {pruned} faces, block by block, because the data did not support them")
+        } else {
+            "the faces were deleted as self-intersecting or degenerate".to_string()
+        };
+        Err(OptimError::SurfaceLost {
+            faces: self.mesh.n_faces(),
+            area,
+            start_faces: start.faces,
+            start_area: start.area,
+            why,
+        })
+    }
+}
+
 /// Reconstructs a surface from `measured`, starting from `init` (faces must face the wall, see
 /// `nlos_render`'s one-sided convention), with default hooks.
 ///
@@ -269,6 +303,8 @@ pub fn reconstruct_with(
     };
     // A start that intersects itself would leave collision-aware evolution nothing to guarantee.
     untangle(&mut state, IntersectionCheck::Start)?;
+    state.log.start =
+        Some(StartRecord { faces: state.triangles.len(), area: surface_area(&state.positions, &state.triangles) });
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
             path: dir.clone(),
@@ -489,4 +525,43 @@ fn set_albedo_weights(st: &State, renderer: &mut Renderer) -> Result<()> {
         renderer.set_face_weights(Some(&map.face_weights(&st.positions, &st.triangles)))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A finished run that kept less than `MIN_SURFACE_KEPT` of its start's area is an error saying what
+    /// was kept and what deleted the rest; one that kept more, an interrupted one and one whose log predates
+    /// the start record are not. What it catches: a run ending in a sliver reported as a result.
+    #[test]
+    fn a_run_that_kept_almost_no_surface_is_an_error() {
+        let p = [Vec3::new(0.0, 0.0, 0.5), Vec3::new(0.01, 0.0, 0.5), Vec3::new(0.0, 0.01, 0.5)];
+        let mesh = SurfaceMesh::from_triangles(&p, &[[0, 2, 1]]).expect("one face");
+        let area = mesh.surface_area();
+        let outcome = |start_area: f64, stop: StopReason| Outcome {
+            mesh: mesh.clone(),
+            reflectance: Reflectance::default(),
+            scale: 1.0,
+            log: RunLog { start: Some(StartRecord { faces: 86, area: start_area }), ..RunLog::default() },
+            stop,
+            stage: 3,
+            blocks_done: 23,
+            evolve: Vec::new(),
+            prune: vec![PruneRecord { stage: 0, block: 0, tested: 40, removed: 84, data_change: -0.1 }],
+            residual: Vec::new(),
+            albedo: None,
+        };
+        let e = outcome(area / 0.01, StopReason::MaxStages).check_surface_kept().expect_err("1 % kept");
+        let text = e.to_string();
+        assert!(matches!(e, OptimError::SurfaceLost { faces: 1, start_faces: 86, .. }), "{e:?}");
+        for part in ["almost no surface", "1.0 % of the 86 faces", "pruning deleted 84 faces", "--init MESH"] {
+            assert!(text.contains(part), "{part:?} missing: {text}");
+        }
+        assert!(outcome(area / (2.0 * MIN_SURFACE_KEPT), StopReason::MaxStages).check_surface_kept().is_ok());
+        assert!(outcome(area / 0.01, StopReason::Interrupted).check_surface_kept().is_ok());
+        let mut old = outcome(area / 0.01, StopReason::TimeBudget);
+        old.log.start = None;
+        assert!(old.check_surface_kept().is_ok());
+    }
 }
