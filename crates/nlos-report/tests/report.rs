@@ -88,6 +88,7 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         stages: Vec::new(),
         residual: Vec::new(),
         collisions: Vec::new(),
+        start: None,
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
     let ck = serde_json::json!({ "reflectance": Reflectance::default() });
