@@ -131,9 +131,10 @@ impl Method {
 /// (`1/r²` in a confocal scan) gets the light-cone transform's retroreflective weighting, a diffuse one
 /// (`1/r⁴`) the diffuse weighting (O'Toole, Lindell & Wetzstein 2018: data weighted by `t²` or `t⁴`).
 pub fn lct_params(reflectance: Model) -> LctParams {
-    let snr = match reflectance {
-        Model::Lambert | Model::Ggx => LctParams::default().snr,
-        Model::Retroreflective => 0.8,
+    // Keyed on the return's fall-off (`Model::distance_power`): a 1/r² return takes the retroreflective SNR.
+    let snr = match reflectance.distance_power() {
+        2 => 0.8,
+        _ => LctParams::default().snr,
     };
     LctParams { reflectance, snr, ..LctParams::default() }
 }

@@ -176,6 +176,25 @@ impl AnyBrdf {
         }
     }
 
+    /// The model ([`RenderBrdf::MODEL`]).
+    pub fn model(&self) -> Model {
+        with_brdf!(self, b => model_of(b))
+    }
+
+    /// The BRDF in words, with its fitted parameters (the run report's line).
+    pub fn describe(&self) -> String {
+        match self {
+            AnyBrdf::Lambertian(b) => format!("Lambertian, albedo {:.4}", b.albedo()),
+            AnyBrdf::Ggx(b) => format!(
+                "GGX, alpha {:.4}, specular {:.4}, diffuse albedo {:.4}",
+                b.alpha(),
+                b.specular(),
+                b.albedo_diffuse()
+            ),
+            AnyBrdf::Retroreflective(b) => format!("retroreflective, return {:.4}", b.albedo()),
+        }
+    }
+
     /// Parameter names, in the order of [`AnyBrdf::params`] and of [`crate::Gradient::brdf`].
     pub fn param_names(&self) -> &'static [&'static str] {
         with_brdf!(self, b => param_names_of(b))
@@ -225,4 +244,35 @@ impl AnyBrdf {
 
 fn param_names_of<B: RenderBrdf>(_: &B) -> &'static [&'static str] {
     B::PARAM_NAMES
+}
+
+fn model_of<B: RenderBrdf>(_: &B) -> Model {
+    B::MODEL
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every model's BRDF names its model and describes itself (the report's line), and the GPU's terms
+    /// exist exactly for the models `gpu_support` accepts.
+    #[test]
+    fn every_model_names_and_describes_itself() {
+        let splat = crate::RenderParams {
+            kernel: crate::Kernel::Tent,
+            visibility: crate::Visibility::Off,
+            sampling: crate::Sampling::Splat(crate::SplatRule::default()),
+            ..crate::RenderParams::default()
+        };
+        for model in Model::ALL {
+            let b = AnyBrdf::unit(model, 0.3).expect("unit");
+            assert_eq!(b.model(), model);
+            assert!(!b.describe().is_empty());
+            assert_eq!(b.gpu_terms().is_some(), crate::gpu_support(model, &splat).is_ok(), "{model}");
+        }
+        assert_eq!(
+            AnyBrdf::unit(Model::Retroreflective, 0.3).expect("unit").describe(),
+            "retroreflective, return 1.0000"
+        );
+    }
 }

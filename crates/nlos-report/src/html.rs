@@ -6,7 +6,6 @@ use std::path::Path;
 use nlos_mesh::SurfaceMesh;
 use nlos_mesh::metrics::{EvalParams, Metrics, SILHOUETTE_BAND};
 use nlos_optim::{Reflectance, RunLog, StepKind};
-use nlos_render::AnyBrdf;
 
 use crate::{Report, ReportOptions};
 
@@ -52,14 +51,7 @@ fn row(out: &mut String, cells: &[String], header: bool) {
 
 fn describe(r: &Reflectance) -> String {
     match r.brdf() {
-        Ok(AnyBrdf::Lambertian(b)) => format!("Lambertian, albedo {:.4}", b.albedo()),
-        Ok(AnyBrdf::Ggx(b)) => format!(
-            "GGX, alpha {:.4}, specular {:.4}, diffuse albedo {:.4}",
-            b.alpha(),
-            b.specular(),
-            b.albedo_diffuse()
-        ),
-        Ok(AnyBrdf::Retroreflective(b)) => format!("retroreflective, return {:.4}", b.albedo()),
+        Ok(b) => b.describe(),
         Err(e) => format!("invalid ({e})"),
     }
 }

@@ -172,8 +172,7 @@ pub(super) fn fitted_alpha(run_dir: &Path) -> Result<f64, String> {
         serde_json::from_value(v["reflectance"].clone()).map_err(|e| format!("{}: reflectance: {e}", f.display()))?;
     match refl.brdf().map_err(|e| e.to_string())? {
         nlos_render::AnyBrdf::Ggx(g) => Ok(f64::from(g.alpha())),
-        nlos_render::AnyBrdf::Lambertian(_) => Err("the run fitted a Lambertian model".into()),
-        nlos_render::AnyBrdf::Retroreflective(_) => Err("the run fitted a retroreflective model".into()),
+        other => Err(format!("the run fitted a {} model, not GGX", other.model())),
     }
 }
 
