@@ -63,9 +63,9 @@ pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
 pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
-    IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Next, Outcome, Plan, Progress,
-    ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StartRecord, StepKind, StopReason, describe_device,
-    reconstruct, reconstruct_with, resume,
+    IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,
+    ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StartRecord, StepKind, StopReason, describe_device, reconstruct,
+    reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};

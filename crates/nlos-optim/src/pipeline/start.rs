@@ -21,7 +21,7 @@ impl Prepared {
     /// preparation's: those of `params` are ignored).
     ///
     /// # Errors
-    /// [`OptimError::Init`] for parameters out of range or an empty volume ([`nlos_init::pf`]).
+    /// [`OptimError::Init`] for parameters out of range or an empty volume ([`nlos_init::pf()`]).
     pub fn pf_volume(&self, params: &PfParams) -> Result<Volume> {
         Ok(pf(&self.full, &PfParams { gate: Gate::None, max_depth: None, ..*params })?)
     }

@@ -62,7 +62,7 @@ pub struct RunLog {
     /// Self-intersection checks: of the start, after every remeshing and at the end of every block.
     #[serde(default)]
     pub intersections: Vec<IntersectionRecord>,
-    /// The stages started: the edge each was run at ([`crate::Schedule::planned_edge`]).
+    /// The stages started: the edge each was run at ([`crate::Plan::planned_edge`]).
     #[serde(default)]
     pub stages: Vec<StageRecord>,
     /// Residual back-projection at the end of each stage that proposes patches: every candidate that passed

@@ -79,7 +79,7 @@ use block::{Block, RunCtx};
 use checkpoint::*;
 use evaluation::*;
 pub use log::*;
-pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Next, Plan};
+pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Plan};
 use rollback::*;
 use topology::*;
 

@@ -33,9 +33,9 @@ pub struct Plan {
     pub sensor: bool,
 }
 
-/// What follows a stage that ended ([`Plan::next_stage`]).
+/// What follows a stage that ended (`Plan::next_stage`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Next {
+pub(super) enum Next {
     /// The next stage starts, planned at this target edge (metres).
     Go(f64),
     /// The run ends here, for this reason.
