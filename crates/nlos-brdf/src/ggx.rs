@@ -354,3 +354,66 @@ impl<T: Real> From<Ggx<T>> for GgxRaw<T> {
         }
     }
 }
+
+/// θ = [`crate::GgxTheta`] (ρ_d, ρ_s, α, and F0 only with Schlick Fresnel); the Fresnel kind and the masking
+/// are kept.
+impl crate::FittedBrdf for Ggx<f32> {
+    const MODEL: crate::Model = crate::Model::Ggx;
+    const PARAM_NAMES: &'static [&'static str] = &["albedo_diffuse", "specular", "alpha", "f0"];
+    const SCALE_ONLY: bool = false;
+    fn params(&self) -> Vec<f32> {
+        let f0 = self.fresnel().f0().unwrap_or(1.0);
+        vec![self.albedo_diffuse(), self.specular(), self.alpha(), f0]
+    }
+    fn with_params(&self, p: &[f32]) -> Result<Self> {
+        let get = |i: usize| crate::fitted::entry(p, i, f32::NAN);
+        let fresnel = match self.fresnel() {
+            Fresnel::One => Fresnel::One,
+            Fresnel::Schlick { .. } => Fresnel::Schlick { f0: get(3) },
+        };
+        Ok(Ggx::new(get(0), get(1), get(2), fresnel)?.with_masking(self.masking()))
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &GgxGrad<f32>) -> [f32; 4] {
+        [g.albedo_diffuse, g.specular, g.alpha, g.f0]
+    }
+    fn lobe_alpha(&self) -> Option<f32> {
+        (self.specular() > 0.0).then_some(self.alpha())
+    }
+    fn describe(&self) -> String {
+        format!(
+            "GGX, alpha {:.4}, specular {:.4}, diffuse albedo {:.4}",
+            self.alpha(),
+            self.specular(),
+            self.albedo_diffuse()
+        )
+    }
+    fn to_any(&self) -> crate::AnyBrdf {
+        crate::AnyBrdf::Ggx(*self)
+    }
+    fn theta(&self) -> Vec<f64> {
+        let t = crate::GgxTheta::from_ggx(self);
+        let all = [t.albedo_diffuse, t.specular, t.alpha, t.f0].map(f64::from);
+        all[..self.fitted_len()].to_vec()
+    }
+    fn with_theta(&self, theta: &[f64]) -> Result<Self> {
+        let get = |i: usize| crate::fitted::entry(theta, i, if i == 3 { 0.0 } else { f64::NAN }) as f32;
+        let t = crate::GgxTheta { albedo_diffuse: get(0), specular: get(1), alpha: get(2), f0: get(3) };
+        t.to_ggx(self.fitted_len() == 4, self.masking())
+    }
+    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
+        let t = |i: usize| crate::fitted::entry(theta, i, 0.0);
+        let d = |i: usize| f64::from(crate::fitted::entry(d_params, i, 0.0));
+        let t = crate::GgxTheta { albedo_diffuse: t(0), specular: t(1), alpha: t(2), f0: t(3) };
+        let g = GgxGrad { albedo_diffuse: d(0), specular: d(1), alpha: d(2), f0: d(3) };
+        let c = t.chain(&g);
+        [c.albedo_diffuse, c.specular, c.alpha, c.f0][..self.fitted_len()].to_vec()
+    }
+}
+
+impl Ggx<f32> {
+    /// The number of fitted θ components: F0 only with Schlick Fresnel.
+    fn fitted_len(&self) -> usize {
+        if matches!(self.fresnel(), Fresnel::Schlick { .. }) { 4 } else { 3 }
+    }
+}

@@ -77,6 +77,7 @@
 
 pub mod brdf;
 pub mod error;
+pub mod fitted;
 pub mod fresnel;
 pub mod ggx;
 pub mod lambert;
@@ -93,7 +94,8 @@ pub use fresnel::Fresnel;
 pub use ggx::{ALPHA_MAX, ALPHA_MIN, Ggx, GgxGrad};
 pub use lambert::{Lambertian, LambertianGrad};
 pub use microfacet::Masking;
-pub use model::Model;
+pub use fitted::FittedBrdf;
+pub use model::{AnyBrdf, Model};
 pub use param::{GgxTheta, LambertianTheta};
 pub use real::{Real, V3, Vector3};
 pub use retro::{RETRO_LOBE_WIDTH, Retroreflective, RetroreflectiveGrad};

@@ -181,7 +181,7 @@ pub fn prune_boundary(
         let mut scored: Vec<(f64, usize, Vec<RowSpan>)> = candidates
             .par_iter()
             .map(|&f| {
-                let spans = brdf.forward_triangle(renderer, f)?;
+                let spans = renderer.forward_triangle_any(brdf, f)?;
                 let (d, _) = delta(&spans, snapshot, bins, row_loss, params.margin, false)?;
                 Ok((d, f, spans))
             })

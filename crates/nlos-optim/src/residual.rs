@@ -309,7 +309,7 @@ pub fn residual_patches(
             let r = Renderer::new(&turned, &tri, measured.scan(), measured.time(), render)?;
             let shares: Vec<Vec<RowSpan>> = (0..tri.len())
                 .into_par_iter()
-                .map(|f| brdf.forward_triangle(&r, f))
+                .map(|f| r.forward_triangle_any(brdf, f))
                 .collect::<nlos_render::Result<_>>()?;
             // A face that would cross the surface (the mesh, or a patch accepted before) is no candidate: the
             // surface never intersects itself (El Topo's promise; crate::reconstruct's checks).

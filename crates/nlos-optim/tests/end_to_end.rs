@@ -165,9 +165,9 @@ fn small_params(dir: PathBuf) -> ReconstructParams {
             rel_tol: 0.0,
             ..Schedule::default()
         },
-        reflectance: nlos_optim::Reflectance::from_ggx(
-            &nlos_brdf::Ggx::new(0.5f32, 0.5, 0.3, nlos_brdf::Fresnel::One).unwrap(),
-        ),
+        reflectance: nlos_optim::Reflectance::from_brdf(nlos_brdf::AnyBrdf::Ggx(
+            nlos_brdf::Ggx::new(0.5f32, 0.5, 0.3, nlos_brdf::Fresnel::One).unwrap(),
+        )),
         lr_interior: 0.1,
         seed: 42,
         render: RenderSettings { visibility: Visibility::Off, ..RenderSettings::default() },

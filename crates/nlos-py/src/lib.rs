@@ -61,5 +61,7 @@ fn _nlos(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(recon::reconstruct, m)?)?;
     m.add_function(wrap_pyfunction!(cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The reflectance models' names (what `brdf=` accepts, besides the alias "lambertian").
+    m.add("BRDF_MODELS", pyo3::types::PyTuple::new(m.py(), nlos_brdf::Model::ALL.map(|model| model.name()))?)?;
     Ok(())
 }

@@ -155,7 +155,8 @@ pub(crate) fn reconstruct<'py>(
     let (v, f) = crate::mesh::to_arrays(py, &outcome.mesh)?;
     result.set_item("vertices", v)?;
     result.set_item("faces", f)?;
-    result.set_item("reflectance", to_json(&outcome.reflectance)?)?;
+    let brdf = outcome.reflectance.brdf().map_err(errors::optim)?;
+    result.set_item("reflectance", to_json(&brdf)?)?;
     result.set_item("log", to_json(&outcome.log)?)?;
     result.set_item("stop", to_json(&outcome.stop)?)?;
     result.set_item("scale", outcome.scale)?;

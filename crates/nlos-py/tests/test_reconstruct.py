@@ -55,6 +55,7 @@ def test_reconstruct_improves_on_its_start(builtin_capture, builtin_truth, tmp_p
     seen = []
     result = nlos.reconstruct(capture, tmp_path / "run", progress=seen.append, seed=1, **DEMO)
     assert isinstance(result, nlos.Reconstruction) and result.stop == "max_stages"
+    assert list(result.reflectance) == ["lambert"] and result.reflectance["lambert"]["albedo"] > 0
     assert result.faces.shape[1] == 3 and result.vertices.dtype == np.float32 and result.notes is not None
     assert seen and seen[-1]["iteration"] >= 1 and "loss" in seen[-1]
     for name in ["mesh.obj", "init.obj", "settings.toml", "run_log.json", "checkpoint.json"]:

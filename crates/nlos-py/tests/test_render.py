@@ -41,11 +41,17 @@ def test_forward_is_a_new_array_of_the_setup_shape():
     assert not np.shares_memory(a, r.forward())
 
 
+def test_the_models_are_named_once():
+    assert nlos.BRDF_MODELS == ("lambert", "ggx", "retroreflective")
+    with pytest.raises(ValueError, match='brdf: .*"lambert", "ggx" or "retroreflective"'):
+        nlos.Renderer(*random_triangles(1), small_setup(), brdf="phong")
+
+
 def five_point(e, h):
     return (-e(2 * h) + 8 * e(h) - 8 * e(-h) + e(-2 * h)) / (12 * h)
 
 
-@pytest.mark.parametrize("brdf", ["lambert", "lambertian", "ggx", "retroreflective"])
+@pytest.mark.parametrize("brdf", [*nlos.BRDF_MODELS, "lambertian"])
 def test_adjoint_matches_central_finite_differences(brdf):
     v, f = random_triangles(2)
     r = nlos.Renderer(v, f, small_setup(), brdf=brdf, albedo=0.3, visibility="off")

@@ -157,14 +157,14 @@
 // branches.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod brdf;
+mod brdf;
 pub mod error;
 pub mod kernel;
 pub mod loss;
 pub mod render;
 mod visibility;
 
-pub use brdf::{AnyBrdf, RenderBrdf};
+pub use nlos_brdf::{AnyBrdf, FittedBrdf, with_brdf};
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;

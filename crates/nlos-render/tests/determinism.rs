@@ -8,7 +8,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{
-    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
@@ -19,7 +19,7 @@ fn surface(n: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 }
 
 /// Forward, adjoint and loss-and-gradient of one configuration in a pool of `threads` threads.
-fn run<B: RenderBrdf + Sync>(
+fn run<B: FittedBrdf + Sync>(
     threads: usize,
     p: &[Vec3],
     f: &[[u32; 3]],
@@ -51,7 +51,7 @@ fn fbits(v: &[f32]) -> Vec<u32> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
-fn check<B: RenderBrdf + Sync>(params: RenderParams, brdf: &B, exhaustive: bool) {
+fn check<B: FittedBrdf + Sync>(params: RenderParams, brdf: &B, exhaustive: bool) {
     let (p, f) = surface(24);
     assert!(f.len() > 4 * 256, "several adjoint tasks");
     let scan = if exhaustive {

@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderError, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderError, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).
@@ -44,12 +44,12 @@ fn scan(exhaustive: bool) -> Scan {
     }
 }
 
-fn energy<B: RenderBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
+fn energy<B: FittedBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
     r.forward(brdf).iter().zip(adj).map(|(i, a)| f64::from(*i) * f64::from(*a)).sum()
 }
 
 /// `vertices`: also check the vertex gradient (only meaningful for a fixed rule, smooth in the vertices).
-fn check<B: RenderBrdf>(brdf: &B, exhaustive: bool, sampling: Sampling, seed: u64, vertices: bool) {
+fn check<B: FittedBrdf>(brdf: &B, exhaustive: bool, sampling: Sampling, seed: u64, vertices: bool) {
     let (p, f) = mesh(seed);
     let time = TimeAxis::new(0.3, 0.01, 150).expect("axis");
     let params = RenderParams {

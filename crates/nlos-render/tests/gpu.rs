@@ -9,7 +9,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
-use nlos_render::{GpuRenderer, RenderBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{GpuRenderer, FittedBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// The device, or None (with the reason printed) where the machine has none and none is required.
@@ -55,7 +55,7 @@ fn max_abs(v: impl IntoIterator<Item = f32>) -> f32 {
 
 /// Forward and adjoint on both devices; the transients agree to `1e-4` of their peak, the vertex gradients to
 /// `tol` of their largest, the BRDF and face gradients likewise.
-fn compare<B: RenderBrdf + Sync>(g: &mut GpuRenderer, r: &Renderer, brdf: &B, tol: f32, what: &str) {
+fn compare<B: FittedBrdf + Sync>(g: &mut GpuRenderer, r: &Renderer, brdf: &B, tol: f32, what: &str) {
     let cpu = r.forward(brdf);
     let dev = g.forward(r, brdf).expect("GPU forward");
     assert_eq!(cpu.len(), dev.len());

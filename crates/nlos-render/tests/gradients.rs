@@ -4,7 +4,7 @@
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
-    DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
@@ -86,7 +86,7 @@ fn setup(wall: Wall) -> (Scan, TimeAxis) {
 }
 
 /// E = Σ adj·I in f64, adj smooth in the bin index (so tent-kernel kinks at bin centres barely matter).
-fn energy<B: RenderBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
+fn energy<B: FittedBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
     r.forward(brdf).iter().zip(adj).map(|(i, a)| f64::from(*i) * f64::from(*a)).sum()
 }
 
@@ -95,7 +95,7 @@ fn fd5(h: f32, mut e: impl FnMut(f32) -> f64) -> f64 {
     (-e(2.0 * h) + 8.0 * e(h) - 8.0 * e(-h) + e(-2.0 * h)) / (12.0 * f64::from(h))
 }
 
-fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, wall: Wall, seed: u64) {
+fn check_gradients<B: FittedBrdf>(brdf: &B, occluder: bool, wall: Wall, seed: u64) {
     let fixed = Sampling::Deterministic(DeterministicRule::fixed(6));
     check_gradients_with(brdf, occluder, wall, seed, Kernel::Tent, fixed);
     check_gradients_with(brdf, occluder, wall, seed, Kernel::Gaussian { fwhm_bins: 2.0 }, fixed);
@@ -108,7 +108,7 @@ fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, wall: Wall, seed: u6
 ///
 /// The splat rule integrates the kernel over each sub-triangle's path lengths in closed form: its
 /// transient is smooth in the vertices whatever the adjoint weights, so they are random oscillations too.
-fn check_gradients_with<B: RenderBrdf>(
+fn check_gradients_with<B: FittedBrdf>(
     brdf: &B,
     occluder: bool,
     wall: Wall,

@@ -6,7 +6,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{
-    DeterministicRule, Kernel, RenderBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, Kernel, FittedBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
@@ -15,7 +15,7 @@ fn scene() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     common::bumpy_surface_with_occluder(8)
 }
 
-fn check<B: RenderBrdf>(params: RenderParams, brdf: &B) {
+fn check<B: FittedBrdf>(params: RenderParams, brdf: &B) {
     let (p, f) = scene();
     let scan = Scan::confocal(PointSet::wall_grid(4, 4, 0.2, 0.2).expect("grid"));
     let time = TimeAxis::new(0.6, 0.004, 200).expect("axis");

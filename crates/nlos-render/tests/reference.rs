@@ -9,7 +9,7 @@ use std::time::Instant;
 use common::*;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, Visibility};
 
 fn square() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (h, d) = (0.1, 0.4);
@@ -18,7 +18,7 @@ fn square() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     (p, vec![[0, 1, 2], [0, 3, 1]])
 }
 
-fn render_reference<B: RenderBrdf>(p: &[Vec3], f: &[[u32; 3]], brdf: &B, params: RenderParams) -> Vec<f32> {
+fn render_reference<B: FittedBrdf>(p: &[Vec3], f: &[[u32; 3]], brdf: &B, params: RenderParams) -> Vec<f32> {
     let t = Instant::now();
     let r = Renderer::new(p, f, &reference_scan(), &reference_time(), params).expect("valid scene");
     let out: Vec<f32> = r.forward(brdf).iter().map(|v| v / (PI * PI)).collect();
@@ -26,7 +26,7 @@ fn render_reference<B: RenderBrdf>(p: &[Vec3], f: &[[u32; 3]], brdf: &B, params:
     out
 }
 
-fn check_square<B: RenderBrdf>(file: &str, brdf: &B, total_ref: f64) {
+fn check_square<B: FittedBrdf>(file: &str, brdf: &B, total_ref: f64) {
     let Some(path) = reference(file) else { return };
     let (reference, shape) = npy(&path);
     assert_eq!(shape, vec![64, 64, 512]);

@@ -1,11 +1,11 @@
 //! The retroreflective model in the renderer: a retroreflective plane's confocal transient falls as `1/r²`
 //! where a Lambertian one falls as `1/r⁴` (the light-cone transform's two image formation models), and the
-//! splat rule (with its fall-off correction at `RenderBrdf::DISTANCE_POWER`) is as close to the exact
+//! splat rule (with its fall-off correction at `FittedBrdf::DISTANCE_POWER`) is as close to the exact
 //! quadrature for it as for the Lambertian model.
 
 use glam::Vec3;
 use nlos_brdf::{Lambertian, Retroreflective};
-use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 fn params(sampling: Sampling) -> RenderParams {
@@ -34,7 +34,7 @@ fn square(z: f32, side: f32, k: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 }
 
 /// Time-integrated confocal return of the square at depth z, seen from the wall's origin.
-fn total<B: RenderBrdf>(brdf: &B, z: f32) -> f64 {
+fn total<B: FittedBrdf>(brdf: &B, z: f32) -> f64 {
     let (p, f) = square(z, 0.01, 4);
     let scan = Scan::confocal(PointSet::wall_grid(1, 1, 0.0, 0.0).expect("grid"));
     let time = TimeAxis::new(0.0, 0.002, 2000).expect("axis");

@@ -7,7 +7,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, RenderBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 fn rel_l2(a: &[f32], b: &[f32]) -> f64 {
@@ -75,13 +75,13 @@ fn finer_levels_converge_on_large_faces() {
 }
 
 /// Σ adj·I in f64.
-fn energy<B: RenderBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
+fn energy<B: FittedBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
     r.forward(brdf).iter().zip(adj).map(|(i, a)| f64::from(*i) * f64::from(*a)).sum()
 }
 
 /// The adjoint of `p, f` against five-point central differences; returns the worst relative component error
 /// (the gradient's largest component as the floor for near-zero entries).
-fn gradient_error<B: RenderBrdf>(
+fn gradient_error<B: FittedBrdf>(
     p: &[Vec3],
     f: &[[u32; 3]],
     scan: &Scan,

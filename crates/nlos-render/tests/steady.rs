@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, Loss, RenderBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).
@@ -79,11 +79,11 @@ fn steady_state_is_the_time_sum_of_the_transient() {
 }
 
 /// E = Σ_m a_m S_m in f64.
-fn energy<B: RenderBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
+fn energy<B: FittedBrdf>(r: &Renderer, brdf: &B, adj: &[f32]) -> f64 {
     r.forward_steady(brdf).iter().zip(adj).map(|(i, a)| f64::from(*i) * f64::from(*a)).sum()
 }
 
-fn check_gradients<B: RenderBrdf>(brdf: &B, occluder: bool, scan: &Scan, seed: u64) {
+fn check_gradients<B: FittedBrdf>(brdf: &B, occluder: bool, scan: &Scan, seed: u64) {
     let (p, f) = random_mesh(seed, occluder);
     let time = TimeAxis::new(0.3, 0.01, 150).expect("axis");
     let params = RenderParams {

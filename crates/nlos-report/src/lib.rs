@@ -244,7 +244,7 @@ pub fn write_report(
     if let Some(map) = &albedo {
         renderer.set_face_weights(Some(&map.face_weights(&positions, &triangles)))?;
     }
-    let rendered = reflectance.brdf()?.forward(&renderer);
+    let rendered = renderer.forward_any(&reflectance.brdf()?);
     let measured_g = gated(measured)?;
     let (scaled, scale) = match &opts.sensor {
         Some(sensor) => {

@@ -55,7 +55,7 @@ impl Prepared {
         };
         let renderer = Renderer::new(&positions, &triangles, self.read.scan(), self.read.time(), render)?;
         let brdf = params.reflectance.brdf()?;
-        let geometry = Transient::new(self.read.scan().clone(), *self.read.time(), brdf.forward(&renderer))
+        let geometry = Transient::new(self.read.scan().clone(), *self.read.time(), renderer.forward_any(&brdf))
             .map_err(|source| OptimError::Transient { context: "the start surface's rendering", source })?;
         let Ok(response) = JitterResponse::from_first_return_deconvolved(&self.read, &geometry) else {
             return Ok(params.clone());

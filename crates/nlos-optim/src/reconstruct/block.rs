@@ -299,7 +299,7 @@ pub(super) fn prune_and_patch(
     }
     let (data, sensor, norm) = (b.fit.measured, b.fit.sensor, b.fit.norm);
     let brdf = st.reflectance.brdf()?;
-    let mut rendered = brdf.forward(&b.renderer);
+    let mut rendered = b.renderer.forward_any(&brdf);
     let (bins, scale) = (b.measured.bins(), st.scale);
     let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
         params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)

@@ -38,7 +38,7 @@ pub(super) struct Fit<'a> {
 pub(super) fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
-    let rendered = brdf.forward(r);
+    let rendered = r.forward_any(&brdf);
     let mut floor = 0.0;
     let ev = match fit.sensor {
         Some(sensor) => {
@@ -58,7 +58,7 @@ pub(super) fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool
     };
     let inv = (1.0 / norm) as f32;
     let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
-    let g = brdf.adjoint(r, &d)?;
+    let g = r.adjoint_any(&brdf, &d)?;
     Ok(Eval {
         data: ev.value / norm,
         floor,

@@ -87,7 +87,7 @@ use topology::*;
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// File name of the run log inside the output directory.
 pub const RUN_LOG_FILE: &str = "run_log.json";
-const CHECKPOINT_VERSION: u32 = 2;
+const CHECKPOINT_VERSION: u32 = 3;
 
 /// A caller's own per-step rule: turns the current positions and an Adam displacement into new positions.
 /// Without one, the displacement is used as it is ([`DirectEvolve`] does the same). Collision handling,

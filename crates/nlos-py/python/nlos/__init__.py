@@ -23,6 +23,7 @@ import numpy as np
 
 from . import _nlos
 from ._nlos import (
+    BRDF_MODELS,
     Capture,
     CaptureError,
     ConfigError,
@@ -41,6 +42,7 @@ from ._nlos import (
 )
 
 __all__ = [
+    "BRDF_MODELS",
     "Capture",
     "CaptureError",
     "ConfigError",
@@ -246,7 +248,8 @@ class Reconstruction:
     vertices: np.ndarray
     #: (m, 3) uint32 vertex indices, each face facing the wall.
     faces: np.ndarray
-    #: The fitted reflectance (model and parameters).
+    #: The fitted BRDF: its model's name holding its parameters, as settings and checkpoints write it, e.g.
+    #: ``{"lambert": {"albedo": 1.0}}``.
     reflectance: Dict[str, Any]
     #: The measurement's scale against the rendering (solved in closed form).
     scale: float

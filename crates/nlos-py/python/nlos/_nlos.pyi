@@ -8,11 +8,14 @@ import numpy.typing as npt
 
 _Path = Union[str, PathLike[str]]
 _Floats = npt.ArrayLike
-# The reflectance models, as in settings files and `nlos --brdf`; "lambertian" is another name of "lambert".
-_Brdf = Literal["lambert", "lambertian", "ggx", "retroreflective"]
+# A reflectance model's name, as in settings files and `nlos --brdf`: one of BRDF_MODELS, or "lambertian",
+# another name of "lambert"; any other name raises ValueError listing them.
+_Brdf = str
 _Mesh = Tuple[npt.NDArray[np.float32], npt.NDArray[np.uint32]]
 
 __version__: str
+#: The reflectance models' names, in the order of the docs.
+BRDF_MODELS: Tuple[str, ...]
 
 class NlosError(Exception): ...
 class CaptureError(NlosError): ...

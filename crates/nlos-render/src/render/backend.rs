@@ -11,7 +11,7 @@ use nlos_brdf::Model;
 
 use super::scene::Scene;
 use super::{Gradient, RenderParams};
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 use crate::error::Result;
 
 /// Where the renderer's forward and adjoint passes run.
@@ -27,12 +27,12 @@ pub(crate) trait Backend {
     ///
     /// # Errors
     /// What kept the backend from running the pass (the CPU's never fails).
-    fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>>;
+    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>>;
 
     /// The adjoint pass of `d_loss = dE/dI` (`measurements × bins` values).
     ///
     /// # Errors
     /// [`crate::RenderError::LengthMismatch`] for a `d_loss` of another length, and what kept the backend from
     /// running the pass.
-    fn adjoint<B: RenderBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient>;
+    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient>;
 }

@@ -7,7 +7,8 @@ use std::sync::atomic::AtomicUsize;
 use glam::Vec3;
 use nlos_transient::{Scan, TimeAxis, Transient};
 
-use crate::brdf::{AnyBrdf, RenderBrdf};
+use crate::brdf::gpu_terms;
+use nlos_brdf::{AnyBrdf, FittedBrdf};
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
@@ -63,13 +64,16 @@ pub fn describe_device(device: Device, params: &RenderParams) -> String {
 /// The reason, when the GPU backend does not run these settings.
 pub fn gpu_support(model: Model, params: &RenderParams) -> std::result::Result<(), String> {
     gpu_settings(params)?;
-    // A model runs on the GPU when its BRDF has the shader's terms (the roughness is irrelevant to that).
-    match AnyBrdf::unit(model, 0.5).ok().and_then(|b| b.gpu_terms()) {
-        Some(_) => Ok(()),
-        None => {
-            Err(format!("the reflectance model \"{model}\" has no GPU version (lambert and retroreflective have one)"))
-        }
+    if has_gpu_terms(model) {
+        return Ok(());
     }
+    let with: Vec<String> = Model::ALL.into_iter().filter(|&m| has_gpu_terms(m)).map(|m| format!("\"{m}\"")).collect();
+    Err(format!("the reflectance model \"{model}\" has no GPU version ({} have one)", with.join(" and ")))
+}
+
+/// Whether `model`'s BRDF has the shader's terms (the roughness is irrelevant to that).
+fn has_gpu_terms(model: Model) -> bool {
+    AnyBrdf::unit(model, 0.5).ok().as_ref().and_then(gpu_terms).is_some()
 }
 
 /// Whether the renderer's settings, whatever the BRDF, have a GPU version ([`gpu_support`]).
@@ -195,7 +199,7 @@ impl Renderer {
     /// sample count (`Ω_t` the triangle's solid angle seen from the spot: a lobe wider than the triangle is
     /// left to area sampling) is drawn from the BRDF's microfacet lobe instead of uniformly over the area,
     /// stratified in the polar angle — a microfacet normal `m` from the GGX
-    /// distribution `D(m)(m·n)` about the triangle's normal (roughness [`RenderBrdf::lobe_alpha`]), mapped
+    /// distribution `D(m)(m·n)` about the triangle's normal (roughness [`FittedBrdf::lobe_alpha`]), mapped
     /// to the point where the ray from the laser spot along `−m` meets the triangle's plane (for a confocal
     /// measurement the half vector there is exactly `m`), kept when inside the triangle. Every sample, of
     /// either strategy, is weighted by the balance heuristic `1/(c₁ p₁(x) + c₂ p₂(x))` (Veach 1997, §9.2;
@@ -284,7 +288,7 @@ impl Renderer {
 
     /// The forward pass, eq. (1): `I[m·bins + k] = Σ_t ∫_t K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x)` with f the
     /// product of eq. (2) (see the crate docs for the scale convention).
-    pub fn forward<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
+    pub fn forward<B: FittedBrdf>(&self, brdf: &B) -> Vec<f32> {
         #[cfg(feature = "gpu")]
         if let Some(out) =
             self.gpu.as_ref().and_then(|g| g.attempt::<B, _>(&self.scene, |g| g.forward(&self.scene, brdf)))
@@ -298,7 +302,7 @@ impl Renderer {
     ///
     /// # Errors
     /// [`RenderError::InvalidSetup`] if the transient crate rejects the combination (it should not).
-    pub fn forward_transient<B: RenderBrdf>(&self, brdf: &B) -> Result<Transient> {
+    pub fn forward_transient<B: FittedBrdf>(&self, brdf: &B) -> Result<Transient> {
         Transient::new(self.scene.scan.clone(), self.scene.time, self.forward(brdf))
             .map_err(|e| RenderError::InvalidSetup(e.to_string()))
     }
@@ -309,7 +313,7 @@ impl Renderer {
     ///
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
-    pub fn adjoint<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    pub fn adjoint<B: FittedBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         // A wrong length is the CPU pass's error to report.
         #[cfg(feature = "gpu")]
         if d_loss.len() == self.len()
@@ -326,7 +330,7 @@ impl Renderer {
     /// at s under a continuous source at l. Tsai et al. 2019 note that the method applies to any radiometric
     /// measurement; this is the simplest one. Equals the time sum of [`Renderer::forward`] (any kernel)
     /// whenever the time axis holds every path length; the same samples and visibility as the transient.
-    pub fn forward_steady<B: RenderBrdf>(&self, brdf: &B) -> Vec<f32> {
+    pub fn forward_steady<B: FittedBrdf>(&self, brdf: &B) -> Vec<f32> {
         self.cpu.view(&self.scene).forward_with(brdf, &KernelEval::steady())
     }
 
@@ -335,7 +339,7 @@ impl Renderer {
     ///
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` does not hold one value per measurement.
-    pub fn adjoint_steady<B: RenderBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    pub fn adjoint_steady<B: FittedBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         self.cpu.view(&self.scene).adjoint_with(brdf, d_loss, &KernelEval::steady())
     }
 
@@ -343,7 +347,7 @@ impl Renderer {
     ///
     /// # Errors
     /// As [`Loss::evaluate`].
-    pub fn loss_and_gradient_steady<B: RenderBrdf>(
+    pub fn loss_and_gradient_steady<B: FittedBrdf>(
         &self,
         brdf: &B,
         measured: &[f32],
@@ -361,7 +365,7 @@ impl Renderer {
     ///
     /// # Errors
     /// As [`Loss::evaluate`].
-    pub fn loss_and_gradient<B: RenderBrdf>(
+    pub fn loss_and_gradient<B: FittedBrdf>(
         &self,
         brdf: &B,
         measured: &[f32],
@@ -383,8 +387,33 @@ impl Renderer {
     ///
     /// # Errors
     /// [`RenderError::InvalidParameter`] when `triangle` is not a triangle of the mesh.
-    pub fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
+    pub fn forward_triangle<B: FittedBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
         self.cpu.view(&self.scene).forward_triangle(brdf, triangle)
+    }
+}
+
+/// The passes with a BRDF chosen at run time ([`AnyBrdf`]): each calls the generic pass of the same name with
+/// the concrete model, so the inner loops stay monomorphised.
+impl Renderer {
+    /// [`Renderer::forward`].
+    pub fn forward_any(&self, brdf: &AnyBrdf) -> Vec<f32> {
+        nlos_brdf::with_brdf!(brdf, b => self.forward(b))
+    }
+
+    /// [`Renderer::adjoint`].
+    ///
+    /// # Errors
+    /// As [`Renderer::adjoint`].
+    pub fn adjoint_any(&self, brdf: &AnyBrdf, d_loss: &[f32]) -> Result<Gradient> {
+        nlos_brdf::with_brdf!(brdf, b => self.adjoint(b, d_loss))
+    }
+
+    /// [`Renderer::forward_triangle`].
+    ///
+    /// # Errors
+    /// As [`Renderer::forward_triangle`].
+    pub fn forward_triangle_any(&self, brdf: &AnyBrdf, triangle: usize) -> Result<Vec<RowSpan>> {
+        nlos_brdf::with_brdf!(brdf, b => self.forward_triangle(b, triangle))
     }
 }
 

@@ -156,7 +156,7 @@ pub struct RowSpan {
 pub struct Gradient {
     /// One gradient per vertex.
     pub vertices: Vec<Vec3>,
-    /// One per BRDF parameter, in the order of [`RenderBrdf::PARAM_NAMES`].
+    /// One per BRDF parameter, in the order of [`FittedBrdf::PARAM_NAMES`].
     pub brdf: Vec<f32>,
     /// One per mesh triangle: dE/dw_t, the derivative with respect to the triangle's reflectance factor
     /// ([`Renderer::set_face_weights`]; 1 when none are set) at its current value. 0 for degenerate

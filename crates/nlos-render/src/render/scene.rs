@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::{Gradient, RenderParams, Sampling, Visibility, check_params};
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{BLOCK, Soa};
@@ -343,7 +343,7 @@ impl Scene {
     /// The gradient from the per-slot sums of the adjoint (`Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx, sign·Σ dE/dN`
     /// per storage slot) and the summed BRDF parameter terms: the edge terms and the vertex distribution, serial in
     /// slot order (deterministic), and the per-face weights' derivatives.
-    pub(in crate::render) fn distribute<B: RenderBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
+    pub(in crate::render) fn distribute<B: FittedBrdf>(&self, per_tri: &[[f64; 12]], dp: [f64; 4]) -> Gradient {
         let nt = self.tris.v0.len();
         // Distribution to the vertices (serial, in triangle order: deterministic). N = sign·(e1 × e2) and the
         // sums carry the sign: dE/de1 = e2 × G_N, dE/de2 = G_N × e1.

@@ -5,7 +5,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::*;
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{self, Acc, BLOCK, Packed, Scratch, TentAxis};
@@ -13,7 +13,7 @@ use crate::render::cpu::splat::{self, Knots};
 
 impl Cpu<'_> {
     /// The adjoint pass with kernel `k` (its bin count sets the row length of `d_loss`).
-    pub(in crate::render) fn adjoint_with<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_with<B: FittedBrdf>(
         &self,
         brdf: &B,
         d_loss: &[f32],
@@ -131,7 +131,7 @@ impl Cpu<'_> {
     /// active pair's closed-form gather `Σ_k r_k w_k` and `Σ_k r_k ∂w_k/∂τ_j`, split through the centring
     /// shift into corner terms and a centroid path-length term; stage 3 (vector): the centroid value's
     /// gradient and the centroid term; stage 4 (vector): the corners' path-length terms.
-    pub(in crate::render) fn adjoint_tile_splat<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_tile_splat<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, TentAxis>,
         tile: Tile<'_>,
@@ -202,7 +202,7 @@ impl Cpu<'_> {
 
     /// Adjoint pass of measurement m (adjoint row `adj`) at sample point `(u, v, w)` of the fixed rule over
     /// the packed triangles `pk` of the block starting at slot `t0`, into `acc` (packed order).
-    pub(in crate::render) fn adjoint_tile_fixed<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_tile_fixed<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         tile: Tile<'_>,
@@ -260,7 +260,7 @@ impl Cpu<'_> {
 
     /// Adjoint pass of measurement m over the triangles `t0..t1` with any sampling, pair by pair, into `out`
     /// (the per-triangle sums of [`Renderer::adjoint`]) and `params`, in f64.
-    pub(in crate::render) fn adjoint_pairs<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_pairs<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         row: Row<'_>,
@@ -293,7 +293,7 @@ impl Cpu<'_> {
 
     /// Adjoint pass of one pair (t, m) with any sampling: `(Σ (1−u−v) dE/dx, Σ u dE/dx, Σ v dE/dx,
     /// sign·Σ dE/dN, dE/d(params))` over its samples.
-    pub(in crate::render) fn adjoint_pair<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint_pair<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         pair: Pair<'_>,

@@ -5,7 +5,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::*;
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
@@ -13,7 +13,7 @@ use crate::render::cpu::splat::{self, Knots};
 
 impl Cpu<'_> {
     /// The forward pass with kernel `k` (its bin count sets the histogram length).
-    pub(in crate::render) fn forward_with<B: RenderBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
+    pub(in crate::render) fn forward_with<B: FittedBrdf>(&self, brdf: &B, k: &KernelEval) -> Vec<f32> {
         let bins = k.bins();
         let nt = self.tris.v0.len();
         let mut data = vec![0.0f32; self.wall.l.len() * bins];
@@ -67,7 +67,7 @@ impl Cpu<'_> {
     }
 
     /// [`Renderer::forward_triangle`].
-    pub(in crate::render) fn forward_triangle<B: RenderBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
+    pub(in crate::render) fn forward_triangle<B: FittedBrdf>(&self, brdf: &B, triangle: usize) -> Result<Vec<RowSpan>> {
         let nt = self.tris.v0.len();
         if triangle >= nt {
             return Err(RenderError::InvalidParameter {
@@ -154,7 +154,7 @@ impl Cpu<'_> {
     /// padded histogram (bin k at k + 1), splat rule of level n: per sub-triangle, the vector kernel gives
     /// each triangle's centroid value and corner path lengths, then each active pair's closed-form tent
     /// weights are added over the bins it spans.
-    pub(in crate::render) fn forward_tile_splat<B: RenderBrdf>(
+    pub(in crate::render) fn forward_tile_splat<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, TentAxis>,
         tile: Tile<'_>,
@@ -217,7 +217,7 @@ impl Cpu<'_> {
     /// The splat rule for one pair (t, m) into an unpadded histogram (the per-triangle forward pass): the same
     /// sub-triangles, values and weights as [`Renderer::forward_tile_splat`]. Returns the range of bins written
     /// (`None`: none).
-    pub(in crate::render) fn forward_pair_splat<B: RenderBrdf>(
+    pub(in crate::render) fn forward_pair_splat<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, TentAxis>,
         pair: Pair<'_>,
@@ -260,7 +260,7 @@ impl Cpu<'_> {
 
     /// Forward pass of measurement m over the triangles `t0..t1` into its histogram, pair by pair (any
     /// sampling but the fixed rule, which runs [`Renderer::forward_tile_fixed`]).
-    pub(in crate::render) fn forward_pairs<B: RenderBrdf>(
+    pub(in crate::render) fn forward_pairs<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         m: usize,
@@ -335,7 +335,7 @@ impl Cpu<'_> {
 
     /// Forward pass of measurement m over the packed triangles `pk` of the block starting at slot `t0` into
     /// its histogram (padded by one bin at each end on the tent fast path), fixed rule of level n.
-    pub(in crate::render) fn forward_tile_fixed<B: RenderBrdf>(
+    pub(in crate::render) fn forward_tile_fixed<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         tile: Tile<'_>,
@@ -389,7 +389,7 @@ impl Cpu<'_> {
     }
 
     /// Forward pass of one pair (t, m) with any sampling.
-    pub(in crate::render) fn forward_pair<B: RenderBrdf>(
+    pub(in crate::render) fn forward_pair<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, KernelEval>,
         pair: Pair<'_>,

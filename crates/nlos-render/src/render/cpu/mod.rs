@@ -29,7 +29,7 @@ impl CpuBackend {
     }
 
     /// The forward pass on the CPU, which cannot fail.
-    pub(in crate::render) fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Vec<f32> {
+    pub(in crate::render) fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Vec<f32> {
         self.view(scene).forward_with(brdf, &scene.kernel)
     }
 
@@ -37,7 +37,7 @@ impl CpuBackend {
     ///
     /// # Errors
     /// [`RenderError::LengthMismatch`] for a `d_loss` of another length than the transient's.
-    pub(in crate::render) fn adjoint<B: RenderBrdf>(
+    pub(in crate::render) fn adjoint<B: FittedBrdf>(
         &self,
         scene: &Scene,
         brdf: &B,
@@ -55,11 +55,11 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
+    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
         Ok(CpuBackend::forward(self, scene, brdf))
     }
 
-    fn adjoint<B: RenderBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         CpuBackend::adjoint(self, scene, brdf, d_loss)
     }
 }

@@ -82,7 +82,7 @@ pub(crate) fn prepare(u0: f32, u1: f32, u2: f32) -> [f32; 10] {
 ///   weighting the early part of each face's profile more than the late part. To first order a density
 ///   tilted by `1 − β (τ − τ_c)` is the density shifted by `−β Var(τ)`; with `β = 4/τ_c` and the splat's
 ///   variance `Var = ((u0 − u1)² + (u1 − u2)² + (u0 − u2)²)/36`, shift by `−4 Var/t_c`. The 4 is `power`,
-///   the BRDF's [`crate::RenderBrdf::DISTANCE_POWER`]: 2 for a retroreflector, whose value grows as
+///   the BRDF's [`nlos_brdf::FittedBrdf::DISTANCE_POWER`]: 2 for a retroreflector, whose value grows as
 ///   `|a||b|` and leaves a `1/τ²` falloff.
 ///
 /// [`centred_grad`] gives the derivatives.

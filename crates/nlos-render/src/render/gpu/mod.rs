@@ -5,7 +5,7 @@
 //! What it covers: [`Sampling::Splat`] with the tent kernel (the optimiser's rule), visibility
 //! [`Visibility::Off`] or [`Visibility::Cached`] (the cache is computed on the CPU and uploaded when it changes),
 //! one- or two-sided faces, per-face weights, confocal and general scans, and the BRDFs with the shader's terms
-//! (`AnyBrdf::gpu_terms`: Lambertian, retroreflective); [`crate::gpu_support`] says so. Anything else is a
+//! (`brdf::gpu_terms`: Lambertian, retroreflective); [`crate::gpu_support`] says so. Anything else is a
 //! [`RenderError::Gpu`] naming what to change.
 //!
 //! Deterministic: the forward pass sums each bin in 64-bit fixed point (integer atomics, so the order of the
@@ -19,7 +19,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use bytemuck::{Pod, Zeroable};
 
 use super::*;
-use crate::brdf::GpuTerms;
+use crate::brdf::{GpuTerms, gpu_terms};
 
 /// Threads of a workgroup (the shader's `WG`).
 const WG: u32 = 256;
@@ -191,12 +191,12 @@ impl GpuRenderer {
     /// # Errors
     /// [`RenderError::Gpu`] when the renderer's settings or the BRDF have no GPU version, a buffer exceeds the
     /// device's limits, or the device fails.
-    pub fn forward<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Vec<f32>> {
+    pub fn forward<B: FittedBrdf>(&mut self, r: &Renderer, brdf: &B) -> Result<Vec<f32>> {
         self.forward_scene(&r.scene, brdf)
     }
 
     /// [`GpuRenderer::forward`] of a scene.
-    fn forward_scene<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Vec<f32>> {
+    fn forward_scene<B: FittedBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Vec<f32>> {
         let setup = self.prepare(r, brdf)?;
         let nm = r.wall.l.len();
         let bins = r.time.bins;
@@ -224,12 +224,12 @@ impl GpuRenderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not one value per (measurement, bin); otherwise as
     /// [`GpuRenderer::forward`].
-    pub fn adjoint<B: RenderBrdf>(&mut self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    pub fn adjoint<B: FittedBrdf>(&mut self, r: &Renderer, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         self.adjoint_scene(&r.scene, brdf, d_loss)
     }
 
     /// [`GpuRenderer::adjoint`] of a scene.
-    fn adjoint_scene<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    fn adjoint_scene<B: FittedBrdf>(&mut self, r: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         let nm = r.wall.l.len();
         let expected = nm * r.time.bins;
         if d_loss.len() != expected {
@@ -282,19 +282,12 @@ impl GpuRenderer {
     }
 
     /// Checks what `r` asks for, uploads its triangles, wall and visibility, and builds the pipelines.
-    fn prepare<B: RenderBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Setup> {
-        super::gpu_settings(&r.params).map_err(RenderError::Gpu)?;
+    fn prepare<B: FittedBrdf>(&mut self, r: &Scene, brdf: &B) -> Result<Setup> {
+        super::gpu_support(B::MODEL, &r.params).map_err(RenderError::Gpu)?;
         let axis = r.splat_axis(&r.kernel).ok_or_else(|| gpu_err("internal: the splat rule without a tent axis"))?;
         let has_vis = matches!(r.params.visibility, Visibility::Cached { .. });
-        let GpuTerms { kind: brdf_kind, albedo, inv_w2 } = match brdf.to_any().gpu_terms() {
-            Some(terms) => terms,
-            None => {
-                return Err(gpu_err(format!(
-                    "the BRDF {} has no GPU version (Lambertian and retroreflective have one); render on the CPU",
-                    std::any::type_name::<B>()
-                )));
-            }
-        };
+        let GpuTerms { kind: brdf_kind, albedo, inv_w2 } =
+            gpu_terms(&brdf.to_any()).ok_or_else(|| gpu_err("internal: a model gpu_support accepts without terms"))?;
         let (nt, nm, bins) = (r.tris.v0.len(), r.wall.l.len(), r.time.bins);
         if has_vis && (nt as u64) * (nm as u64) >= u64::from(u32::MAX) {
             return Err(gpu_err(format!(
@@ -635,7 +628,7 @@ impl GpuBackend {
     /// Runs `pass` on the GPU where it applies: None when this backend does not support the BRDF's model with
     /// the scene's settings ([`Backend::supports`]), when it failed before, or when the pass fails now (reported
     /// once on stderr); the renderer then runs the pass on the CPU.
-    pub(super) fn attempt<B: RenderBrdf, T>(&self, scene: &Scene, pass: impl FnOnce(&Self) -> Result<T>) -> Option<T> {
+    pub(super) fn attempt<B: FittedBrdf, T>(&self, scene: &Scene, pass: impl FnOnce(&Self) -> Result<T>) -> Option<T> {
         if self.supports(B::MODEL, &scene.params).is_err() || self.failed.load(Ordering::Relaxed) {
             return None;
         }
@@ -664,11 +657,11 @@ impl Backend for GpuBackend {
         crate::gpu_support(model, params)
     }
 
-    fn forward<B: RenderBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
+    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
         self.locked(|g| g.forward_scene(scene, brdf))
     }
 
-    fn adjoint<B: RenderBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
+    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
         self.locked(|g| g.adjoint_scene(scene, brdf, d_loss))
     }
 }

@@ -3,14 +3,14 @@
 //! gradients, each over a block of triangles at once.
 
 use super::*;
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 
 /// Forward, one sample `(u, v, w)` per triangle of the block: `tau[i]` and `g[i]` = weight × visibility ×
 /// f_s × Q (0 where the pair or the sample is skipped); with `TENT`, also the tent kernel's padded bin index
 /// `idx[i]` and the two weighted bin contributions `w0[i]`, `w1[i]` (0 out of range). `CONFOCAL`: `s = l`
 /// (`b = a`, one square root).
 #[inline(never)]
-pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool, const TENT: bool>(
+pub(crate) fn forward_samples<B: FittedBrdf, const CONFOCAL: bool, const TENT: bool>(
     isa: Isa,
     brdf: &B,
     b: &Block<'_>,
@@ -23,7 +23,7 @@ pub(crate) fn forward_samples<B: RenderBrdf, const CONFOCAL: bool, const TENT: b
 }
 
 #[inline(always)]
-fn forward_samples_body<B: RenderBrdf, const CONFOCAL: bool, const TENT: bool>(
+fn forward_samples_body<B: FittedBrdf, const CONFOCAL: bool, const TENT: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
@@ -224,7 +224,7 @@ impl Acc {
 /// `(A_val, A_der)` (see the crate docs), accumulated into `acc` (index i for triangle i of `b`) where
 /// `a_val[i]` or `a_der[i]` is non-zero (stage 2 zeroes both for skipped pairs and occluded samples).
 #[inline(never)]
-pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>(
+pub(crate) fn adjoint_samples<B: FittedBrdf, const CONFOCAL: bool, const SPLAT: bool>(
     isa: Isa,
     brdf: &B,
     b: &Block<'_>,
@@ -246,7 +246,7 @@ pub(crate) fn adjoint_samples<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: 
 }
 
 kernel! {
-    fn adjoint_samples_body [<B: RenderBrdf, const CONFOCAL: bool, const SPLAT: bool>] [::<B, CONFOCAL, SPLAT>] (
+    fn adjoint_samples_body [<B: FittedBrdf, const CONFOCAL: bool, const SPLAT: bool>] [::<B, CONFOCAL, SPLAT>] (
         brdf: &B,
         b: &Block<'_>,
         fr: &Frame,

@@ -5,7 +5,7 @@
 use glam::Vec3;
 
 use super::*;
-use crate::brdf::RenderBrdf;
+use nlos_brdf::FittedBrdf;
 use crate::render::cpu::splat::MAX_SPAN;
 
 /// One splat sub-triangle of the triangles of a block: its three corners and centroid in barycentric
@@ -45,7 +45,7 @@ fn corner<const CONFOCAL: bool>(
 /// centroid (0 where the pair or the centroid's cosine tests fail, as in [`forward_samples`]) and the corner
 /// path lengths `kn[j][i]` in node units.
 #[inline(never)]
-pub(crate) fn splat_samples<B: RenderBrdf, const CONFOCAL: bool>(
+pub(crate) fn splat_samples<B: FittedBrdf, const CONFOCAL: bool>(
     isa: Isa,
     brdf: &B,
     b: &Block<'_>,
@@ -151,7 +151,7 @@ kernel! {
 }
 
 #[inline(always)]
-fn splat_samples_body<B: RenderBrdf, const CONFOCAL: bool>(
+fn splat_samples_body<B: FittedBrdf, const CONFOCAL: bool>(
     brdf: &B,
     b: &Block<'_>,
     fr: &Frame,
