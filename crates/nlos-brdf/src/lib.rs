@@ -90,11 +90,11 @@ pub mod sampling;
 
 pub use brdf::{Brdf, BrdfSample, ConfocalGrad, Grad, Lobe};
 pub use error::{BrdfError, Result};
+pub use fitted::FittedBrdf;
 pub use fresnel::Fresnel;
 pub use ggx::{ALPHA_MAX, ALPHA_MIN, Ggx, GgxGrad};
 pub use lambert::{Lambertian, LambertianGrad};
 pub use microfacet::Masking;
-pub use fitted::FittedBrdf;
 pub use model::{AnyBrdf, Model};
 pub use param::{GgxTheta, LambertianTheta};
 pub use real::{Real, V3, Vector3};

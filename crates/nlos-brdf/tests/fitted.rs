@@ -5,10 +5,8 @@ use nlos_brdf::{AnyBrdf, Fresnel, Ggx, Model};
 
 /// One BRDF of each model with parameters away from their bounds (GGX with Schlick Fresnel, so F0 is fitted).
 fn every_model() -> Vec<AnyBrdf> {
-    let mut all: Vec<AnyBrdf> = Model::ALL
-        .into_iter()
-        .map(|m| AnyBrdf::new(m, 0.3, 0.8, 0.3).expect("valid"))
-        .collect();
+    let mut all: Vec<AnyBrdf> =
+        Model::ALL.into_iter().map(|m| AnyBrdf::new(m, 0.3, 0.8, 0.3).expect("valid")).collect();
     all.push(AnyBrdf::Ggx(Ggx::new(0.3, 0.8, 0.3, Fresnel::Schlick { f0: 0.2 }).expect("valid")));
     all
 }

@@ -11,6 +11,10 @@
 //! ground-truth maps on a wall grid ([`nlos_mesh::map_metrics`]: the protocol of the methods that compare on
 //! the Z-NLOS scenes). `--volume CAPTURE --method lct|fk` scores a volumetric reconstruction of the capture
 //! (its surface: the arg-max depth of the kept columns) by the same code.
+//!
+//! With `--front-view CAPTURE` instead, no truth is needed: the mesh's lateral detail is scored against the
+//! capture's volume ([`nlos_mesh::front_view`]: r and coverage against the volume's front view — LCT on a
+//! confocal grid, the phasor field on any other scan, as `nlos init --volume` makes them).
 
 use nlos_init::Method;
 use nlos_optim::pipeline::{Config, Prepared};
@@ -50,8 +54,21 @@ pub(crate) struct Args {
     #[arg(required_unless_present = "volume")]
     mesh: Option<PathBuf>,
     /// The ground-truth mesh (OBJ, PLY or GLB).
-    #[arg(long, value_name = "GT", required_unless_present = "gt_depth", conflicts_with = "gt_depth")]
+    #[arg(
+        long,
+        value_name = "GT",
+        required_unless_present_any = ["gt_depth", "front_view"],
+        conflicts_with_all = ["gt_depth", "front_view"]
+    )]
     gt: Option<PathBuf>,
+    /// Score the mesh's lateral detail against this capture's volume instead of a truth: Pearson's r of the
+    /// volume's front view and the mesh's (+z rays from the scan grid; a hit counts 1) over the object's
+    /// region, and the share of the volume's bright pixels the mesh covers (`nlos_mesh::front_view`).
+    #[arg(long, value_name = "CAPTURE", conflicts_with_all = ["gt_depth", "volume"])]
+    front_view: Option<PathBuf>,
+    /// The reflectance the volume of --front-view is weighted for (as `nlos reconstruct --brdf`).
+    #[arg(long, value_parser = crate::choices::brdf_parser(), default_value = "lambert", requires = "front_view")]
+    brdf: nlos_init::Model,
     /// Ground-truth depth map (.npy, .mat or one-channel .exr, metres along +z from the wall; 0, NaN or Inf: no
     /// surface) on the wall grid of --extent (or of --wall), laid out as --gt-layout says.
     #[arg(long, value_name = "DEPTH")]
@@ -128,6 +145,30 @@ pub(crate) fn volume_surface(capture: &Path, method: Method) -> Result<SurfaceMe
     // The LCT start's extraction (compact-object settings, max depth, the step allowed by the spacing).
     let surface = prepared.surface_params(Method::Lct);
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
+}
+
+/// The front-view detail of `mesh` against the volume of `capture` ([`nlos_mesh::front_view`]): the volume
+/// `Method::for_scan` picks, from the capture prepared as `nlos reconstruct` prepares it, weighted for `brdf`.
+fn front_view(
+    mesh: &SurfaceMesh,
+    what: &str,
+    capture: &Path,
+    brdf: nlos_init::Model,
+) -> Result<nlos_mesh::front_view::FrontViewDetail, CliError> {
+    let step = Step::spinner(format!("eval: the volume of {}", capture.display()));
+    let t = nlos_transient::read(capture).map_err(CliError::input)?;
+    let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
+    let (method, _) = Method::for_scan(t.scan());
+    let prepared = Prepared::new(t, &Config::default()).map_err(|e| fail(e.to_string()))?;
+    let volume = prepared.volume(method, brdf, None).map_err(|e| fail(e.to_string()))?;
+    step.finish();
+    let (x, y): (Vec<f64>, Vec<f64>) =
+        ((0..volume.nx).map(|i| volume.x.at(i)).collect(), (0..volume.ny).map(|i| volume.y.at(i)).collect());
+    let value = volume.max_projection();
+    let view = nlos_mesh::front_view::FrontView { x: &x, y: &y, value: &value };
+    let bvh = nlos_mesh::TriangleBvh::from_mesh(mesh).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
+    nlos_mesh::front_view::front_view_detail(view, &bvh, &|_| 1.0)
+        .map_err(|e| CliError::Failure(format!("the front view of {}: {e}", capture.display())))
 }
 
 /// A map file as (values in C order, shape): `.npy`, `.mat` (its only numeric variable) or `.exr` (one
@@ -244,6 +285,12 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let reconstruction = reconstruction(args)?;
     step.finish();
     let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
+    if let Some(capture) = &args.front_view {
+        let detail = front_view(&reconstruction, &what, capture, args.brdf)?;
+        let line = serde_json::to_string(&detail).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
+        outln!("{line}");
+        return Ok(());
+    }
     if let Some(depth_file) = &args.gt_depth {
         let place = match (&args.wall, &args.volume, args.extent) {
             (Some(capture), _, _) | (None, Some(capture), None) => MapPlace::Wall(capture.clone()),

@@ -24,9 +24,9 @@ pub struct Reflectance {
 impl Default for Reflectance {
     /// Lambertian with albedo 1.
     fn default() -> Self {
-        Reflectance::from_brdf(AnyBrdf::Lambertian(nlos_brdf::Lambertian::new(1.0).unwrap_or_else(|_| {
-            unreachable!("1 is a valid albedo")
-        })))
+        Reflectance::from_brdf(AnyBrdf::Lambertian(
+            nlos_brdf::Lambertian::new(1.0).unwrap_or_else(|_| unreachable!("1 is a valid albedo")),
+        ))
     }
 }
 

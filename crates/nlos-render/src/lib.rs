@@ -164,10 +164,10 @@ pub mod loss;
 pub mod render;
 mod visibility;
 
-pub use nlos_brdf::{AnyBrdf, FittedBrdf, with_brdf};
 pub use error::{RenderError, Result};
 pub use kernel::Kernel;
 pub use loss::Loss;
+pub use nlos_brdf::{AnyBrdf, FittedBrdf, with_brdf};
 #[cfg(feature = "gpu")]
 pub use render::gpu::GpuRenderer;
 pub use render::{

@@ -8,7 +8,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{
-    DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, FittedBrdf, Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 

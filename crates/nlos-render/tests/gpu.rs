@@ -9,7 +9,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
-use nlos_render::{GpuRenderer, FittedBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{FittedBrdf, GpuRenderer, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// The device, or None (with the reason printed) where the machine has none and none is required.

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian, Retroreflective};
 use nlos_render::{
-    DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, FittedBrdf, Kernel, Loss, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 

@@ -6,7 +6,7 @@ mod common;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
 use nlos_render::{
-    DeterministicRule, Kernel, FittedBrdf, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility,
+    DeterministicRule, FittedBrdf, Kernel, RenderError, RenderParams, Renderer, Sampling, SplatRule, Visibility,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis};
 

@@ -9,7 +9,7 @@ use std::time::Instant;
 use common::*;
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, FittedBrdf, Kernel, RenderParams, Renderer, Sampling, Visibility};
 
 fn square() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (h, d) = (0.1, 0.4);

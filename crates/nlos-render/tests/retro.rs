@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 use nlos_brdf::{Lambertian, Retroreflective};
-use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{DeterministicRule, FittedBrdf, Kernel, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 fn params(sampling: Sampling) -> RenderParams {

@@ -7,7 +7,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, FittedBrdf, RenderParams, Renderer, Sampling, SplatRule, Visibility};
+use nlos_render::{DeterministicRule, FittedBrdf, Kernel, RenderParams, Renderer, Sampling, SplatRule, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 fn rel_l2(a: &[f32], b: &[f32]) -> f64 {

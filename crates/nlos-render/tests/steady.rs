@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use nlos_brdf::{Fresnel, Ggx, Lambertian};
-use nlos_render::{DeterministicRule, Kernel, Loss, FittedBrdf, RenderParams, Renderer, Sampling, Visibility};
+use nlos_render::{DeterministicRule, FittedBrdf, Kernel, Loss, RenderParams, Renderer, Sampling, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis};
 
 /// Deterministic pseudo-random numbers in [0, 1): the workspace's SplitMix64 (`nlos_transient::rng`).

@@ -11,8 +11,8 @@ use nlos_brdf::Model;
 
 use super::scene::Scene;
 use super::{Gradient, RenderParams};
-use nlos_brdf::FittedBrdf;
 use crate::error::Result;
+use nlos_brdf::FittedBrdf;
 
 /// Where the renderer's forward and adjoint passes run.
 pub(crate) trait Backend {

@@ -8,12 +8,12 @@ use glam::Vec3;
 use nlos_transient::{Scan, TimeAxis, Transient};
 
 use crate::brdf::gpu_terms;
-use nlos_brdf::{AnyBrdf, FittedBrdf};
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
 use crate::render::cpu::soa::{self, Isa};
 use nlos_brdf::Model;
+use nlos_brdf::{AnyBrdf, FittedBrdf};
 
 #[cfg(feature = "gpu")]
 mod backend;

@@ -9,11 +9,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::{Gradient, RenderParams, Sampling, Visibility, check_params};
-use nlos_brdf::FittedBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{BLOCK, Soa};
 use crate::visibility::Bvh;
+use nlos_brdf::FittedBrdf;
 
 /// Per-measurement wall geometry, structure of arrays.
 #[derive(Debug, Clone)]

@@ -5,11 +5,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::*;
-use nlos_brdf::FittedBrdf;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
 use crate::render::cpu::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
 use crate::render::cpu::splat::{self, Knots};
+use nlos_brdf::FittedBrdf;
 
 impl Cpu<'_> {
     /// The forward pass with kernel `k` (its bin count sets the histogram length).

@@ -5,8 +5,8 @@
 use glam::Vec3;
 
 use super::*;
-use nlos_brdf::FittedBrdf;
 use crate::render::cpu::splat::MAX_SPAN;
+use nlos_brdf::FittedBrdf;
 
 /// One splat sub-triangle of the triangles of a block: its three corners and centroid in barycentric
 /// coordinates `(u, v)` (u along e1, v along e2) and its weight `w` (fraction of the triangle's area).
