@@ -92,7 +92,7 @@ pub fn front_view_detail(
 /// between-class variance. The minimum for constant values.
 pub fn otsu(values: &[f32]) -> f32 {
     let (lo, hi) = values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-    if !(hi > lo) {
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
         return lo;
     }
     const BINS: usize = 256;
