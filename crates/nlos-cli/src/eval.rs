@@ -147,14 +147,17 @@ pub(crate) fn volume_surface(capture: &Path, method: Method) -> Result<SurfaceMe
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 
-/// The front-view detail of `mesh` against the volume of `capture` ([`nlos_mesh::front_view`]): the volume
-/// `Method::for_scan` picks, from the capture prepared as `nlos reconstruct` prepares it, weighted for `brdf`.
+/// The front-view detail of the mesh file `mesh` against the volume of `capture` ([`nlos_mesh::front_view`]):
+/// the volume `Method::for_scan` picks, from the capture prepared as `nlos reconstruct` prepares it, weighted
+/// for `brdf`. A hit counts the albedo of the nearest corner where the file has one (PLY's `albedo`), else 1.
 fn front_view(
-    mesh: &SurfaceMesh,
-    what: &str,
+    mesh: &Path,
     capture: &Path,
     brdf: nlos_init::Model,
 ) -> Result<nlos_mesh::front_view::FrontViewDetail, CliError> {
+    let bytes = std::fs::read(mesh).map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
+    let soup =
+        nlos_mesh::io::read_any(&bytes, &mesh.display().to_string()).map_err(|e| CliError::Input(e.to_string()))?;
     let step = Step::spinner(format!("eval: the volume of {}", capture.display()));
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
@@ -166,8 +169,16 @@ fn front_view(
         ((0..volume.nx).map(|i| volume.x.at(i)).collect(), (0..volume.ny).map(|i| volume.y.at(i)).collect());
     let value = volume.max_projection();
     let view = nlos_mesh::front_view::FrontView { x: &x, y: &y, value: &value };
-    let bvh = nlos_mesh::TriangleBvh::from_mesh(mesh).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
-    nlos_mesh::front_view::front_view_detail(view, &bvh, &|_| 1.0)
+    let bvh = nlos_mesh::TriangleBvh::from_triangles(&soup.positions, &soup.triangles)
+        .map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
+    let albedo = |hit: &nlos_mesh::bvh::RayHit| match &soup.albedo {
+        Some(a) => {
+            let corner = soup.triangles[hit.triangle as usize][nlos_mesh::front_view::nearest_corner(hit)];
+            a[corner as usize]
+        }
+        None => 1.0,
+    };
+    nlos_mesh::front_view::front_view_detail(view, &bvh, &albedo)
         .map_err(|e| CliError::Failure(format!("the front view of {}: {e}", capture.display())))
 }
 
@@ -286,7 +297,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     step.finish();
     let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
     if let Some(capture) = &args.front_view {
-        let detail = front_view(&reconstruction, &what, capture, args.brdf)?;
+        let detail = front_view(Path::new(&what), capture, args.brdf)?;
         let line = serde_json::to_string(&detail).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         outln!("{line}");
         return Ok(());

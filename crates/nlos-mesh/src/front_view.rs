@@ -17,7 +17,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::bvh::TriangleBvh;
+use crate::bvh::{RayHit, TriangleBvh};
 use crate::error::MeshError;
 
 /// The front-view detail of a mesh against a volume's front view (module docs).
@@ -46,7 +46,8 @@ pub struct FrontView<'a> {
 }
 
 /// Scores the mesh in `bvh` against the volume's front view `volume` (module docs). `albedo` gives the
-/// surface's albedo at a hit point (`|_| 1.0` without an albedo).
+/// surface's albedo at a ray's hit (`|_| 1.0` without an albedo; with a per-vertex albedo, that of the hit
+/// triangle's corner with the largest barycentric weight: [`nearest_corner`]).
 ///
 /// # Errors
 /// [`MeshError::InvalidParameter`] when `volume.value` is not `x.len() × y.len()` long, is empty, or holds a
@@ -54,7 +55,7 @@ pub struct FrontView<'a> {
 pub fn front_view_detail(
     volume: FrontView<'_>,
     bvh: &TriangleBvh,
-    albedo: &(dyn Fn(Vec3) -> f32 + Sync),
+    albedo: &(dyn Fn(&RayHit) -> f32 + Sync),
 ) -> Result<FrontViewDetail, MeshError> {
     let (nx, ny) = (volume.x.len(), volume.y.len());
     let bad = |reason| MeshError::InvalidParameter { name: "front view", value: volume.value.len() as f64, reason };
@@ -71,7 +72,7 @@ pub fn front_view_detail(
         .into_par_iter()
         .map(|i| {
             let origin = Vec3::new(volume.x[i % nx] as f32, volume.y[i / nx] as f32, 0.0);
-            bvh.ray_first_hit(origin, Vec3::Z, f32::INFINITY).map(|hit| albedo(hit.point))
+            bvh.ray_first_hit(origin, Vec3::Z, f32::INFINITY).map(|hit| albedo(&hit))
         })
         .collect();
     let pairs: Vec<(f64, f64)> = (0..nx * ny)
@@ -86,6 +87,12 @@ pub fn front_view_detail(
         region_pixels: pairs.len(),
         threshold,
     })
+}
+
+/// Which corner (0, 1 or 2) of the hit triangle lies nearest the hit: the one of largest barycentric weight.
+pub fn nearest_corner(hit: &RayHit) -> usize {
+    let b = hit.barycentric.to_array();
+    (0..3).fold(0, |best, k| if b[k] > b[best] { k } else { best })
 }
 
 /// Otsu's threshold of `values` (256 bins between their minimum and maximum): the level that maximises the

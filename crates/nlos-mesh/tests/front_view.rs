@@ -3,6 +3,7 @@
 
 use glam::Vec3;
 use nlos_mesh::TriangleBvh;
+use nlos_mesh::bvh::RayHit;
 use nlos_mesh::front_view::{FrontView, front_view_detail};
 
 /// 32 × 32 pixels over [−0.16, 0.16]² m; the plate covers |x|, |y| < 0.1 m, the slot 0 ≤ x < 0.03 m.
@@ -51,7 +52,7 @@ fn the_slot_counts_and_so_does_the_print() {
         })
         .collect();
     let view = FrontView { x: &x, y: &y, value: &value };
-    let uniform = |_: Vec3| 1.0f32;
+    let uniform = |_: &RayHit| 1.0f32;
     let with_slot = front_view_detail(view, &plate(in_slot), &uniform).expect("valid");
     let covered = front_view_detail(view, &plate(|_, _| false), &uniform).expect("valid");
     eprintln!("with the slot: {with_slot:?}\nwithout: {covered:?}");
@@ -61,8 +62,8 @@ fn the_slot_counts_and_so_does_the_print() {
     // The slot lies inside the region (holes filled), the outside does not.
     assert_eq!(with_slot.region_pixels, 400);
     // The same slot as dark print on a whole plate scores like the hole.
-    let printed = front_view_detail(view, &plate(|_, _| false), &|p: Vec3| {
-        if in_slot(f64::from(p.x), f64::from(p.y)) { 0.05 } else { 1.0 }
+    let printed = front_view_detail(view, &plate(|_, _| false), &|hit: &RayHit| {
+        if in_slot(f64::from(hit.point.x), f64::from(hit.point.y)) { 0.05 } else { 1.0 }
     })
     .expect("valid");
     assert!(printed.r > 0.95, "{printed:?}");

@@ -46,6 +46,32 @@ fn ply_round_trips_are_exact() {
 }
 
 #[test]
+fn ply_albedo_round_trips_with_grey_colours_and_bad_values_are_errors() {
+    let m = awkward();
+    let n = m.to_triangles().0.len();
+    let albedo: Vec<f32> = (0..n).map(|i| (i % 7) as f32 * 0.25).collect();
+    for enc in [PlyEncoding::Ascii, PlyEncoding::BinaryLittleEndian] {
+        let bytes = io::write_ply_with_albedo(&m, &albedo, enc).expect("one value per vertex");
+        let header = String::from_utf8_lossy(&bytes[..300]).into_owned();
+        assert!(header.contains("property float albedo\nproperty uchar red"), "{header}");
+        let soup = io::read_ply(&bytes, "mem.ply").expect("parses");
+        assert_same(&m, &soup);
+        assert_eq!(soup.albedo.as_deref(), Some(&albedo[..]));
+    }
+    assert_eq!(io::read_ply(&io::write_ply(&m, PlyEncoding::Ascii), "mem.ply").expect("parses").albedo, None);
+    assert!(io::write_ply_with_albedo(&m, &albedo[1..], PlyEncoding::Ascii).is_err());
+    let mut bad = albedo.clone();
+    bad[2] = f32::NAN;
+    assert!(io::write_ply_with_albedo(&m, &bad, PlyEncoding::Ascii).is_err());
+    // A file whose albedo is negative is refused, naming the vertex.
+    let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                property float albedo\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+                0 0 1 0.5\n1 0 1 -1\n0 1 1 0.5\n3 0 1 2\n";
+    let e = io::read_ply(text.as_bytes(), "neg.ply").expect_err("negative albedo");
+    assert!(e.to_string().contains("vertex 1 albedo"), "{e}");
+}
+
+#[test]
 fn glb_round_trip_and_gltf_crate_accepts_it() {
     let m = awkward();
     let bytes = io::write_glb(&m);

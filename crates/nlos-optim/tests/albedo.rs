@@ -90,7 +90,10 @@ fn printed_bars_become_albedo_not_relief() {
     let measured = measurement();
     let init = plate(DEPTH - 0.004, 10);
     let uniform = reconstruct(&measured, &init, &params(None)).unwrap();
-    let mapped = reconstruct(&measured, &init, &params(Some(AlbedoMapParams::default()))).unwrap();
+    let dir = std::env::temp_dir().join(format!("nlos-optim-albedo-ply-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let with_map = ReconstructParams { out_dir: Some(dir.clone()), ..params(Some(AlbedoMapParams::default())) };
+    let mapped = reconstruct(&measured, &init, &with_map).unwrap();
     let (su, mu) = depth_spread(&uniform.mesh);
     let (sm, mm) = depth_spread(&mapped.mesh);
     println!(
@@ -108,6 +111,21 @@ fn printed_bars_become_albedo_not_relief() {
     assert!(sm < 1.5e-3, "with the map the plate should stay flat, spread {sm}");
     assert!((mm - DEPTH).abs() < 1.5e-3, "with the map the plate should sit at {DEPTH} m, median {mm}");
     assert!(su > 2.0 * sm, "a uniform albedo should need relief to explain the bars: {su} vs {sm}");
+    // mesh.ply carries the map at each vertex: dark on the bars.
+    let soup = nlos_mesh::io::read_ply(&std::fs::read(dir.join("mesh.ply")).unwrap(), "mesh.ply").unwrap();
+    let albedo = soup.albedo.expect("mesh.ply has the albedo");
+    let mean = |bar: bool| {
+        let v: Vec<f32> = soup
+            .positions
+            .iter()
+            .zip(&albedo)
+            .filter(|(p, _)| p.x.abs() < 0.07 && (printed(p.x) < 1.0) == bar)
+            .map(|(_, a)| *a)
+            .collect();
+        v.iter().sum::<f32>() / v.len() as f32
+    };
+    assert!(mean(true) / mean(false) < 0.7, "bars {} white {}", mean(true), mean(false));
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -15,7 +15,7 @@ use std::path::Path;
 
 pub use glb::{read_glb, write_glb};
 pub use obj::{read_obj, write_obj};
-pub use ply::{PlyEncoding, read_ply, write_ply};
+pub use ply::{PlyEncoding, read_ply, write_ply, write_ply_with_albedo};
 
 use crate::build::BuildOptions;
 use crate::error::MeshError;
@@ -29,6 +29,9 @@ pub struct TriangleSoup {
     pub positions: Vec<glam::Vec3>,
     /// Triangles (polygons are fan-triangulated by the readers).
     pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex albedo, where the file has it (PLY's vertex property `albedo`, as
+    /// [`write_ply_with_albedo`] writes it).
+    pub albedo: Option<Vec<f32>>,
 }
 
 impl TriangleSoup {
@@ -87,8 +90,30 @@ pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError>
         "glb" => write_glb(mesh),
         _ => write_obj(mesh),
     };
+    write_atomically(path, &ext, &bytes)
+}
+
+/// Writes `mesh` with a per-vertex albedo to the binary PLY file `path`, atomically ([`write_ply_with_albedo`]:
+/// the float property `albedo` and grey vertex colours for viewers).
+///
+/// # Errors
+/// [`MeshError::Format`] for a path not ending in `.ply` or an `albedo` not one value per vertex of
+/// `mesh.to_triangles()`; [`MeshError::Io`] when the file cannot be written.
+pub fn save_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], path: impl AsRef<Path>) -> Result<(), MeshError> {
+    let path = path.as_ref();
+    let ext = check_save_extension(path)?;
+    if ext != "ply" {
+        return Err(MeshError::format(&path.display().to_string(), "extension", "an albedo is written to .ply only"));
+    }
+    let bytes = write_ply_with_albedo(mesh, albedo, PlyEncoding::BinaryLittleEndian)
+        .map_err(|e| MeshError::format(&path.display().to_string(), "albedo", &e))?;
+    write_atomically(path, &ext, &bytes)
+}
+
+/// Writes `bytes` to `path` through a temporary file beside it.
+fn write_atomically(path: &Path, ext: &str, bytes: &[u8]) -> Result<(), MeshError> {
     let io = |source| MeshError::Io { file: path.to_owned(), source };
     let tmp = path.with_extension(format!("{ext}.tmp"));
-    std::fs::write(&tmp, &bytes).map_err(io)?;
+    std::fs::write(&tmp, bytes).map_err(io)?;
     std::fs::rename(&tmp, path).map_err(io)
 }

@@ -175,7 +175,9 @@ pub fn read_ply(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
             let (Some(ix), Some(iy), Some(iz)) = (idx("x"), idx("y"), idx("z")) else {
                 return Err(err("element vertex", "needs scalar properties x, y and z"));
             };
+            let ia = idx("albedo");
             soup.positions.reserve(el.count);
+            let mut albedo = Vec::with_capacity(if ia.is_some() { el.count } else { 0 });
             let mut vals = vec![0f64; el.props.len()];
             for vi in 0..el.count {
                 for (k, p) in el.props.iter().enumerate() {
@@ -191,7 +193,15 @@ pub fn read_ply(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
                     return Err(err(&format!("vertex {vi}"), "non-finite coordinate"));
                 }
                 soup.positions.push(p);
+                if let Some(ia) = ia {
+                    let a = vals[ia] as f32;
+                    if !(a.is_finite() && a >= 0.0) {
+                        return Err(err(&format!("vertex {vi} albedo"), "not a finite value >= 0"));
+                    }
+                    albedo.push(a);
+                }
             }
+            soup.albedo = ia.map(|_| albedo);
         } else if el.name == "face" {
             let list = el
                 .props
@@ -340,36 +350,78 @@ impl Cursor<'_> {
 /// Reading it back gives bit-identical positions and the same triangles.
 pub fn write_ply(mesh: &SurfaceMesh, encoding: PlyEncoding) -> Vec<u8> {
     let (pos, tris) = mesh.to_triangles();
+    ply_bytes(&pos, &tris, None, encoding)
+}
+
+/// [`write_ply`] with a per-vertex albedo: the `float` vertex property `albedo` (read back by [`read_ply`] into
+/// [`super::TriangleSoup::albedo`]) and `uchar` red, green and blue, the albedo as grey scaled so that the
+/// largest is white (what MeshLab and Blender show). `albedo` holds one value per vertex of
+/// `mesh.to_triangles()`, in its order.
+///
+/// # Errors
+/// The reason, when `albedo` is not one finite value ≥ 0 per vertex.
+pub fn write_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], encoding: PlyEncoding) -> Result<Vec<u8>, String> {
+    let (pos, tris) = mesh.to_triangles();
+    if albedo.len() != pos.len() {
+        return Err(format!("{} values for {} vertices", albedo.len(), pos.len()));
+    }
+    if let Some(bad) = albedo.iter().position(|a| !(a.is_finite() && *a >= 0.0)) {
+        return Err(format!("vertex {bad}: {} is not a finite value >= 0", albedo[bad]));
+    }
+    Ok(ply_bytes(&pos, &tris, Some(albedo), encoding))
+}
+
+/// The PLY file of `pos` and `tris`, with `albedo` (checked by the caller) as a property and grey colours.
+fn ply_bytes(pos: &[Vec3], tris: &[[u32; 3]], albedo: Option<&[f32]>, encoding: PlyEncoding) -> Vec<u8> {
     let format = match encoding {
         PlyEncoding::Ascii => "ascii",
         PlyEncoding::BinaryLittleEndian => "binary_little_endian",
     };
+    let extra = if albedo.is_some() {
+        "property float albedo\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+    } else {
+        ""
+    };
     let mut out = format!(
         "ply\nformat {format} 1.0\ncomment nlos-mesh\nelement vertex {}\nproperty float x\nproperty float y\n\
-         property float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+         property float z\n{extra}element face {}\nproperty list uchar int vertex_indices\nend_header\n",
         pos.len(),
         tris.len()
     )
     .into_bytes();
+    let top = albedo.map_or(0.0, |a| a.iter().fold(0.0f32, |m, &x| m.max(x)));
+    let grey = |a: f32| if top > 0.0 { (255.0 * a / top).round().clamp(0.0, 255.0) as u8 } else { 0 };
     match encoding {
         PlyEncoding::Ascii => {
             let mut s = String::with_capacity(pos.len() * 36 + tris.len() * 24);
-            for p in &pos {
-                let _ = writeln!(s, "{} {} {}", p.x, p.y, p.z);
+            for (i, p) in pos.iter().enumerate() {
+                match albedo {
+                    Some(a) => {
+                        let g = grey(a[i]);
+                        let _ = writeln!(s, "{} {} {} {} {g} {g} {g}", p.x, p.y, p.z, a[i]);
+                    }
+                    None => {
+                        let _ = writeln!(s, "{} {} {}", p.x, p.y, p.z);
+                    }
+                }
             }
-            for t in &tris {
+            for t in tris {
                 let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
             }
             out.extend_from_slice(s.as_bytes());
         }
         PlyEncoding::BinaryLittleEndian => {
-            out.reserve(pos.len() * 12 + tris.len() * 13);
-            for p in &pos {
+            out.reserve(pos.len() * 19 + tris.len() * 13);
+            for (i, p) in pos.iter().enumerate() {
                 for c in p.to_array() {
                     out.extend_from_slice(&c.to_le_bytes());
                 }
+                if let Some(a) = albedo {
+                    out.extend_from_slice(&a[i].to_le_bytes());
+                    out.extend_from_slice(&[grey(a[i]); 3]);
+                }
             }
-            for t in &tris {
+            for t in tris {
                 out.push(3);
                 for &i in t {
                     out.extend_from_slice(&(i as i32).to_le_bytes());

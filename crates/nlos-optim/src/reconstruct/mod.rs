@@ -475,7 +475,20 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
     let mesh = mesh_of(&st)?;
     if let Some(dir) = &params.out_dir {
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
-        nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?;
+        match &st.albedo {
+            // The relative albedo (geometric mean 1 over the surface) at each vertex, for viewers and
+            // `nlos eval --front-view`.
+            Some(map) => {
+                let albedo: Vec<f32> = mesh
+                    .to_triangles()
+                    .0
+                    .iter()
+                    .map(|p| map.log_albedo_at(f64::from(p.x), f64::from(p.y)).exp() as f32)
+                    .collect();
+                nlos_mesh::io::save_ply_with_albedo(&mesh, &albedo, dir.join("mesh.ply"))?;
+            }
+            None => nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?,
+        }
     }
     Ok(outcome(&st, mesh, st.finished.unwrap_or(StopReason::MaxStages)))
 }
