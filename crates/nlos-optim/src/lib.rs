@@ -60,7 +60,7 @@ pub use data_term::{
 pub use error::{OptimError, Result};
 pub use nlos_render::Loss;
 pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
-pub use prune::{PruneFaces, PruneParams, PruneRecord, Pruned, prune_boundary};
+pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
     IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,

@@ -1,5 +1,4 @@
-//! Loss-driven pruning: delete the faces the measurement says are not there — at the rim, or anywhere
-//! ([`PruneFaces`]).
+//! Loss-driven boundary pruning: delete the boundary faces the measurement says are not there.
 //!
 //! The shape steps move vertices; they cannot change where the surface ends. An initial surface taken from a
 //! blurred volume (LCT) ends too far out where the object's silhouette recedes (the albedo halo, a rim at
@@ -25,13 +24,7 @@
 //! ([`crate::residual`]) take `c_f` from the forward difference
 //! `E(I + 2I_f) − 2E(I + I_f) + E(I)`, the same `s²‖I_f‖²` for L2.
 //!
-//! **Holes.** With [`PruneFaces::All`] every face is tested, not only the rim's: a face over a slot or the
-//! gap between two bars adds light the measurement does not hold and goes like a rim face, so the surface
-//! opens a hole there or falls into pieces, instead of bending a dent behind the plate to move that light
-//! later. Deleting faces never moves a vertex, so it cannot make the surface intersect itself; the pinch test
-//! below keeps it manifold.
-//!
-//! Per round, every face with a boundary edge (or every face) is tested (in parallel); faces with `ΔE_f < 0` are deleted
+//! Per round, every face with a boundary edge is tested (in parallel); faces with `ΔE_f < 0` are deleted
 //! greedily from the most negative, each re-tested against the rendering left by the deletions before it
 //! (their shares overlap in time and measurement). A deletion that would pinch a vertex into two fans (a
 //! non-manifold "bow tie") is skipped. Later rounds test the faces the deletions exposed (and those a pinch
@@ -62,27 +55,11 @@ pub struct PruneParams {
     /// second difference along the face's share. 0 is the plain sign test; 1 deletes only faces that
     /// nothing in the measurement supports. Default 0.5.
     pub margin: f64,
-    /// Which faces are tested (default [`PruneFaces::Boundary`]).
-    #[serde(default)]
-    pub faces: PruneFaces,
-}
-
-/// Which faces pruning tests ([`PruneParams::faces`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PruneFaces {
-    /// Faces with a boundary edge (and, in later rounds, those the deletions expose): the surface's extent
-    /// shrinks from its rim, its topology stays.
-    #[default]
-    Boundary,
-    /// Every face: a hole opens wherever the measurement says nothing is (a slot through a plate, the gap
-    /// between two bars), and the surface may fall into several pieces.
-    All,
 }
 
 impl Default for PruneParams {
     fn default() -> Self {
-        Self { rounds: 3, max_fraction: 0.2, margin: 0.5, faces: PruneFaces::default() }
+        Self { rounds: 3, max_fraction: 0.2, margin: 0.5 }
     }
 }
 
@@ -190,29 +167,32 @@ pub fn prune_boundary(
     let mut settled = vec![false; nt];
 
     for _ in 0..params.rounds {
-        let on_boundary = |t: [u32; 3]| (0..3).any(|k| edges.get(&key(t[k], t[(k + 1) % 3])) == Some(&1));
         let candidates: Vec<usize> = (0..nt)
-            .filter(|&f| keep[f] && !settled[f] && (params.faces == PruneFaces::All || on_boundary(triangles[f])))
+            .filter(|&f| {
+                let t = triangles[f];
+                keep[f] && !settled[f] && (0..3).any(|k| edges.get(&key(t[k], t[(k + 1) % 3])) == Some(&1))
+            })
             .collect();
         if candidates.is_empty() || removed >= budget {
             break;
         }
         tested += candidates.len();
         let snapshot: &[f32] = rendered;
-        // The shares are kept only for the faces that may go: with every face tested, all the shares together
-        // are as large as the rendering times the faces each bin sees.
         let mut scored: Vec<(f64, usize, Vec<RowSpan>)> = candidates
             .par_iter()
             .map(|&f| {
                 let spans = renderer.forward_triangle_any(brdf, f)?;
-                // A face no measurement sees (empty share: facing away, occluded, out of the time window) is
-                // unsupported whatever the data say: it goes first (it changes no rendering, so no order
-                // among them).
                 let (d, _) = delta(&spans, snapshot, bins, row_loss, params.margin, false)?;
-                let d = if spans.is_empty() { f64::NEG_INFINITY } else { d };
-                Ok((d, f, if d < 0.0 { spans } else { Vec::new() }))
+                Ok((d, f, spans))
             })
             .collect::<Result<_>>()?;
+        // A face no measurement sees (empty share: facing away, occluded, out of the time window) is
+        // unsupported whatever the data say: it goes first (it changes no rendering, so no order among them).
+        for s in &mut scored {
+            if s.2.is_empty() {
+                s.0 = f64::NEG_INFINITY;
+            }
+        }
         for (d, f, _) in &scored {
             settled[*f] = !(*d < 0.0);
         }

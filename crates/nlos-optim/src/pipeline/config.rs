@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{OptimError, Result};
 use nlos_render::{Device, SplatRule};
 
-use crate::{PruneFaces, PruneParams, ReconstructParams, ResidualParams, Schedule};
+use crate::{PruneParams, ReconstructParams, ResidualParams, Schedule};
 
 /// `"auto"` or `"off"` where a setting also takes a number.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -275,8 +275,6 @@ pub struct BoundaryConfig {
     pub prune_rounds: u32,
     /// Margin κ of the pruning test (a face goes when ΔE < −κ·½c).
     pub prune_margin: f64,
-    /// Which faces pruning tests: `"boundary"` (the rim) or `"all"` (holes anywhere).
-    pub prune_faces: PruneFaces,
     /// Residual back-projection after the first `residual_stages` stages ([`crate::residual`]; 0: none).
     pub residual_stages: u32,
     /// Residual columns closer than this to the mesh are left to the shape steps (metres).
@@ -293,7 +291,6 @@ impl Default for BoundaryConfig {
         Self {
             prune_rounds: prune.rounds,
             prune_margin: prune.margin,
-            prune_faces: prune.faces,
             residual_stages: residual.stages.unwrap_or(u32::MAX),
             residual_separation: residual.separation,
             residual_margin: residual.margin,
@@ -512,7 +509,6 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ),
     ("boundary.prune_rounds", "rounds of boundary pruning after every block (0: none)"),
     ("boundary.prune_margin", "margin κ of the pruning test"),
-    ("boundary.prune_faces", "\"boundary\" (the rim only) or \"all\" (holes may open anywhere)"),
     ("boundary.residual_stages", "residual patches after the first N stages (0: none)"),
     ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
     ("boundary.residual_margin", "margin κ of the residual patches' test"),

@@ -50,7 +50,6 @@ impl Prepared {
         p.prune = (b.prune_rounds > 0).then_some(PruneParams {
             rounds: b.prune_rounds,
             margin: b.prune_margin,
-            faces: b.prune_faces,
             ..PruneParams::default()
         });
         p.residual = (b.residual_stages > 0).then(|| ResidualParams {
