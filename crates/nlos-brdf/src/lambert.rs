@@ -141,36 +141,3 @@ impl<T: Real> From<Lambertian<T>> for LambertianRaw<T> {
         Self { albedo: l.albedo }
     }
 }
-
-/// θ = (softplus⁻¹ ρ) ([`crate::LambertianTheta`], in f64).
-impl crate::FittedBrdf for Lambertian<f32> {
-    const MODEL: crate::Model = crate::Model::Lambert;
-    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
-    const SCALE_ONLY: bool = true;
-    fn params(&self) -> Vec<f32> {
-        vec![self.albedo]
-    }
-    fn with_params(&self, params: &[f32]) -> Result<Self> {
-        Lambertian::new(crate::fitted::entry(params, 0, f32::NAN))
-    }
-    #[inline(always)]
-    fn param_grad_array(g: &LambertianGrad<f32>) -> [f32; 4] {
-        [g.albedo, 0.0, 0.0, 0.0]
-    }
-    fn describe(&self) -> String {
-        format!("Lambertian, albedo {:.4}", self.albedo)
-    }
-    fn to_any(&self) -> crate::AnyBrdf {
-        crate::AnyBrdf::Lambertian(*self)
-    }
-    fn theta(&self) -> Vec<f64> {
-        vec![crate::param::softplus_inv(f64::from(self.albedo))]
-    }
-    fn with_theta(&self, theta: &[f64]) -> Result<Self> {
-        Lambertian::new(crate::param::softplus(crate::fitted::entry(theta, 0, f64::NAN) as f32))
-    }
-    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
-        let (t, d) = (crate::fitted::entry(theta, 0, 0.0), crate::fitted::entry(d_params, 0, 0.0));
-        vec![f64::from(d) * crate::param::sigmoid(t)]
-    }
-}

@@ -77,7 +77,6 @@
 
 pub mod brdf;
 pub mod error;
-pub mod fitted;
 pub mod fresnel;
 pub mod ggx;
 pub mod lambert;
@@ -90,12 +89,11 @@ pub mod sampling;
 
 pub use brdf::{Brdf, BrdfSample, ConfocalGrad, Grad, Lobe};
 pub use error::{BrdfError, Result};
-pub use fitted::FittedBrdf;
 pub use fresnel::Fresnel;
 pub use ggx::{ALPHA_MAX, ALPHA_MIN, Ggx, GgxGrad};
 pub use lambert::{Lambertian, LambertianGrad};
 pub use microfacet::Masking;
-pub use model::{AnyBrdf, Model};
+pub use model::{AnyBrdf, FittedBrdf, Model};
 pub use param::{GgxTheta, LambertianTheta};
 pub use real::{Real, V3, Vector3};
 pub use retro::{RETRO_LOBE_WIDTH, Retroreflective, RetroreflectiveGrad};

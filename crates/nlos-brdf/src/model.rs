@@ -1,7 +1,11 @@
 //! [`Model`]: which reflectance model, by name — the one choice read by the settings (`reflectance.model`),
 //! the command line (`--brdf`), Python (`brdf=`), the volumetric starts' weighting and the renderer; and
 //! [`AnyBrdf`], one BRDF of a model chosen at run time, with [`with_brdf!`](crate::with_brdf) to reach its
-//! concrete type.
+//! concrete type; and [`FittedBrdf`], what rendering and fitting need of each model beyond [`Brdf`]: its
+//! parameters as a flat vector (so the renderer's gradients and every finite-difference test are written once
+//! for all models) and its unconstrained parameters θ (`crate::param`) with their chain rule (so the optimiser's
+//! reflectance steps are written once too). Everything a model is known by at run time stands here, so that
+//! adding one touches its own file, this one and `lib.rs`.
 
 use std::fmt;
 use std::str::FromStr;
@@ -9,8 +13,12 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::error::BrdfError;
-use crate::fitted::FittedBrdf;
-use crate::{Fresnel, Ggx, Lambertian, Retroreflective};
+use crate::error::Result as BrdfResult;
+use crate::ggx::{Ggx, GgxGrad};
+use crate::lambert::{Lambertian, LambertianGrad};
+use crate::param;
+use crate::retro::{Retroreflective, RetroreflectiveGrad};
+use crate::{Brdf, Fresnel};
 
 /// A reflectance model, by name: [`crate::Lambertian`], [`crate::Ggx`] or [`crate::Retroreflective`].
 ///
@@ -205,6 +213,193 @@ fn param_names_of<B: FittedBrdf>(_: &B) -> &'static [&'static str] {
 
 fn scale_only_of<B: FittedBrdf>(_: &B) -> bool {
     B::SCALE_ONLY
+}
+
+/// An `f32` BRDF whose parameters are rendered, differentiated and fitted.
+///
+/// Two parametrisations: the physical parameters ([`FittedBrdf::params`], in [`FittedBrdf::PARAM_NAMES`]
+/// order, the renderer's `Gradient::brdf`), and θ ([`FittedBrdf::theta`]), the unconstrained reals an
+/// optimiser moves (the maps of `crate::param`: every finite θ is a valid BRDF). θ lists only the fitted
+/// components; what θ leaves fixed (GGX's Fresnel kind and masking, the retroreflector's lobe width) is read
+/// from `self`, the template [`FittedBrdf::with_theta`] is called on.
+pub trait FittedBrdf: Brdf<Scalar = f32> + Copy {
+    /// The model, by name.
+    const MODEL: Model;
+    /// Parameter names, in the order of [`FittedBrdf::params`] and of the renderer's `Gradient::brdf`.
+    const PARAM_NAMES: &'static [&'static str];
+    /// The power of the path length τ by which the measurement of a small face falls along a confocal path
+    /// ([`Model::distance_power`]: 4, or 2 for a retroreflector). The renderer's splat rule corrects its
+    /// fall-off by it.
+    const DISTANCE_POWER: f32 = Self::MODEL.distance_power() as f32;
+    /// Whether the BRDF is one albedo times a fixed function of the directions: a pure scale of every
+    /// rendering, which a closed-form intensity scale absorbs (then θ has nothing left to fit).
+    const SCALE_ONLY: bool;
+
+    /// The parameter vector.
+    fn params(&self) -> Vec<f32>;
+    /// The same model with other parameter values (validated by the model's constructor).
+    ///
+    /// # Errors
+    /// A [`crate::BrdfError`] when a value is out of the model's domain.
+    fn with_params(&self, params: &[f32]) -> BrdfResult<Self>;
+    /// `∂f/∂(parameters)` as an array (first `PARAM_NAMES.len()` entries used).
+    fn param_grad_array(g: &Self::ParamGrad) -> [f32; 4];
+    /// The roughness α of a glossy (microfacet) lobe worth importance sampling, None for none (the
+    /// default). Used by the renderer's lobe sampling.
+    fn lobe_alpha(&self) -> Option<f32> {
+        None
+    }
+    /// The BRDF in words, with its parameters (a run report's line).
+    fn describe(&self) -> String;
+    /// The same BRDF as an [`AnyBrdf`].
+    fn to_any(&self) -> AnyBrdf;
+
+    /// θ of the fitted parameters (f64: an optimiser accumulates steps in it, and checkpoints keep it exact).
+    fn theta(&self) -> Vec<f64>;
+    /// The BRDF θ maps to, with what θ leaves fixed taken from `self`.
+    ///
+    /// # Errors
+    /// A [`crate::BrdfError`] only for a non-finite θ.
+    fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self>;
+    /// Chain rule: `∂E/∂θ` at θ from `∂E/∂(physical parameters)` (in [`FittedBrdf::PARAM_NAMES`] order), one
+    /// entry per component of θ.
+    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64>;
+}
+
+/// Entry `i` of `v`, or `fallback` past its end (a short vector reads as missing values, which the models'
+/// constructors reject when the fallback is NaN).
+pub(crate) fn entry<T: Copy>(v: &[T], i: usize, fallback: T) -> T {
+    v.get(i).copied().unwrap_or(fallback)
+}
+
+/// θ = (softplus⁻¹ ρ) ([`crate::LambertianTheta`], in f64).
+impl FittedBrdf for Lambertian<f32> {
+    const MODEL: Model = Model::Lambert;
+    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
+    const SCALE_ONLY: bool = true;
+    fn params(&self) -> Vec<f32> {
+        vec![self.albedo()]
+    }
+    fn with_params(&self, params: &[f32]) -> BrdfResult<Self> {
+        Lambertian::new(entry(params, 0, f32::NAN))
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &LambertianGrad<f32>) -> [f32; 4] {
+        [g.albedo, 0.0, 0.0, 0.0]
+    }
+    fn describe(&self) -> String {
+        format!("Lambertian, albedo {:.4}", self.albedo())
+    }
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Lambertian(*self)
+    }
+    fn theta(&self) -> Vec<f64> {
+        vec![param::softplus_inv(f64::from(self.albedo()))]
+    }
+    fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self> {
+        Lambertian::new(param::softplus(entry(theta, 0, f64::NAN) as f32))
+    }
+    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
+        let (t, d) = (entry(theta, 0, 0.0), entry(d_params, 0, 0.0));
+        vec![f64::from(d) * param::sigmoid(t)]
+    }
+}
+
+/// θ = (softplus⁻¹ ρ) of the return, in f64; the lobe width is kept.
+impl FittedBrdf for Retroreflective<f32> {
+    const MODEL: Model = Model::Retroreflective;
+    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
+    const SCALE_ONLY: bool = true;
+    fn params(&self) -> Vec<f32> {
+        vec![self.albedo()]
+    }
+    fn with_params(&self, params: &[f32]) -> BrdfResult<Self> {
+        Retroreflective::with_lobe_width(entry(params, 0, f32::NAN), self.lobe_width())
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &RetroreflectiveGrad<f32>) -> [f32; 4] {
+        [g.albedo, 0.0, 0.0, 0.0]
+    }
+    fn describe(&self) -> String {
+        format!("retroreflective, return {:.4}", self.albedo())
+    }
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Retroreflective(*self)
+    }
+    fn theta(&self) -> Vec<f64> {
+        vec![param::softplus_inv(f64::from(self.albedo()))]
+    }
+    fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self> {
+        let rho = param::softplus(entry(theta, 0, f64::NAN) as f32);
+        Retroreflective::with_lobe_width(rho, self.lobe_width())
+    }
+    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
+        let (t, d) = (entry(theta, 0, 0.0), entry(d_params, 0, 0.0));
+        vec![f64::from(d) * param::sigmoid(t)]
+    }
+}
+
+/// θ = [`param::GgxTheta`] (ρ_d, ρ_s, α, and F0 only with Schlick Fresnel); the Fresnel kind and the masking
+/// are kept.
+impl FittedBrdf for Ggx<f32> {
+    const MODEL: Model = Model::Ggx;
+    const PARAM_NAMES: &'static [&'static str] = &["albedo_diffuse", "specular", "alpha", "f0"];
+    const SCALE_ONLY: bool = false;
+    fn params(&self) -> Vec<f32> {
+        let f0 = self.fresnel().f0().unwrap_or(1.0);
+        vec![self.albedo_diffuse(), self.specular(), self.alpha(), f0]
+    }
+    fn with_params(&self, p: &[f32]) -> BrdfResult<Self> {
+        let get = |i: usize| entry(p, i, f32::NAN);
+        let fresnel = match self.fresnel() {
+            Fresnel::One => Fresnel::One,
+            Fresnel::Schlick { .. } => Fresnel::Schlick { f0: get(3) },
+        };
+        Ok(Ggx::new(get(0), get(1), get(2), fresnel)?.with_masking(self.masking()))
+    }
+    #[inline(always)]
+    fn param_grad_array(g: &GgxGrad<f32>) -> [f32; 4] {
+        [g.albedo_diffuse, g.specular, g.alpha, g.f0]
+    }
+    fn lobe_alpha(&self) -> Option<f32> {
+        (self.specular() > 0.0).then_some(self.alpha())
+    }
+    fn describe(&self) -> String {
+        format!(
+            "GGX, alpha {:.4}, specular {:.4}, diffuse albedo {:.4}",
+            self.alpha(),
+            self.specular(),
+            self.albedo_diffuse()
+        )
+    }
+    fn to_any(&self) -> AnyBrdf {
+        AnyBrdf::Ggx(*self)
+    }
+    fn theta(&self) -> Vec<f64> {
+        let t = param::GgxTheta::from_ggx(self);
+        let all = [t.albedo_diffuse, t.specular, t.alpha, t.f0].map(f64::from);
+        all[..self.fitted_len()].to_vec()
+    }
+    fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self> {
+        let get = |i: usize| entry(theta, i, if i == 3 { 0.0 } else { f64::NAN }) as f32;
+        let t = param::GgxTheta { albedo_diffuse: get(0), specular: get(1), alpha: get(2), f0: get(3) };
+        t.to_ggx(self.fitted_len() == 4, self.masking())
+    }
+    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
+        let t = |i: usize| entry(theta, i, 0.0);
+        let d = |i: usize| f64::from(entry(d_params, i, 0.0));
+        let t = param::GgxTheta { albedo_diffuse: t(0), specular: t(1), alpha: t(2), f0: t(3) };
+        let g = GgxGrad { albedo_diffuse: d(0), specular: d(1), alpha: d(2), f0: d(3) };
+        let c = t.chain(&g);
+        [c.albedo_diffuse, c.specular, c.alpha, c.f0][..self.fitted_len()].to_vec()
+    }
+}
+
+impl Ggx<f32> {
+    /// The number of fitted θ components: F0 only with Schlick Fresnel.
+    fn fitted_len(&self) -> usize {
+        if matches!(self.fresnel(), Fresnel::Schlick { .. }) { 4 } else { 3 }
+    }
 }
 
 #[cfg(test)]

@@ -226,37 +226,3 @@ impl<T: Real> From<Retroreflective<T>> for RetroRaw<T> {
         Self { albedo: r.albedo, lobe_width: r.lobe_width }
     }
 }
-
-/// θ = (softplus⁻¹ ρ) of the return, in f64; the lobe width is kept.
-impl crate::FittedBrdf for Retroreflective<f32> {
-    const MODEL: crate::Model = crate::Model::Retroreflective;
-    const PARAM_NAMES: &'static [&'static str] = &["albedo"];
-    const SCALE_ONLY: bool = true;
-    fn params(&self) -> Vec<f32> {
-        vec![self.albedo()]
-    }
-    fn with_params(&self, params: &[f32]) -> Result<Self> {
-        Retroreflective::with_lobe_width(crate::fitted::entry(params, 0, f32::NAN), self.lobe_width())
-    }
-    #[inline(always)]
-    fn param_grad_array(g: &RetroreflectiveGrad<f32>) -> [f32; 4] {
-        [g.albedo, 0.0, 0.0, 0.0]
-    }
-    fn describe(&self) -> String {
-        format!("retroreflective, return {:.4}", self.albedo())
-    }
-    fn to_any(&self) -> crate::AnyBrdf {
-        crate::AnyBrdf::Retroreflective(*self)
-    }
-    fn theta(&self) -> Vec<f64> {
-        vec![crate::param::softplus_inv(f64::from(self.albedo()))]
-    }
-    fn with_theta(&self, theta: &[f64]) -> Result<Self> {
-        let rho = crate::param::softplus(crate::fitted::entry(theta, 0, f64::NAN) as f32);
-        Retroreflective::with_lobe_width(rho, self.lobe_width())
-    }
-    fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
-        let (t, d) = (crate::fitted::entry(theta, 0, 0.0), crate::fitted::entry(d_params, 0, 0.0));
-        vec![f64::from(d) * crate::param::sigmoid(t)]
-    }
-}

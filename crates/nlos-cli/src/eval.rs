@@ -66,7 +66,7 @@ pub(crate) struct Args {
     /// region, and the share of the volume's bright pixels the mesh covers (`nlos_mesh::front_view`).
     #[arg(long, value_name = "CAPTURE", conflicts_with_all = ["gt_depth", "volume"])]
     front_view: Option<PathBuf>,
-    /// The reflectance the volume of --front-view is weighted for (as `nlos reconstruct --brdf`).
+    /// The reflectance the volume of --front-view is weighted for (the same choice as the reconstruction's --brdf).
     #[arg(long, value_parser = crate::choices::brdf_parser(), default_value = "lambert", requires = "front_view")]
     brdf: nlos_init::Model,
     /// Ground-truth depth map (.npy, .mat or one-channel .exr, metres along +z from the wall; 0, NaN or Inf: no
