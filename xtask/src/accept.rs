@@ -4,7 +4,7 @@
 //! of the LCT initial mesh and of the result against the ground truth — prints a table, checks the issue's
 //! targets and writes the figures (metrics, wall and CPU time, the command) into its section of
 //! `docs/results.md`, replacing the previous run's, then regenerates the README's status table from that
-//! page ([`status_table`]; `cargo xtask status` does only the latter).
+//! page ([`results::status_table`]; `cargo xtask status` does only the latter).
 //!
 //! Photon noise: the clean transient is rendered once by `nlos render` (cached in `out/accept/`), then the
 //! counts are drawn with `SpadModel::ideal(PhotonBudget::PerMeasurement(N)).simulate(clean, seed)` — the

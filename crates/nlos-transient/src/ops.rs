@@ -281,7 +281,7 @@ impl Transient {
     /// off), so it has no gate. Neither has a capture without zero bins.
     ///
     /// A gate removed a direct light, so the axis must reach back to where the direct light was: path 0, the
-    /// wall (within [`DIRECT_LIGHT_REACH`]), or an axis whose times include the device legs. A capture cut
+    /// wall (within `DIRECT_LIGHT_REACH`, 5 cm), or an axis whose times include the device legs. A capture cut
     /// from later bins (`nlos convert --crop-bins 500..900` of a simulation: its axis starts 0.6 m in, and its
     /// zeros are the darkness before the first return) has none, however its first return rises: a flat
     /// face's abrupt return, cut before its end, passed every other test.
