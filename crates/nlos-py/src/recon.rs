@@ -149,8 +149,6 @@ pub(crate) fn reconstruct<'py>(
         return Err(e);
     }
     let outcome = outcome.map_err(errors::optim)?;
-    // The run directory holds everything by now; a run that kept almost no surface raises, saying why.
-    outcome.check_surface_kept().map_err(errors::optim)?;
     let result = PyDict::new(py);
     let (v, f) = crate::mesh::to_arrays(py, &outcome.mesh)?;
     result.set_item("vertices", v)?;
@@ -161,6 +159,13 @@ pub(crate) fn reconstruct<'py>(
     result.set_item("stop", to_json(&outcome.stop)?)?;
     result.set_item("scale", outcome.scale)?;
     result.set_item("notes", prepared.notes.clone())?;
+    // The run directory holds everything by now; a run that kept almost no surface raises, saying why, with
+    // what it made as the exception's `result` (the Python side turns it into a `Reconstruction`).
+    if let Err(e) = outcome.check_surface_kept() {
+        let err = errors::optim(e);
+        err.value(py).setattr("result", &result)?;
+        return Err(err);
+    }
     Ok(result)
 }
 

@@ -219,16 +219,31 @@ def reconstruct(
     ------
     ConfigError
         An unknown setting or a value out of range.
+    ReconstructError
+        The run failed; when it ran to its end but kept almost no surface (the start did not match the
+        capture), the exception's ``reconstruction`` holds the :class:`Reconstruction` it made (``out``, when
+        given, holds its files too).
     KeyboardInterrupt
         On Ctrl-C, after the current block's checkpoint is written (resume with ``resume=True``).
     """
-    result = _nlos.reconstruct(
-        _capture(capture),
-        _settings_json(settings),
-        None if out is None else os.fspath(out),
-        resume,
-        progress,
-    )
+    try:
+        result = _nlos.reconstruct(
+            _capture(capture),
+            _settings_json(settings),
+            None if out is None else os.fspath(out),
+            resume,
+            progress,
+        )
+    except ReconstructError as e:
+        # A run that kept almost no surface: what it made travels with the exception.
+        raw = getattr(e, "result", None)
+        if raw is not None:
+            e.reconstruction = _reconstruction(raw)
+        raise
+    return _reconstruction(result)
+
+
+def _reconstruction(result: Dict[str, Any]) -> "Reconstruction":
     return Reconstruction(
         vertices=result["vertices"],
         faces=result["faces"],
