@@ -1,4 +1,4 @@
-//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|nonconfocal|relay|all> [--quick]`: the acceptance runs
+//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|nonconfocal|relay|detail|all> [--quick]`: the acceptance runs
 //! (and the sensor comparison of the noise-aware fit against L2). Each scenario runs the product end to end through the
 //! built `nlos` binary — `nlos render` (ground truth → transient), `nlos reconstruct --init lct`, `nlos eval`
 //! of the LCT initial mesh and of the result against the ground truth — prints a table, checks the issue's
@@ -24,6 +24,7 @@ use std::time::Instant;
 
 use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 
+mod detail;
 mod nonconfocal;
 mod preprocessed;
 mod real;
@@ -169,10 +170,22 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
                 opts.extra = it.by_ref().cloned().collect();
             }
             "all" => names.extend(
-                ["bunny", "reference", "soap", "sensor", "ggx", "real", "preprocessed", "nonconfocal", "relay"].map(s),
+                [
+                    "bunny",
+                    "reference",
+                    "soap",
+                    "sensor",
+                    "ggx",
+                    "real",
+                    "preprocessed",
+                    "nonconfocal",
+                    "relay",
+                    "detail",
+                ]
+                .map(s),
             ),
             n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "preprocessed" | "sensor" | "nonconfocal"
-            | "relay") => names.push(n.to_string()),
+            | "relay" | "detail") => names.push(n.to_string()),
             other => return Err(format!("unknown scenario or option `{other}`; see `cargo xtask help`")),
         }
     }
@@ -198,6 +211,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "preprocessed" => preprocessed::preprocessed(&mut r, &opts),
             "nonconfocal" => nonconfocal::nonconfocal(&mut r, &opts),
             "relay" => relay::relay(&mut r, &opts),
+            "detail" => detail::detail(&mut r, &opts),
             _ => sensor(&mut r, &opts),
         };
         let (text, pass) = match res {
@@ -243,7 +257,7 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 11] = [
+pub const SCENARIOS: [(&str, &str); 12] = [
     ("bunny", "the shared bunny, rendered at Tsai et al. 2019's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
@@ -264,6 +278,10 @@ pub const SCENARIOS: [(&str, &str); 11] = [
     (
         "relay",
         "paired spots on curved walls: the bunny behind a ±3 cm bend, the real general-NLOS capture (A, 2, figurine)",
+    ),
+    (
+        "detail",
+        "what the volume shows, the mesh keeps: the 40 cm chart's front-view detail, the general-NLOS capture thinned to every 4th spot",
     ),
     (
         "znlos",

@@ -124,21 +124,7 @@ fn real(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) -> Resu
     let ran = r.nlos(&a)?;
     let mesh = nlos_mesh::io::load(run_dir.join("mesh.obj")).map_err(|e| e.to_string())?;
     let pictures = r.depth_pictures(&run_dir, "relay_general_nlos", "general-NLOS", "phasor-field start")?;
-    // Area by depth window: each face's area at its centroid's depth.
-    let (pos, triangles) = mesh.to_triangles();
-    // Windows 0..3: the objects; 3: elsewhere in the authors' volume; 4: deeper than it.
-    let mut area = [0.0f64; 5];
-    let mut centroid = [Vec3::ZERO; 3];
-    for f in triangles {
-        let [a, b, c] = f.map(|i| pos[i as usize]);
-        let (g, da) = ((a + b + c) / 3.0, 0.5 * (b - a).cross(c - a).length());
-        let beyond = if g.z > VOLUME_DEPTH { 4 } else { 3 };
-        let k = OBJECTS.iter().position(|(_, [.., z])| (g.z - z).abs() <= WINDOW).unwrap_or(beyond);
-        area[k] += f64::from(da);
-        if k < 3 {
-            centroid[k] += g * da;
-        }
-    }
+    let (area, centroid) = object_windows(&mesh);
     let total: f64 = area.iter().sum();
     let _ = writeln!(
         text,
@@ -149,20 +135,7 @@ fn real(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) -> Resu
         ran.cpu_s,
         run_dir.display()
     );
-    for (k, (name, [x, y, z])) in OBJECTS.iter().enumerate() {
-        let c = if area[k] > 0.0 { centroid[k] / area[k] as f32 } else { Vec3::NAN };
-        let off = (c.truncate() - glam::Vec2::new(*x, *y)).length();
-        check(
-            text,
-            pass,
-            &format!(
-                "{name} (authors' place x {x}, y {y}, z {z} m): {:.3} m² of surface within ±{WINDOW} m of the depth, \
-                 centred at x {:.2}, y {:.2}, z {:.2} m, {off:.2} m beside the authors' place (≤ {LATERAL} m)",
-                area[k], c.x, c.y, c.z
-            ),
-            area[k] > 0.002 && off <= LATERAL,
-        );
-    }
+    check_objects(text, pass, &area, &centroid, LATERAL);
     let in_volume = total - area[4];
     check(
         text,
@@ -186,4 +159,48 @@ fn real(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) -> Resu
     }
     let _ = writeln!(text, "- letters: judged by eye in the depth pictures above (seen from the wall, so mirrored)");
     Ok(())
+}
+
+/// The mesh's area by depth window, each face's area at its centroid's depth: windows 0..3 the objects
+/// (±[`WINDOW`] about each one's depth), 3 elsewhere in the authors' volume, 4 deeper than it; and each object
+/// window's area-weighted centroid (not yet divided by the area).
+pub(super) fn object_windows(mesh: &nlos_mesh::SurfaceMesh) -> ([f64; 5], [Vec3; 3]) {
+    let (pos, triangles) = mesh.to_triangles();
+    let mut area = [0.0f64; 5];
+    let mut centroid = [Vec3::ZERO; 3];
+    for f in triangles {
+        let [a, b, c] = f.map(|i| pos[i as usize]);
+        let (g, da) = ((a + b + c) / 3.0, 0.5 * (b - a).cross(c - a).length());
+        let beyond = if g.z > VOLUME_DEPTH { 4 } else { 3 };
+        let k = OBJECTS.iter().position(|(_, [.., z])| (g.z - z).abs() <= WINDOW).unwrap_or(beyond);
+        area[k] += f64::from(da);
+        if k < 3 {
+            centroid[k] += g * da;
+        }
+    }
+    (area, centroid)
+}
+
+/// One check per object: surface within its depth window, centred within `lateral` metres of the authors'
+/// place.
+pub(super) fn check_objects(text: &mut String, pass: &mut bool, area: &[f64; 5], centroid: &[Vec3; 3], lateral: f32) {
+    for (k, (name, [x, y, z])) in OBJECTS.iter().enumerate() {
+        let place = format!("{name} (authors' place x {x}, y {y}, z {z} m)");
+        if area[k] <= 0.0 {
+            check(text, pass, &format!("{place}: no surface within ±{WINDOW} m of the depth"), false);
+            continue;
+        }
+        let c = centroid[k] / area[k] as f32;
+        let off = (c.truncate() - glam::Vec2::new(*x, *y)).length();
+        check(
+            text,
+            pass,
+            &format!(
+                "{place}: {:.3} m² of surface within ±{WINDOW} m of the depth, centred at x {:.2}, y {:.2}, z {:.2} m, \
+                 {off:.2} m beside the authors' place (≤ {lateral} m)",
+                area[k], c.x, c.y, c.z
+            ),
+            area[k] > 0.002 && off <= lateral,
+        );
+    }
 }
