@@ -200,6 +200,43 @@ impl Transient {
         Ok(Self::from_parts_unchecked(scan, *self.time(), data))
     }
 
+    /// Keeps the measurements `kept` (in that order) of a confocal or paired scan, each with its spot (or its
+    /// laser and sensor spots), as a list of points: a sparser or irregular spot set drawn from a dense capture
+    /// on any wall, where [`Transient::subsample`] needs a grid.
+    ///
+    /// # Errors
+    /// [`TransientError::InvalidArgument`] for an exhaustive scan (its measurements are laser × sensor pairs:
+    /// subsample its grids), an empty `kept`, or an index past the last measurement.
+    pub fn select(&self, kept: &[usize]) -> Result<Self> {
+        let n = self.scan().measurements();
+        let bad = |reason: String| TransientError::InvalidArgument { name: "kept", reason };
+        if kept.is_empty() {
+            return Err(bad("keep at least one measurement".into()));
+        }
+        if let Some(&m) = kept.iter().find(|&&m| m >= n) {
+            return Err(bad(format!("measurement {m} is past the last of {n}")));
+        }
+        let pick = |set: &crate::PointSet| crate::PointSet {
+            points: kept.iter().map(|&m| set.points[m]).collect(),
+            normals: kept.iter().map(|&m| set.normals[m]).collect(),
+            layout: crate::Layout::List,
+        };
+        let pattern = match &self.scan().pattern {
+            ScanPattern::Confocal(p) => ScanPattern::Confocal(pick(p)),
+            ScanPattern::Paired { lasers, sensors } => {
+                ScanPattern::Paired { lasers: pick(lasers), sensors: pick(sensors) }
+            }
+            ScanPattern::Exhaustive { .. } => {
+                return Err(bad(
+                    "an exhaustive scan's measurements are laser × sensor pairs: subsample its grids".into()
+                ));
+            }
+        };
+        let data = kept.iter().flat_map(|&m| self.histogram(m).iter().copied()).collect();
+        let scan = Scan { pattern, ..self.scan().clone() };
+        Ok(Self::from_parts_unchecked(scan, *self.time(), data))
+    }
+
     /// The time-summed (steady-state) value of each measurement; for a confocal grid, an `nx × ny` image
     /// with x fastest.
     pub fn time_summed(&self) -> Vec<f32> {

@@ -103,6 +103,29 @@ fn subsample_keeps_every_kth_point_of_grid() {
 }
 
 #[test]
+fn select_keeps_measurements_with_their_spots_in_order() {
+    let t = ramp(5, 4, 3);
+    let s = t.select(&[7, 2, 19]).expect("select");
+    assert_eq!(s.scan().lasers().grid_dims(), None, "a list");
+    for (i, &m) in [7usize, 2, 19].iter().enumerate() {
+        assert_eq!(s.histogram(i), t.histogram(m));
+        assert_eq!(s.scan().lasers().points[i], t.scan().lasers().points[m]);
+    }
+    // Paired: the laser and sensor spots of each kept measurement travel together.
+    let (l, r) =
+        (PointSet::wall_grid(2, 2, 0.1, 0.1).expect("grid"), PointSet::wall_grid(2, 2, 0.2, 0.2).expect("grid"));
+    let paired = Transient::zeros(Scan::paired(l.clone(), r.clone()), *t.time()).expect("paired");
+    let p = paired.select(&[3, 0]).expect("select");
+    assert_eq!(p.scan().lasers().points, vec![l.points[3], l.points[0]]);
+    assert_eq!(p.scan().sensors().points, vec![r.points[3], r.points[0]]);
+    // Bad input: typed errors, never a panic.
+    assert!(matches!(t.select(&[]), Err(TransientError::InvalidArgument { name: "kept", .. })));
+    assert!(matches!(t.select(&[20]), Err(TransientError::InvalidArgument { name: "kept", .. })));
+    let exhaustive = Transient::zeros(Scan::exhaustive(l, r), *t.time()).expect("exhaustive");
+    assert!(exhaustive.select(&[0]).is_err());
+}
+
+#[test]
 fn exhaustive_subsample_and_indices() {
     let l = PointSet::wall_grid(2, 2, 0.1, 0.1).expect("grid");
     let s = PointSet::wall_grid(3, 1, 0.1, 0.1).expect("grid");

@@ -7,7 +7,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use nlos_transient::{Format, PointSet, Scan, Transient};
+use nlos_transient::Format;
 
 use super::relay::{check_objects, object_windows};
 use super::{MEASURED_DIR, Opts, Runner, Section, check, p, reconstruct_args, s, shared};
@@ -75,14 +75,7 @@ fn thinned(r: &mut Runner, general: &Path) -> Result<std::path::PathBuf, String>
     if t.scan().measurements() != 64 * 64 {
         return Err(format!("{}: expected 64 × 64 pairs, found {}", general.display(), t.scan().measurements()));
     }
-    let subset = |set: &PointSet| PointSet {
-        points: keep.iter().map(|&i| set.points[i]).collect(),
-        normals: keep.iter().map(|&i| set.normals[i]).collect(),
-        ..PointSet::list(Vec::new())
-    };
-    let scan = Scan::paired(subset(t.scan().lasers()), subset(t.scan().sensors()));
-    let data: Vec<f32> = keep.iter().flat_map(|&m| t.histogram(m).iter().copied()).collect();
-    let thin = Transient::new(scan, *t.time(), data).map_err(|e| e.to_string())?;
+    let thin = t.select(&keep).map_err(|e| e.to_string())?;
     let file = r.out.join("detail_general_thin.npy");
     nlos_transient::write(&thin, &file, Format::NpyJson).map_err(|e| e.to_string())?;
     Ok(file)
