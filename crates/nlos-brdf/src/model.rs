@@ -272,6 +272,21 @@ pub(crate) fn entry<T: Copy>(v: &[T], i: usize, fallback: T) -> T {
     v.get(i).copied().unwrap_or(fallback)
 }
 
+/// θ of a one-albedo model: `softplus⁻¹ ρ`, in f64 ([`crate::LambertianTheta`]'s map).
+fn albedo_theta(albedo: f32) -> Vec<f64> {
+    vec![param::softplus_inv(f64::from(albedo))]
+}
+
+/// The albedo `softplus θ₀` (NaN, which the constructors refuse, for a missing θ₀).
+fn albedo_of_theta(theta: &[f64]) -> f32 {
+    param::softplus(entry(theta, 0, f64::NAN) as f32)
+}
+
+/// `∂E/∂θ₀ = ∂E/∂ρ · σ(θ₀)`.
+fn albedo_chain(theta: &[f64], d_params: &[f32]) -> Vec<f64> {
+    vec![f64::from(entry(d_params, 0, 0.0)) * param::sigmoid(entry(theta, 0, 0.0))]
+}
+
 /// θ = (softplus⁻¹ ρ) ([`crate::LambertianTheta`], in f64).
 impl FittedBrdf for Lambertian<f32> {
     const MODEL: Model = Model::Lambert;
@@ -294,14 +309,13 @@ impl FittedBrdf for Lambertian<f32> {
         AnyBrdf::Lambertian(*self)
     }
     fn theta(&self) -> Vec<f64> {
-        vec![param::softplus_inv(f64::from(self.albedo()))]
+        albedo_theta(self.albedo())
     }
     fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self> {
-        Lambertian::new(param::softplus(entry(theta, 0, f64::NAN) as f32))
+        Lambertian::new(albedo_of_theta(theta))
     }
     fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
-        let (t, d) = (entry(theta, 0, 0.0), entry(d_params, 0, 0.0));
-        vec![f64::from(d) * param::sigmoid(t)]
+        albedo_chain(theta, d_params)
     }
 }
 
@@ -327,15 +341,13 @@ impl FittedBrdf for Retroreflective<f32> {
         AnyBrdf::Retroreflective(*self)
     }
     fn theta(&self) -> Vec<f64> {
-        vec![param::softplus_inv(f64::from(self.albedo()))]
+        albedo_theta(self.albedo())
     }
     fn with_theta(&self, theta: &[f64]) -> BrdfResult<Self> {
-        let rho = param::softplus(entry(theta, 0, f64::NAN) as f32);
-        Retroreflective::with_lobe_width(rho, self.lobe_width())
+        Retroreflective::with_lobe_width(albedo_of_theta(theta), self.lobe_width())
     }
     fn chain_theta(&self, theta: &[f64], d_params: &[f32]) -> Vec<f64> {
-        let (t, d) = (entry(theta, 0, 0.0), entry(d_params, 0, 0.0));
-        vec![f64::from(d) * param::sigmoid(t)]
+        albedo_chain(theta, d_params)
     }
 }
 
