@@ -13,7 +13,7 @@
 //! (its surface: the arg-max depth of the kept columns) by the same code.
 //!
 //! With `--front-view CAPTURE` instead, no truth is needed: the mesh's lateral detail is scored against the
-//! capture's volume ([`nlos_mesh::front_view`]: r and coverage against the volume's front view — LCT on a
+//! capture's volume ([`nlos_init::front_view`]: r and coverage against the volume's front view — LCT on a
 //! confocal grid, the phasor field on any other scan, as `nlos init --volume` makes them).
 
 use nlos_init::Method;
@@ -63,7 +63,7 @@ pub(crate) struct Args {
     gt: Option<PathBuf>,
     /// Score the mesh's lateral detail against this capture's volume instead of a truth: Pearson's r of the
     /// volume's front view and the mesh's (+z rays from the scan grid; a hit counts 1) over the object's
-    /// region, and the share of the volume's bright pixels the mesh covers (`nlos_mesh::front_view`).
+    /// region, and the share of the volume's bright pixels the mesh covers (`nlos_init::front_view`).
     #[arg(long, value_name = "CAPTURE", conflicts_with_all = ["gt_depth", "volume"])]
     front_view: Option<PathBuf>,
     /// The reflectance the volume of --front-view is weighted for (the same choice as the reconstruction's --brdf).
@@ -147,14 +147,10 @@ pub(crate) fn volume_surface(capture: &Path, method: Method) -> Result<SurfaceMe
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 
-/// The front-view detail of the mesh file `mesh` against the volume of `capture` ([`nlos_mesh::front_view`]):
+/// The front-view detail of the mesh file `mesh` against the volume of `capture` ([`nlos_init::front_view`]):
 /// the volume `Method::for_scan` picks, from the capture prepared as `nlos reconstruct` prepares it, weighted
 /// for `brdf`. A hit counts the albedo of the nearest corner where the file has one (PLY's `albedo`), else 1.
-fn front_view(
-    mesh: &Path,
-    capture: &Path,
-    brdf: nlos_init::Model,
-) -> Result<nlos_mesh::front_view::FrontViewDetail, CliError> {
+fn front_view(mesh: &Path, capture: &Path, brdf: nlos_init::Model) -> Result<nlos_init::FrontViewDetail, CliError> {
     let bytes = std::fs::read(mesh).map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
     let soup =
         nlos_mesh::io::read_any(&bytes, &mesh.display().to_string()).map_err(|e| CliError::Input(e.to_string()))?;
@@ -165,21 +161,9 @@ fn front_view(
     let prepared = Prepared::new(t, &Config::default()).map_err(|e| fail(e.to_string()))?;
     let volume = prepared.volume(method, brdf, None).map_err(|e| fail(e.to_string()))?;
     step.finish();
-    let (x, y): (Vec<f64>, Vec<f64>) =
-        ((0..volume.nx).map(|i| volume.x.at(i)).collect(), (0..volume.ny).map(|i| volume.y.at(i)).collect());
-    let value = volume.max_projection();
-    let view = nlos_mesh::front_view::FrontView { x: &x, y: &y, value: &value };
-    let bvh = nlos_mesh::TriangleBvh::from_triangles(&soup.positions, &soup.triangles)
-        .map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
-    let albedo = |hit: &nlos_mesh::bvh::RayHit| match &soup.albedo {
-        Some(a) => {
-            let corner = soup.triangles[hit.triangle as usize][nlos_mesh::front_view::nearest_corner(hit)];
-            a[corner as usize]
-        }
-        None => 1.0,
-    };
-    nlos_mesh::front_view::front_view_detail(view, &bvh, &albedo)
-        .map_err(|e| CliError::Failure(format!("the front view of {}: {e}", capture.display())))
+    nlos_init::front_view_detail(&volume, &soup.positions, &soup.triangles, soup.albedo.as_deref()).map_err(|e| {
+        CliError::Input(format!("the front view of {} against {}: {e}", mesh.display(), capture.display()))
+    })
 }
 
 /// A map file as (values in C order, shape): `.npy`, `.mat` (its only numeric variable) or `.exr` (one

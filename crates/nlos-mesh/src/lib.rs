@@ -54,7 +54,6 @@ pub mod curvature;
 pub mod distance;
 mod error;
 pub mod evolve;
-pub mod front_view;
 mod handles;
 pub mod intersect;
 pub mod io;

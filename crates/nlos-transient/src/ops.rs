@@ -186,11 +186,7 @@ impl Transient {
                 let (ls, kept) = lasers.subsample(step_x, step_y).ok_or_else(not_grid)?;
                 let ss = match sensors.subsample(step_x, step_y) {
                     Some((ss, sk)) if sk == kept => ss,
-                    _ => crate::PointSet {
-                        points: kept.iter().map(|&m| sensors.points[m]).collect(),
-                        normals: kept.iter().map(|&m| sensors.normals[m]).collect(),
-                        layout: crate::Layout::List,
-                    },
+                    _ => sensors.pick(&kept),
                 };
                 (ScanPattern::Paired { lasers: ls, sensors: ss }, kept)
             }
@@ -216,15 +212,10 @@ impl Transient {
         if let Some(&m) = kept.iter().find(|&&m| m >= n) {
             return Err(bad(format!("measurement {m} is past the last of {n}")));
         }
-        let pick = |set: &crate::PointSet| crate::PointSet {
-            points: kept.iter().map(|&m| set.points[m]).collect(),
-            normals: kept.iter().map(|&m| set.normals[m]).collect(),
-            layout: crate::Layout::List,
-        };
         let pattern = match &self.scan().pattern {
-            ScanPattern::Confocal(p) => ScanPattern::Confocal(pick(p)),
+            ScanPattern::Confocal(p) => ScanPattern::Confocal(p.pick(kept)),
             ScanPattern::Paired { lasers, sensors } => {
-                ScanPattern::Paired { lasers: pick(lasers), sensors: pick(sensors) }
+                ScanPattern::Paired { lasers: lasers.pick(kept), sensors: sensors.pick(kept) }
             }
             ScanPattern::Exhaustive { .. } => {
                 return Err(bad(

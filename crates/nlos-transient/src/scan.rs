@@ -188,17 +188,23 @@ impl PointSet {
         Ok(())
     }
 
+    /// The points `kept` (in that order, indices checked by the caller) as a list.
+    pub(crate) fn pick(&self, kept: &[usize]) -> Self {
+        Self {
+            points: kept.iter().map(|&i| self.points[i]).collect(),
+            normals: kept.iter().map(|&i| self.normals[i]).collect(),
+            layout: Layout::List,
+        }
+    }
+
     /// The points of a sub-grid taking every `step_x`-th column and `step_y`-th row (grids only), and the
     /// indices of the kept points.
     pub(crate) fn subsample(&self, step_x: usize, step_y: usize) -> Option<(Self, Vec<usize>)> {
         let (nx, ny) = self.grid_dims()?;
         let kept: Vec<usize> =
             (0..ny).step_by(step_y).flat_map(|iy| (0..nx).step_by(step_x).map(move |ix| ix + nx * iy)).collect();
-        let sub = Self {
-            points: kept.iter().map(|&i| self.points[i]).collect(),
-            normals: kept.iter().map(|&i| self.normals[i]).collect(),
-            layout: Layout::Grid { nx: nx.div_ceil(step_x), ny: ny.div_ceil(step_y) },
-        };
+        let sub =
+            Self { layout: Layout::Grid { nx: nx.div_ceil(step_x), ny: ny.div_ceil(step_y) }, ..self.pick(&kept) };
         Some((sub, kept))
     }
 }

@@ -97,16 +97,15 @@ pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError>
 /// the float property `albedo` and grey vertex colours for viewers).
 ///
 /// # Errors
-/// [`MeshError::Format`] for a path not ending in `.ply` or an `albedo` not one value per vertex of
-/// `mesh.to_triangles()`; [`MeshError::Io`] when the file cannot be written.
+/// [`MeshError::Format`] for a path not ending in `.ply`, [`MeshError::InvalidParameter`] for an `albedo` not
+/// one finite value ≥ 0 per vertex of `mesh.to_triangles()`, [`MeshError::Io`] when the file cannot be written.
 pub fn save_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], path: impl AsRef<Path>) -> Result<(), MeshError> {
     let path = path.as_ref();
     let ext = check_save_extension(path)?;
     if ext != "ply" {
         return Err(MeshError::format(&path.display().to_string(), "extension", "an albedo is written to .ply only"));
     }
-    let bytes = write_ply_with_albedo(mesh, albedo, PlyEncoding::BinaryLittleEndian)
-        .map_err(|e| MeshError::format(&path.display().to_string(), "albedo", &e))?;
+    let bytes = write_ply_with_albedo(mesh, albedo, PlyEncoding::BinaryLittleEndian)?;
     write_atomically(path, &ext, &bytes)
 }
 

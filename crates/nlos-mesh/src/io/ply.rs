@@ -359,14 +359,16 @@ pub fn write_ply(mesh: &SurfaceMesh, encoding: PlyEncoding) -> Vec<u8> {
 /// `mesh.to_triangles()`, in its order.
 ///
 /// # Errors
-/// The reason, when `albedo` is not one finite value ≥ 0 per vertex.
-pub fn write_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], encoding: PlyEncoding) -> Result<Vec<u8>, String> {
+/// [`MeshError::InvalidParameter`] when `albedo` is not one finite value ≥ 0 per vertex (its value: the
+/// length, or the first bad value).
+pub fn write_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], encoding: PlyEncoding) -> Result<Vec<u8>, MeshError> {
     let (pos, tris) = mesh.to_triangles();
+    let bad = |value: f64, reason| Err(MeshError::InvalidParameter { name: "albedo", value, reason });
     if albedo.len() != pos.len() {
-        return Err(format!("{} values for {} vertices", albedo.len(), pos.len()));
+        return bad(albedo.len() as f64, "one albedo per vertex of the mesh, in the order of its triangles' list");
     }
-    if let Some(bad) = albedo.iter().position(|a| !(a.is_finite() && *a >= 0.0)) {
-        return Err(format!("vertex {bad}: {} is not a finite value >= 0", albedo[bad]));
+    if let Some(a) = albedo.iter().find(|a| !(a.is_finite() && **a >= 0.0)) {
+        return bad(f64::from(*a), "an albedo is a finite value >= 0");
     }
     Ok(ply_bytes(&pos, &tris, Some(albedo), encoding))
 }

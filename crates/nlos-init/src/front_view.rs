@@ -2,11 +2,11 @@
 //! between bars, the strokes of letters and the print a reconstruction should show as well as the blurry
 //! volume it started from.
 //!
-//! Given the volume's front view `F` (its maximum over depth, on the scan grid: `nlos init --volume`, LCT on
-//! confocal grids, the phasor field on other scans) and the mesh's front view `M` on the same grid (the first
-//! hit of the `+z` ray from each grid point, valued at the surface's albedo there, 1 without an albedo; a
-//! miss 0):
-//! - the object's region `R`: the pixels of `F` above its Otsu threshold (Otsu 1979, 256 bins), closed by
+//! Given the volume's front view `F` (its maximum over depth, [`Volume::max_projection`], on the volume's
+//! columns: `nlos init --volume`, LCT on confocal grids, the phasor field on other scans) and the mesh's front
+//! view `M` on the same grid (the first hit of the `+z` ray from each column's centre on the wall, valued at the
+//! surface's albedo there, 1 without an albedo; a miss 0):
+//! - the object's region `R`: the pixels of `F` above its Otsu threshold ([`otsu_threshold`], 256 bins), closed by
 //!   two pixels (dilated then eroded, 8-neighbourhood) and with its holes filled, so that the gaps between
 //!   bars lie inside `R` and count against a mesh that covers them;
 //! - `r`: Pearson's correlation of `F` and `M` over `R` — 1 when the mesh is bright exactly where the volume
@@ -14,11 +14,14 @@
 //! - coverage: the share of `F`'s above-threshold pixels the mesh is hit on.
 
 use glam::Vec3;
+use nlos_mesh::TriangleBvh;
+use nlos_mesh::bvh::RayHit;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::bvh::{RayHit, TriangleBvh};
-use crate::error::MeshError;
+use crate::error::{InitError, Result};
+use crate::surface::otsu_threshold;
+use crate::volume::Volume;
 
 /// The front-view detail of a mesh against a volume's front view (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -34,51 +37,51 @@ pub struct FrontViewDetail {
     pub threshold: f32,
 }
 
-/// A front view on the grid of `x` × `y` pixel centres (metres on the wall), `value[ix + x.len()·iy]`.
-#[derive(Debug, Clone, Copy)]
-pub struct FrontView<'a> {
-    /// x of the pixel columns.
-    pub x: &'a [f64],
-    /// y of the pixel rows.
-    pub y: &'a [f64],
-    /// The values.
-    pub value: &'a [f32],
-}
-
-/// Scores the mesh in `bvh` against the volume's front view `volume` (module docs). `albedo` gives the
-/// surface's albedo at a ray's hit (`|_| 1.0` without an albedo; with a per-vertex albedo, that of the hit
-/// triangle's corner with the largest barycentric weight: [`nearest_corner`]).
+/// Scores the mesh `positions`/`triangles` against the front view of `volume` (module docs). A hit counts the
+/// `albedo` of the hit triangle's corner with the largest barycentric weight where one is given (one value per
+/// position), else 1.
 ///
 /// # Errors
-/// [`MeshError::InvalidParameter`] when `volume.value` is not `x.len() × y.len()` long, is empty, or holds a
-/// non-finite value.
+/// [`InitError::BadVolume`] for an invalid volume or one of constant front view (no object to score),
+/// [`InitError::Mesh`] for a mesh the ray tracer refuses, [`InitError::InvalidParameter`] for an `albedo` not one
+/// finite value ≥ 0 per position.
 pub fn front_view_detail(
-    volume: FrontView<'_>,
-    bvh: &TriangleBvh,
-    albedo: &(dyn Fn(&RayHit) -> f32 + Sync),
-) -> Result<FrontViewDetail, MeshError> {
-    let (nx, ny) = (volume.x.len(), volume.y.len());
-    let bad = |reason| MeshError::InvalidParameter { name: "front view", value: volume.value.len() as f64, reason };
-    if nx == 0 || ny == 0 || volume.value.len() != nx * ny {
-        return Err(bad("the front view must hold one value per pixel of its non-empty x × y grid"));
+    volume: &Volume,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    albedo: Option<&[f32]>,
+) -> Result<FrontViewDetail> {
+    volume.validate()?;
+    if let Some(a) = albedo
+        && (a.len() != positions.len() || a.iter().any(|v| !(v.is_finite() && *v >= 0.0)))
+    {
+        return Err(InitError::InvalidParameter {
+            name: "albedo",
+            value: a.len() as f64,
+            reason: "one finite value >= 0 per vertex",
+        });
     }
-    if volume.value.iter().any(|v| !v.is_finite()) {
-        return Err(bad("the front view holds a non-finite value"));
-    }
-    let threshold = otsu(volume.value);
-    let above: Vec<bool> = volume.value.iter().map(|&v| v > threshold).collect();
+    let bvh = TriangleBvh::from_triangles(positions, triangles)?;
+    let (nx, ny) = (volume.nx, volume.ny);
+    let value = volume.max_projection();
+    let threshold = otsu_threshold(&value, 256).ok_or_else(|| InitError::BadVolume {
+        reason: "the front view is constant: there is no object to score against".into(),
+    })?;
+    let above: Vec<bool> = value.iter().map(|&v| v > threshold).collect();
     let region = fill_holes(&erode(&dilate(&above, nx, ny, 2), nx, ny, 2), nx, ny);
+    let hit_value = |hit: &RayHit| match albedo {
+        Some(a) => a[triangles[hit.triangle as usize][nearest_corner(hit)] as usize],
+        None => 1.0,
+    };
     let mesh: Vec<Option<f32>> = (0..nx * ny)
         .into_par_iter()
         .map(|i| {
-            let origin = Vec3::new(volume.x[i % nx] as f32, volume.y[i / nx] as f32, 0.0);
-            bvh.ray_first_hit(origin, Vec3::Z, f32::INFINITY).map(|hit| albedo(&hit))
+            let origin = Vec3::new(volume.x.at(i % nx) as f32, volume.y.at(i / nx) as f32, 0.0);
+            bvh.ray_first_hit(origin, Vec3::Z, f32::INFINITY).map(|hit| hit_value(&hit))
         })
         .collect();
-    let pairs: Vec<(f64, f64)> = (0..nx * ny)
-        .filter(|&i| region[i])
-        .map(|i| (f64::from(volume.value[i]), f64::from(mesh[i].unwrap_or(0.0))))
-        .collect();
+    let pairs: Vec<(f64, f64)> =
+        (0..nx * ny).filter(|&i| region[i]).map(|i| (f64::from(value[i]), f64::from(mesh[i].unwrap_or(0.0)))).collect();
     let n_above = above.iter().filter(|&&a| a).count();
     let covered = above.iter().zip(&mesh).filter(|(a, m)| **a && m.is_some()).count();
     Ok(FrontViewDetail {
@@ -90,41 +93,9 @@ pub fn front_view_detail(
 }
 
 /// Which corner (0, 1 or 2) of the hit triangle lies nearest the hit: the one of largest barycentric weight.
-pub fn nearest_corner(hit: &RayHit) -> usize {
+fn nearest_corner(hit: &RayHit) -> usize {
     let b = hit.barycentric.to_array();
     (0..3).fold(0, |best, k| if b[k] > b[best] { k } else { best })
-}
-
-/// Otsu's threshold of `values` (256 bins between their minimum and maximum): the level that maximises the
-/// between-class variance. The minimum for constant values.
-pub fn otsu(values: &[f32]) -> f32 {
-    let (lo, hi) = values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
-        return lo;
-    }
-    const BINS: usize = 256;
-    let width = (hi - lo) / BINS as f32;
-    let mut histogram = [0usize; BINS];
-    for &v in values {
-        histogram[(((v - lo) / width) as usize).min(BINS - 1)] += 1;
-    }
-    let total = values.len() as f64;
-    let sum_all: f64 = histogram.iter().enumerate().map(|(i, &c)| i as f64 * c as f64).sum();
-    let (mut weight_low, mut sum_low, mut best, mut best_bin) = (0.0, 0.0, -1.0, 0);
-    for (i, &c) in histogram.iter().enumerate() {
-        weight_low += c as f64;
-        sum_low += i as f64 * c as f64;
-        let weight_high = total - weight_low;
-        if weight_low == 0.0 || weight_high == 0.0 {
-            continue;
-        }
-        let (mean_low, mean_high) = (sum_low / weight_low, (sum_all - sum_low) / weight_high);
-        let between = weight_low * weight_high * (mean_low - mean_high).powi(2);
-        if between > best {
-            (best, best_bin) = (between, i);
-        }
-    }
-    lo + width * (best_bin + 1) as f32
 }
 
 /// Whether any pixel within `radius` (Chebyshev) of each pixel is set.
@@ -203,10 +174,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn otsu_splits_two_levels_and_the_region_closes_gaps_and_fills_holes() {
-        let v = [0.1f32, 0.1, 0.12, 0.9, 0.95, 0.9];
-        let t = otsu(&v);
-        assert!(t > 0.12 && t < 0.9, "{t}");
+    fn the_region_closes_gaps_and_fills_holes() {
         // A ring with a one-pixel gap in a 13 × 13 image: closing bridges the gap, and the hole fills.
         let (nx, ny) = (13, 13);
         let ring: Vec<bool> = (0..nx * ny)
