@@ -299,6 +299,12 @@ impl<'a> Remesher<'a> {
             });
         }
         let mut sizing = sizing;
+        // Vertices no face uses (an OBJ that lists them, faces deleted around them) have no outgoing
+        // halfedge to walk: they go before anything walks the mesh.
+        let isolated: Vec<_> = mesh.vertices().filter(|&v| mesh.is_isolated(v)).collect();
+        for v in isolated {
+            mesh.delete_vertex(v);
+        }
         if mesh.has_garbage() {
             let remap = mesh.garbage_collect();
             let mut s = vec![0.0; mesh.vertices_size()];

@@ -246,3 +246,19 @@ fn max_error_bounds_the_deviation_on_a_thin_rim() {
         assert!(matches!(r, Err(MeshError::InvalidParameter { name: "max_error", .. })));
     }
 }
+
+/// Regression: a mesh whose file lists vertices no face uses (a start cut out of a larger one) panicked in
+/// the remesher; they are dropped, and the rest is remeshed as without them.
+#[test]
+fn vertices_no_face_uses_are_dropped_not_a_panic() {
+    let grid = shapes::plane_grid(0.2, 0.2, 8, 8);
+    let (mut pos, tris) = grid.to_triangles();
+    pos.push(Vec3::new(0.5, 0.5, 0.5));
+    pos.insert(0, Vec3::new(-0.5, 0.5, 0.5));
+    let tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| v + 1)).collect();
+    let mut m = SurfaceMesh::from_triangles(&pos, &tris).expect("builds with isolated vertices");
+    assert_eq!(m.n_vertices(), grid.n_vertices() + 2);
+    uniform_remeshing(&mut m, 0.03, &RemeshParams::pmp()).expect("remeshes");
+    m.validate().expect("valid");
+    assert!(m.vertices().all(|v| !m.is_isolated(v)));
+}
