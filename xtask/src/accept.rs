@@ -38,7 +38,10 @@ use real::real;
 pub(crate) use results::record;
 pub use results::update_readme;
 pub(crate) use runner::utc_now;
-use runner::{Outcome, Ran, Runner, collision_check, p, reconstruct_and_eval, reconstruct_args, s, with_photons};
+use runner::{
+    Outcome, Ran, Runner, collision_check, p, reconstruct_and_eval, reconstruct_args, reconstruct_args_list, s,
+    with_photons,
+};
 use sensor::sensor;
 use shape::{bunny, ggx, reference, seed_tag, soap};
 

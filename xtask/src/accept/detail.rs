@@ -10,7 +10,7 @@ use std::path::Path;
 use nlos_transient::Format;
 
 use super::relay::{check_objects, object_windows};
-use super::{MEASURED_DIR, Opts, Runner, Section, check, p, reconstruct_args, s, shared};
+use super::{MEASURED_DIR, Opts, Runner, Section, check, p, reconstruct_args, reconstruct_args_list, s, shared};
 
 pub(super) fn detail(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     let (mut text, mut pass) = (String::new(), true);
@@ -91,7 +91,7 @@ fn sparse(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) -> Re
     let run_dir = r.out.join("detail_general_thin");
     let _ = std::fs::remove_dir_all(&run_dir);
     let mut a = vec![s("reconstruct"), p(&capture), s("--out"), p(&run_dir), s("--quiet")];
-    a.extend(reconstruct_args(opts));
+    a.extend(reconstruct_args_list(opts));
     let t0 = std::time::Instant::now();
     // A run that keeps almost no surface exits 1 after writing its files: judged like any other.
     let ran = r.nlos(&a);

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use nlos_transient::{Format, Layout, PointSet, Scan, TimeAxis, Transient};
 
-use super::{BUNNY, MEASURED_DIR, Opts, Runner, Section, TABLE_HEAD, check, p, reconstruct_args, s};
+use super::{BUNNY, MEASURED_DIR, Opts, Runner, Section, TABLE_HEAD, check, p, reconstruct_args_list, s};
 use super::{shared, with_photons};
 
 /// The wall's height at `x` (metres) and its normal: a cylinder's bend of ±3 cm across the spots.
@@ -61,7 +61,7 @@ fn synthetic(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) ->
     let _ = std::fs::remove_dir_all(&run_dir);
     let mut a = vec![s("reconstruct"), p(&capture), s("--out"), p(&run_dir), s("--seed"), s("1"), s("--quiet")];
     a.extend([s("--gt"), p(&bunny)]);
-    a.extend(reconstruct_args(opts));
+    a.extend(reconstruct_args_list(opts));
     let ran = r.nlos(&a)?;
     let init = r.eval(&run_dir.join("init.obj"), &bunny)?;
     let result = r.eval(&run_dir.join("mesh.obj"), &bunny)?;
@@ -122,7 +122,7 @@ fn real(r: &mut Runner, opts: &Opts, text: &mut String, pass: &mut bool) -> Resu
     let _ = std::fs::remove_dir_all(&run_dir);
     let mut a = vec![s("reconstruct"), p(&capture), s("--bin-width-ps"), s("32"), s("--out"), p(&run_dir)];
     a.push(s("--quiet"));
-    a.extend(reconstruct_args(opts));
+    a.extend(reconstruct_args_list(opts));
     let ran = r.nlos(&a)?;
     let mesh = nlos_mesh::io::load(run_dir.join("mesh.obj")).map_err(|e| e.to_string())?;
     let pictures = r.depth_pictures(&run_dir, "relay_general_nlos", "general-NLOS", "phasor-field start")?;

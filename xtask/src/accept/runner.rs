@@ -232,19 +232,29 @@ pub(super) fn with_photons(clean: &Path, photons: f64, seed: u64, out: &Path) ->
 
 /// The reconstruction arguments of the acceptance configuration (or the quick one).
 pub(super) fn reconstruct_args(opts: &Opts) -> Vec<String> {
+    args(opts, true)
+}
+
+/// [`reconstruct_args`] for a capture whose spots are a list (paired spots on a curved wall): the quick
+/// configuration leaves out `--subsample`, which needs a grid.
+pub(super) fn reconstruct_args_list(opts: &Opts) -> Vec<String> {
+    args(opts, false)
+}
+
+fn args(opts: &Opts, grid: bool) -> Vec<String> {
     let mut a: Vec<String> = if opts.quick {
-        [
+        let quick = [
             "--set",
             "schedule.max_stages=1",
             "--set",
             "schedule.max_blocks_per_stage=1",
             "--set",
             "schedule.shape_iterations=5",
-        ]
-        .into_iter()
-        .chain(["--subsample", "2", "--rebin", "2"])
-        .map(s)
-        .collect()
+            "--rebin",
+            "2",
+        ];
+        let subsample: &[&str] = if grid { &["--subsample", "2"] } else { &[] };
+        quick.into_iter().chain(subsample.iter().copied()).map(s).collect()
     } else {
         Vec::new()
     };
