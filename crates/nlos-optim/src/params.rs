@@ -106,8 +106,8 @@ pub struct ReconstructParams {
     /// A fixed regulariser weight λ instead of the automatic one (default None).
     pub regulariser_weight: Option<f64>,
     /// Weight of the boundary-smoothing term relative to the normal-smoothing one: the regulariser is
-    /// `λ (R + w R_∂)` ([`crate::boundary_smoothing`]; λ is still set against `R` alone; its step holds each
-    /// boundary loop's enclosed area, so it smooths an outline without shrinking it). 0 turns it off; default 1.
+    /// `λ (R + w R_∂)` ([`crate::boundary_smoothing`]; λ is still set against `R` alone; on a patch that is mostly
+    /// rim its step holds the boundary loop's enclosed area). 0 turns it off; default 1.
     pub boundary_smoothing: f64,
     /// Spatially varying albedo ([`crate::albedo`]): a map of log-albedo over the wall plane, fitted in the
     /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in Tsai et al. 2019).
