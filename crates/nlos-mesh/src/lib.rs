@@ -64,6 +64,7 @@ pub mod quality;
 pub mod remeshing;
 pub mod shapes;
 mod surface_mesh;
+mod union_find;
 
 pub use analysis::triangle_normal_raw;
 pub use build::{BuildOptions, orient_triangles};
@@ -73,3 +74,4 @@ pub use handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 pub use metrics::{EvalParams, Metrics, evaluate};
 pub use property::{EdgeProperty, FaceProperty, VertexProperty};
 pub use surface_mesh::{IndexRemap, SurfaceMesh, VertexHalfedges};
+pub use union_find::UnionFind;

@@ -101,8 +101,13 @@ impl BoundarySmoothing {
             .collect();
         chains.sort_unstable_by_key(|c| c[1]);
         let hold = hold_weights(n_vertices, triangles, &outs);
-        let loops =
-            closed_loops(&chains, n_vertices).into_iter().map(|lp| (lp.clone(), hold[lp[0] as usize])).collect();
+        let loops = closed_loops(&chains, n_vertices)
+            .into_iter()
+            .map(|lp| {
+                let h = hold[lp[0] as usize];
+                (lp, h)
+            })
+            .collect();
         Ok(Self { chains, loops, n_vertices })
     }
 
@@ -158,35 +163,23 @@ impl BoundarySmoothing {
 /// Per vertex, the share of its boundary loops' area change a step removes: 0 on a component with fewer
 /// than [`HOLD_FROM`] of its vertices on its boundary, 1 from [`HOLD_FULL`] on, linear between (module docs).
 fn hold_weights(n_vertices: usize, triangles: &[[u32; 3]], boundary_outs: &[u8]) -> Vec<f64> {
-    // Connected components by union-find over the triangles' vertices.
-    let mut parent: Vec<u32> = (0..n_vertices as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            parent[v as usize] = parent[parent[v as usize] as usize];
-            v = parent[v as usize];
-        }
-        v
-    }
+    let mut sets = nlos_mesh::UnionFind::new(n_vertices);
     let mut used = vec![false; n_vertices];
     for t in triangles {
         for &v in t {
             used[v as usize] = true;
-        }
-        let r = root(&mut parent, t[0]);
-        for &v in &t[1..] {
-            let q = root(&mut parent, v);
-            parent[q as usize] = r;
+            sets.union(t[0], v);
         }
     }
     let (mut all, mut rim) = (vec![0usize; n_vertices], vec![0usize; n_vertices]);
     for v in (0..n_vertices).filter(|&v| used[v]) {
-        let r = root(&mut parent, v as u32) as usize;
+        let r = sets.find(v as u32) as usize;
         all[r] += 1;
         rim[r] += usize::from(boundary_outs[v] > 0);
     }
     (0..n_vertices)
         .map(|v| {
-            let r = root(&mut parent, v as u32) as usize;
+            let r = sets.find(v as u32) as usize;
             let f = rim[r] as f64 / all[r].max(1) as f64;
             ((f - HOLD_FROM) / (HOLD_FULL - HOLD_FROM)).clamp(0.0, 1.0)
         })

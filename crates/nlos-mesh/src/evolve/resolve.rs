@@ -330,29 +330,7 @@ pub(crate) fn collision_pass(collisions: &[Collision], x0: &[Vec3], x1: &mut [Ve
 }
 
 /// Union–find over vertices, for impact zones.
-pub(crate) struct Zones {
-    parent: Vec<u32>,
-}
-
-impl Zones {
-    pub(crate) fn new(n: usize) -> Self {
-        Self { parent: (0..n as u32).collect() }
-    }
-    fn find(&mut self, mut v: u32) -> u32 {
-        while self.parent[v as usize] != v {
-            let g = self.parent[self.parent[v as usize] as usize];
-            self.parent[v as usize] = g;
-            v = g;
-        }
-        v
-    }
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.parent[ra.max(rb) as usize] = ra.min(rb);
-        }
-    }
-}
+pub(crate) type Zones = crate::UnionFind;
 
 /// Stage 3, rigid impact zones (Provot 1997; Bridson et al. 2002 §7.4): merges the vertices of every
 /// collision into zones (kept across passes) and replaces the motion of each zone that a collision touches
