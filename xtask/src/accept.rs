@@ -26,6 +26,7 @@ use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 
 mod detail;
 mod nonconfocal;
+mod own_shapes;
 mod preprocessed;
 mod real;
 mod relay;

@@ -71,6 +71,6 @@ pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{
     LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchFit, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,
-    residual_patches,
+    residual_patches, residual_rounds,
 };
 pub use schedule::{PHASOR_START_BLOCKS, Schedule, faces_at};

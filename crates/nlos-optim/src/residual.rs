@@ -31,6 +31,12 @@
 //! component of the mesh: the next stage remeshes it, the shape steps fit it, and pruning deletes what of
 //! it the data stop supporting.
 //!
+//! Proposals come in rounds ([`residual_rounds`], [`ResidualParams::rounds`]): the residual is taken again
+//! with the accepted patches' light in the model, and the next round proposes what remains. In one volume
+//! the brightest missing parts outshine the rest (the phasor field's side lobes around a figure's upper legs
+//! are as bright as its feet), as in Högbom's CLEAN (1974), which subtracts the brightest source and looks
+//! again.
+//!
 //! A patch must also explain a *localised* return ([`localisation`]): its light must match the residual at its
 //! own place at least [`LOCALISED_CONTRAST`] times better than shifted just before or after it. The data
 //! test alone takes any light the model lacks: on Tsai et al.'s preprocessed S and U (gated, fitted without
@@ -84,11 +90,27 @@ pub struct ResidualParams {
     /// Tilts θ (degrees) of a candidate patch's normal away from the wall normal, each tried at four
     /// azimuths besides the untilted patch (default [40, 70]).
     pub tilts: Vec<f64>,
+    /// Rounds of proposals at a stage's end (≥ 1; default 3): after a round that accepted a patch, the
+    /// residual is taken again with the patches' light in the model, so parts whose return the brighter
+    /// missing parts outshone in the first round's volume come next (Högbom's CLEAN: take the brightest,
+    /// subtract it, look again). A round that accepts nothing ends them. On a figure with 2.4 cm limbs seen
+    /// by one laser at (−0.1, 0.15) m (the `nonconfocal` scenario) the first round finds the legs' upper
+    /// halves, the second 5 patches (73 faces) along the legs and arms, the third 3 more (19 faces): coverage
+    /// within 5 mm 71.3 → 74.7 %, depth error inside 0.80 → 0.68 mm, Chamfer distance 21.0 → 18.8 mm.
+    pub rounds: usize,
 }
 
 impl Default for ResidualParams {
     fn default() -> Self {
-        Self { stages: Some(1), snr: 0.1, separation: 0.005, margin: 0.5, min_faces: 3, tilts: vec![40.0, 70.0] }
+        Self {
+            stages: Some(1),
+            snr: 0.1,
+            separation: 0.005,
+            margin: 0.5,
+            min_faces: 3,
+            tilts: vec![40.0, 70.0],
+            rounds: 3,
+        }
     }
 }
 
@@ -96,8 +118,8 @@ impl ResidualParams {
     /// Checks the ranges.
     ///
     /// # Errors
-    /// [`OptimError::InvalidParameter`] for a non-positive or non-finite `snr` or `separation`, or a
-    /// negative or non-finite `margin`.
+    /// [`OptimError::InvalidParameter`] for a non-positive or non-finite `snr` or `separation`, a
+    /// negative or non-finite `margin`, no `rounds`.
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
         if !(self.snr.is_finite() && self.snr > 0.0) {
@@ -108,6 +130,9 @@ impl ResidualParams {
         }
         if self.min_faces == 0 {
             return bad("residual.min_faces", 0.0, "an accepted patch has at least one face");
+        }
+        if self.rounds == 0 {
+            return bad("residual.rounds", 0.0, "at least one round (switch the patches off with stages instead)");
         }
         if let Some(&t) = self.tilts.iter().find(|t| !(t.is_finite() && (0.0..90.0).contains(*t))) {
             return bad("residual.tilts", t, "tilts are angles in degrees in [0, 90) (the azimuths give the sides)");
@@ -153,6 +178,9 @@ pub struct PatchNote {
 pub struct ResidualRecord {
     /// The stage that had just ended.
     pub stage: u32,
+    /// The round of proposals at that stage's end (0 first; [`ResidualParams::rounds`]).
+    #[serde(default)]
+    pub round: usize,
     /// Residual columns kept away from the mesh.
     pub columns: usize,
     /// Candidate patches (connected regions) tested.
@@ -189,6 +217,42 @@ pub struct Patches {
     pub skipped: Option<String>,
     /// Every candidate that passed the data test, kept or refused ([`localisation`]).
     pub notes: Vec<PatchNote>,
+}
+
+/// [`residual_patches`] in rounds ([`ResidualParams::rounds`]): each round takes the residual of the
+/// rendering as the rounds before it left it, `residual_of(rendered)` (the data minus the model of the data
+/// term; `fit.rendered` gains each accepted patch's share), and tests patches away from the mesh and every
+/// patch accepted before. The rounds end at the first that accepts nothing.
+///
+/// Returns each round's [`Patches`] in order; a round's new vertices are numbered after the mesh's and all
+/// earlier rounds', so appending the rounds in order to the mesh gives the grown mesh.
+///
+/// # Errors
+/// As [`residual_patches`], and whatever `residual_of` returns.
+pub fn residual_rounds(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    measured: &Transient,
+    residual_of: &mut dyn FnMut(&[f32]) -> Result<Vec<f32>>,
+    fit: PatchFit<'_>,
+    params: &ResidualParams,
+) -> Result<Vec<Patches>> {
+    let (mut pos, mut tri) = (positions.to_vec(), triangles.to_vec());
+    let PatchFit { render, brdf, rendered, row_loss } = fit;
+    let mut rounds = Vec::new();
+    for _ in 0..params.rounds {
+        let residual = residual_of(rendered)?;
+        let fit = PatchFit { render, brdf, rendered: &mut *rendered, row_loss };
+        let p = residual_patches(&pos, &tri, measured, residual, fit, params)?;
+        pos.extend_from_slice(&p.positions);
+        tri.extend_from_slice(&p.triangles);
+        let last = p.accepted == 0;
+        rounds.push(p);
+        if last {
+            break;
+        }
+    }
+    Ok(rounds)
 }
 
 /// The fit a patch is tested against ([`residual_patches`]): the renderer's settings and the BRDF that render

@@ -8,7 +8,7 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
-use nlos_optim::{DataTerm, LOCALISED_CONTRAST, PatchFit, ResidualParams, localisation, residual_patches};
+use nlos_optim::{DataTerm, LOCALISED_CONTRAST, PatchFit, ResidualParams, localisation, residual_patches, residual_rounds};
 use nlos_render::RowSpan;
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -243,4 +243,137 @@ fn a_background_and_a_slow_tail_are_not_explained_by_surface() {
     assert_eq!(p.accepted, 0);
     assert!(p.triangles.is_empty());
     assert_eq!(before, after);
+}
+
+/// A strip facing the wall from x0 to x1 (`n` cells along x), `width` wide about y = 0, at depth z.
+fn strip(x0: f32, x1: f32, width: f32, z: f32, n: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = Vec::new();
+    for i in 0..=n {
+        let x = x0 + (x1 - x0) * i as f32 / n as f32;
+        p.extend([Vec3::new(x, -width / 2.0, z), Vec3::new(x, width / 2.0, z)]);
+    }
+    // (v1 − v0) × (v2 − v0) points to −z, toward the wall.
+    let t = (0..n).flat_map(|i| [[2 * i, 2 * i + 1, 2 * i + 2], [2 * i + 2, 2 * i + 1, 2 * i + 3]]).collect();
+    (p, t)
+}
+
+/// The area of the patches' triangles whose centroids lie within the rectangle `x × y` (the patches' vertex
+/// indices follow the mesh's `n` vertices).
+fn area_within(p: &nlos_optim::Patches, n: usize, x: (f32, f32), y: (f32, f32)) -> f32 {
+    p.triangles
+        .iter()
+        .map(|t| t.map(|v| p.positions[v as usize - n]))
+        .filter(|[a, b, c]| {
+            let m = (*a + *b + *c) / 3.0;
+            (x.0..=x.1).contains(&m.x) && (y.0..=y.1).contains(&m.y)
+        })
+        .map(|[a, b, c]| 0.5 * (b - a).cross(c - a).length())
+        .sum()
+}
+
+/// A start that lacks a limb grows it back: a body and, attached to it at the same depth, a thin limb
+/// (4 × 15 cm, about one column of the scan wide) are measured; the mesh has the body only. The limb's
+/// columns beyond the separation from the body's rim become a patch along the limb, out to its far end, and
+/// nowhere else; so too with one laser spot at the wall's centre (the phasor field of the residual). Without
+/// growth the mesh would keep none of the limb.
+#[test]
+fn a_limb_cut_off_the_start_grows_back() {
+    let confocal = setup();
+    let grid = PointSet::wall_grid(16, 16, 0.25, 0.25).unwrap();
+    let one_laser = Scan::exhaustive(PointSet::wall_grid(1, 1, 0.0, 0.0).unwrap(), grid);
+    let body = square(-0.08, 0.0, 0.35, 5, 0.025);
+    let (x0, x1, width) = (-0.0175, 0.1325, 0.04);
+    let limb = strip(x0, x1, width, 0.35, 6);
+    for s in [Setup { scan: one_laser, ..setup() }, confocal] {
+        let measured = render(&s, &union(body.clone(), limb.clone()));
+        let (p, before, after) = run(&s, &body, &measured);
+        assert!(p.accepted >= 1, "{p:?}");
+        // Within two column spacings of the limb (the phasor field blurs wider than the LCT) and 2 cm of its depth.
+        let margin = 0.067;
+        for v in &p.positions {
+            assert!(
+                v.x > x0 - margin && v.x < x1 + margin && v.y.abs() < width / 2.0 + margin,
+                "vertex {v} off the limb"
+            );
+            assert!((v.z - 0.35).abs() < 0.02, "vertex {v} not at the limb's depth 0.35");
+        }
+        let n = body.0.len();
+        let limb_area = (x1 - x0) * width;
+        let grown = area_within(&p, n, (x0, x1 + margin), (-width / 2.0 - margin, width / 2.0 + margin));
+        let far = area_within(&p, n, ((x0 + x1) / 2.0, x1 + margin), (-1.0, 1.0));
+        assert!(grown >= 0.5 * limb_area, "grew {grown} m² of the limb's {limb_area}");
+        assert!(far >= 0.2 * limb_area, "grew {far} m² on the limb's far half: {p:?}");
+        assert!(after < 0.5 * before, "data term {before} → {after}");
+    }
+}
+
+/// A start on a capture of noise alone (no object at all) grows nothing: the residual is the whole capture,
+/// its back-projection proposes regions, and none lowers the data term by more than the margin.
+#[test]
+fn a_start_on_a_capture_of_noise_grows_nothing() {
+    let s = setup();
+    let start = square(0.0, 0.0, 0.35, 5, 0.025);
+    let peak = render(&s, &start).iter().copied().fold(0.0f32, f32::max);
+    let mut rng = nlos_transient::rng::Pcg32::new(11, 0);
+    let measured: Vec<f32> =
+        (0..s.scan.measurements() * s.time.bins).map(|_| 0.05 * peak * (rng.uniform() as f32 - 0.5)).collect();
+    let (p, before, after) = run(&s, &start, &measured);
+    assert!(p.regions >= 1, "a proposal must be made for the test to mean anything: {p:?}");
+    assert_eq!(p.accepted, 0, "{p:?}");
+    assert!(p.triangles.is_empty());
+    assert_eq!(before, after);
+}
+
+/// Rounds ([`residual_rounds`]): a second round looks at the residual the first round's patches leave. Here
+/// the first round grows the limb and a second patch grows next to it or farther out; every round's vertex
+/// indices follow the mesh's and the earlier rounds', the rendering is the grown mesh's, and the rounds end
+/// at the first that accepts nothing.
+#[test]
+fn rounds_grow_what_the_first_round_left() {
+    let s = setup();
+    let body = square(-0.08, 0.0, 0.35, 5, 0.025);
+    let limb = strip(-0.0175, 0.1325, 0.04, 0.35, 6);
+    // A dim part apart from both: a small square deeper and across the wall.
+    let dim = square(-0.1, 0.15, 0.45, 2, 0.02);
+    let measured = render(&s, &union(union(body.clone(), limb), dim));
+    let bins = s.time.bins;
+    let term = DataTerm::default();
+    let row_loss = |m: usize, row: &[f32], w: std::ops::Range<usize>| {
+        term.row_value_in(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0, w)
+    };
+    let t = Transient::new(s.scan.clone(), s.time, measured.clone()).unwrap();
+    let grow = |rounds: usize| {
+        let mut rendered = render(&s, &body);
+        let mut residual_of =
+            |r: &[f32]| -> nlos_optim::Result<Vec<f32>> { Ok(measured.iter().zip(r).map(|(m, r)| m - r).collect()) };
+        let fit = PatchFit { render: s.render, brdf: &brdf(), rendered: &mut rendered, row_loss: &row_loss };
+        let params = ResidualParams { rounds, ..ResidualParams::default() };
+        let p = residual_rounds(&body.0, &body.1, &t, &mut residual_of, fit, &params).unwrap();
+        (p, rendered)
+    };
+    let (one, _) = grow(1);
+    let (three, rendered) = grow(3);
+    assert_eq!(one.len(), 1);
+    assert_eq!(one[0], three[0], "the first round does not depend on the rounds after it");
+    assert!(three.len() >= 2 && three[1].accepted >= 1, "the second round grew nothing: {three:?}");
+    assert!(three.len() == 3 || three.last().unwrap().accepted == 0, "rounds went on after one that grew nothing");
+    // The grown mesh, rounds appended in order, renders what the rounds left in `rendered` (up to the shadows
+    // patches and mesh cast on each other: a patch's share is rendered alone, the module docs).
+    let mut mesh = body.clone();
+    for p in &three {
+        let n = mesh.0.len() as u32;
+        assert!(p.triangles.iter().flatten().all(|&v| v < n + p.positions.len() as u32));
+        mesh.0.extend_from_slice(&p.positions);
+        mesh.1.extend_from_slice(&p.triangles);
+    }
+    let direct = render(&s, &mesh);
+    let peak = direct.iter().copied().fold(0.0f32, f32::max);
+    let worst = direct.iter().zip(&rendered).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst <= 5e-3 * peak, "the rounds' rendering is off the grown mesh's by {worst} (peak {peak})");
+    let total = |r: &[f32]| -> f64 {
+        (0..s.scan.measurements()).map(|m| row_loss(m, &r[m * bins..(m + 1) * bins], 0..bins).unwrap()).sum()
+    };
+    let change: f64 = three.iter().map(|p| p.data_change).sum();
+    assert!(((total(&rendered) - total(&render(&s, &body))) - change).abs() <= 1e-6 * total(&render(&s, &body)));
+    assert!(three[1].data_change < 0.0);
 }

@@ -283,6 +283,8 @@ pub struct BoundaryConfig {
     pub residual_margin: f64,
     /// Tilts (degrees) of the residual patches' normals away from the wall normal.
     pub residual_tilts: Vec<f64>,
+    /// Rounds of residual patches at a stage's end (each after the last's patches; ≥ 1).
+    pub residual_rounds: usize,
 }
 
 impl Default for BoundaryConfig {
@@ -295,6 +297,7 @@ impl Default for BoundaryConfig {
             residual_separation: residual.separation,
             residual_margin: residual.margin,
             residual_tilts: residual.tilts,
+            residual_rounds: residual.rounds,
         }
     }
 }
@@ -513,6 +516,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
     ("boundary.residual_margin", "margin κ of the residual patches' test"),
     ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),
+    ("boundary.residual_rounds", "rounds of residual patches at a stage's end, each after the last's patches"),
 ];
 
 /// Writes `top`'s fields over `base`'s, descending into the tables both have.

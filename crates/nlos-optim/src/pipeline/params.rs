@@ -57,6 +57,7 @@ impl Prepared {
             stages: Some(b.residual_stages),
             margin: b.residual_margin,
             tilts: b.residual_tilts.clone(),
+            rounds: b.residual_rounds,
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;

@@ -26,7 +26,7 @@ use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
-use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_patches};
+use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_rounds};
 
 /// What every block of a run shares: its settings and what was decided from them once.
 pub(super) struct RunCtx<'a> {
@@ -283,7 +283,7 @@ pub(super) fn reflectance_block(
 type StageMesh = (Vec<Vec3>, Vec<[u32; 3]>);
 
 /// Step 4: boundary pruning ([`crate::prune`]) and, at the end of a stage but the last, the residual
-/// patches ([`crate::residual`]). Returns the stage's mesh as fitted when patches joined it.
+/// patches ([`crate::residual`], in rounds). Returns the stage's mesh as fitted when patches joined it.
 pub(super) fn prune_and_patch(
     st: &mut State,
     ctx: &RunCtx<'_>,
@@ -335,38 +335,40 @@ pub(super) fn prune_and_patch(
         });
     }
     if let Some(rp) = residual {
-        let model: Vec<f64> = match (sensor, &response) {
-            (Some(m), Some(lock)) => {
-                let a = lock.read().map_err(|_| crate::data_term::counts::poisoned())?;
-                a.iter().map(|a| scale * a + m.background).collect()
+        // The data minus the model of the data term, for the rendering as the rounds leave it.
+        let mut residual_of = |rendered: &[f32]| -> Result<Vec<f32>> {
+            let model: Vec<f64> = match (sensor, &response) {
+                (Some(m), Some(lock)) => {
+                    let mut a = lock.write().map_err(|_| crate::data_term::counts::poisoned())?;
+                    // The sensor's `J I` of the rendering with the last round's patches.
+                    *a = m.response(rendered)?;
+                    a.iter().map(|a| scale * a + m.background).collect()
+                }
+                (Some(m), None) => m.expected(rendered, scale)?,
+                (None, _) => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
+            };
+            Ok(data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect())
+        };
+        let fit = PatchFit { render: *b.renderer.params(), brdf: &brdf, rendered: &mut rendered, row_loss };
+        let rounds = residual_rounds(&st.positions, &st.triangles, b.measured, &mut residual_of, fit, rp)?;
+        for (round, p) in rounds.into_iter().enumerate() {
+            if !p.triangles.is_empty() && stage_mesh.is_none() {
+                stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
             }
-            (Some(m), None) => m.expected(&rendered, scale)?,
-            (None, _) => rendered.iter().map(|&r| scale * f64::from(r)).collect(),
-        };
-        let res: Vec<f32> = data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect();
-        let p = residual_patches(
-            &st.positions,
-            &st.triangles,
-            b.measured,
-            res,
-            PatchFit { render: *b.renderer.params(), brdf: &brdf, rendered: &mut rendered, row_loss },
-            rp,
-        )?;
-        if !p.triangles.is_empty() {
-            stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
+            append(st, &p.positions, &p.triangles);
+            let record = ResidualRecord {
+                stage: st.stage,
+                round,
+                columns: p.columns,
+                regions: p.regions,
+                accepted: p.accepted,
+                faces: p.triangles.len(),
+                data_change: p.data_change / norm,
+                patches: p.notes.into_iter().map(|n| PatchNote { data_change: n.data_change / norm, ..n }).collect(),
+            };
+            st.log.residual.push(record.clone());
+            st.residual_log.push(record);
         }
-        append(st, &p.positions, &p.triangles);
-        let record = ResidualRecord {
-            stage: st.stage,
-            columns: p.columns,
-            regions: p.regions,
-            accepted: p.accepted,
-            faces: p.triangles.len(),
-            data_change: p.data_change / norm,
-            patches: p.notes.into_iter().map(|n| PatchNote { data_change: n.data_change / norm, ..n }).collect(),
-        };
-        st.log.residual.push(record.clone());
-        st.residual_log.push(record);
     }
     Ok(stage_mesh)
 }
