@@ -283,8 +283,10 @@ pub struct BoundaryConfig {
     pub residual_margin: f64,
     /// Tilts (degrees) of the residual patches' normals away from the wall normal.
     pub residual_tilts: Vec<f64>,
-    /// Rounds of residual patches at a stage's end (each after the last's patches; ≥ 1).
+    /// Rounds of residual patches at a stage's end, at most (each after the last's patches; ≥ 1).
     pub residual_rounds: usize,
+    /// The least share of the data term a round must explain for another to follow.
+    pub residual_round_gain: f64,
 }
 
 impl Default for BoundaryConfig {
@@ -298,6 +300,7 @@ impl Default for BoundaryConfig {
             residual_margin: residual.margin,
             residual_tilts: residual.tilts,
             residual_rounds: residual.rounds,
+            residual_round_gain: residual.round_gain,
         }
     }
 }
@@ -516,7 +519,8 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("boundary.residual_separation", "residual columns closer than this to the mesh (m) are left to the steps"),
     ("boundary.residual_margin", "margin κ of the residual patches' test"),
     ("boundary.residual_tilts", "tilts (degrees) of the residual patches' normals"),
-    ("boundary.residual_rounds", "rounds of residual patches at a stage's end, each after the last's patches"),
+    ("boundary.residual_rounds", "rounds of residual patches at a stage's end at most, each after the last's patches"),
+    ("boundary.residual_round_gain", "least share of the data term a round must explain for another to follow"),
 ];
 
 /// Writes `top`'s fields over `base`'s, descending into the tables both have.

@@ -58,6 +58,7 @@ impl Prepared {
             margin: b.residual_margin,
             tilts: b.residual_tilts.clone(),
             rounds: b.residual_rounds,
+            round_gain: b.residual_round_gain,
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
