@@ -8,7 +8,9 @@ mod common;
 
 use glam::Vec3;
 use nlos_brdf::Lambertian;
-use nlos_optim::{DataTerm, LOCALISED_CONTRAST, PatchFit, ResidualParams, localisation, residual_patches, residual_rounds};
+use nlos_optim::{
+    DataTerm, LOCALISED_CONTRAST, PatchFit, ResidualParams, localisation, residual_patches, residual_rounds,
+};
 use nlos_render::RowSpan;
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -342,21 +344,26 @@ fn rounds_grow_what_the_first_round_left() {
         term.row_value_in(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.0, w)
     };
     let t = Transient::new(s.scan.clone(), s.time, measured.clone()).unwrap();
-    let grow = |rounds: usize| {
+    let grow = |rounds: usize, round_gain: f64| {
         let mut rendered = render(&s, &body);
         let mut residual_of =
             |r: &[f32]| -> nlos_optim::Result<Vec<f32>> { Ok(measured.iter().zip(r).map(|(m, r)| m - r).collect()) };
         let fit = PatchFit { render: s.render, brdf: &brdf(), rendered: &mut rendered, row_loss: &row_loss };
-        let params = ResidualParams { rounds, ..ResidualParams::default() };
+        let params = ResidualParams { rounds, round_gain, ..ResidualParams::default() };
         let p = residual_rounds(&body.0, &body.1, &t, &mut residual_of, fit, &params).unwrap();
         (p, rendered)
     };
-    let (one, _) = grow(1);
-    let (three, rendered) = grow(3);
+    let (one, _) = grow(1, 0.0);
+    let (three, rendered) = grow(3, 0.0);
+    // A second round follows only a first that explained at least `round_gain` of the data term.
+    let (demanding, _) = grow(3, 1.0);
     assert_eq!(one.len(), 1);
+    assert_eq!(demanding.len(), 1);
     assert_eq!(one[0], three[0], "the first round does not depend on the rounds after it");
     assert!(three.len() >= 2 && three[1].accepted >= 1, "the second round grew nothing: {three:?}");
     assert!(three.len() == 3 || three.last().unwrap().accepted == 0, "rounds went on after one that grew nothing");
+    // The limb is most of the data term: the default gain lets the second round follow too.
+    assert!(grow(3, ResidualParams::default().round_gain).0.len() >= 2);
     // The grown mesh, rounds appended in order, renders what the rounds left in `rendered` (up to the shadows
     // patches and mesh cast on each other: a patch's share is rendered alone, the module docs).
     let mut mesh = body.clone();
