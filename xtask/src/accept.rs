@@ -277,7 +277,8 @@ pub const SCENARIOS: [(&str, &str); 12] = [
     ),
     (
         "nonconfocal",
-        "one laser × 64 × 64 sensors, 4 × 4 lasers × 32 × 32 sensors, the independent one-laser render: default command",
+        "bunny, soap, a figure with thin limbs, a dish and a ball, each by one laser at the centre and the corner × 64 × 64 \
+         sensors; the bunny by 4 × 4 lasers × 32 × 32 sensors; the independent one-laser render: default command",
     ),
     (
         "relay",
