@@ -64,6 +64,11 @@ use crate::error::{OptimError, Result};
 use crate::prune::{apply_spans, delta};
 use nlos_render::AnyBrdf;
 
+mod localisation;
+mod rounds;
+pub use localisation::{LOCALISATION_SHIFT, LOCALISED_CONTRAST, localisation};
+pub use rounds::residual_rounds;
+
 /// Settings of residual back-projection ([`crate::ReconstructParams::residual`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ResidualParams {
@@ -153,15 +158,6 @@ impl ResidualParams {
     }
 }
 
-/// The residual's contrast a patch needs to be kept ([`localisation`]): its light must match the residual
-/// at its own place at least this many times better than shifted just before or just after it.
-pub const LOCALISED_CONTRAST: f64 = 2.0;
-
-/// The shortest shift of [`localisation`]'s comparisons, metres of path: about three widths of a SPAD's
-/// timing response (the Stanford captures' falls to half in 11 mm), so that the blur of the patch's own
-/// return does not reach the shifted windows.
-pub const LOCALISATION_SHIFT: f64 = 0.03;
-
 /// One candidate patch of [`residual_patches`]: where it was, what it explained, and whether and why it
 /// was kept (the run log's account of each patch).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -226,49 +222,6 @@ pub struct Patches {
     pub skipped: Option<String>,
     /// Every candidate that passed the data test, kept or refused ([`localisation`]).
     pub notes: Vec<PatchNote>,
-}
-
-/// [`residual_patches`] in rounds ([`ResidualParams::rounds`]): each round takes the residual of the
-/// rendering as the rounds before it left it, `residual_of(rendered)` (the data minus the model of the data
-/// term; `fit.rendered` gains each accepted patch's share), and tests patches away from the mesh and every
-/// patch accepted before. The rounds end at the first whose patches explain less than
-/// [`ResidualParams::round_gain`] of the data term (`fit.row_loss` over every histogram).
-///
-/// Returns each round's [`Patches`] in order; a round's new vertices are numbered after the mesh's and all
-/// earlier rounds', so appending the rounds in order to the mesh gives the grown mesh.
-///
-/// # Errors
-/// As [`residual_patches`], and whatever `residual_of` returns.
-pub fn residual_rounds(
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-    measured: &Transient,
-    residual_of: &mut dyn FnMut(&[f32]) -> Result<Vec<f32>>,
-    fit: PatchFit<'_>,
-    params: &ResidualParams,
-) -> Result<Vec<Patches>> {
-    let (mut pos, mut tri) = (positions.to_vec(), triangles.to_vec());
-    let PatchFit { render, brdf, rendered, row_loss } = fit;
-    let bins = measured.time().bins;
-    let mut data_term = 0.0;
-    for (m, row) in rendered.chunks(bins).enumerate() {
-        data_term += row_loss.value(m, row, 0..bins)?;
-    }
-    let mut rounds = Vec::new();
-    for _ in 0..params.rounds {
-        let residual = residual_of(rendered)?;
-        let fit = PatchFit { render, brdf, rendered: &mut *rendered, row_loss };
-        let p = residual_patches(&pos, &tri, measured, residual, fit, params)?;
-        pos.extend_from_slice(&p.positions);
-        tri.extend_from_slice(&p.triangles);
-        let last = -p.data_change < params.round_gain * data_term;
-        data_term += p.data_change;
-        rounds.push(p);
-        if last {
-            break;
-        }
-    }
-    Ok(rounds)
 }
 
 /// The fit a patch is tested against ([`residual_patches`]): the renderer's settings and the BRDF that render
@@ -435,69 +388,6 @@ pub fn residual_patches(
         out.triangles.extend(t.into_iter().map(|t| t.map(|v| v + offset)));
     }
     Ok(out)
-}
-
-/// How much better a patch's light matches the residual at its own place than just before or after it:
-/// `a₀ / max(a₋, a₊)` with `a₀ = Σ_m Σ_k I_p[m,k] r[m,k]` and `a_± = Σ_m Σ_k I_p[m,k] r[m,k ± D_m]`, `I_p` the
-/// patch's rendered light, `r` the residual, `D_m` the length of row `m`'s span of the patch's light but at
-/// least [`LOCALISATION_SHIFT`] (rows whose shifted spans leave the axis do not count). Infinite when
-/// `a₀ > 0` and neither shifted match is positive; 0 when `a₀ ≤ 0`.
-///
-/// A surface the fit lacks leaves its own return in the residual, concentrated where its light falls:
-/// `a₀` is its light's energy and the shifted matches hold only what the residual has nearby, so the
-/// contrast is large. What is not a surface — a background the model lacks (flat in time: contrast ≈ 1),
-/// a sensor's diffusion tail or the slow decay after a return (falling: `a₋ > a₀`, contrast < 1) — matches
-/// as well or better when shifted, and a patch that explains it with surface (on the preprocessed S and U,
-/// surfaces half a metre behind the letters explained their late tail) is refused below
-/// [`LOCALISED_CONTRAST`].
-pub fn localisation<'a>(
-    spans: impl Iterator<Item = &'a [RowSpan]>,
-    residual: &[f32],
-    bins: usize,
-    bin_width: f64,
-) -> f64 {
-    // The patch's light per row, as (first bin, values), summed over its faces.
-    let mut rows: std::collections::BTreeMap<usize, (usize, Vec<f64>)> = std::collections::BTreeMap::new();
-    for span in spans.flatten() {
-        let end = span.first_bin + span.values.len();
-        let row = rows.entry(span.measurement).or_insert_with(|| (span.first_bin, Vec::new()));
-        // Grow the row's window to cover this span.
-        if span.first_bin < row.0 {
-            let mut grown = vec![0.0; row.0 - span.first_bin];
-            grown.extend_from_slice(&row.1);
-            row.1 = grown;
-            row.0 = span.first_bin;
-        }
-        if end > row.0 + row.1.len() {
-            row.1.resize(end - row.0, 0.0);
-        }
-        for (i, &v) in span.values.iter().enumerate() {
-            row.1[span.first_bin - row.0 + i] += f64::from(v);
-        }
-    }
-    let min_shift = (LOCALISATION_SHIFT / bin_width).ceil() as usize;
-    let (mut a0, mut before, mut after) = (0.0, 0.0, 0.0);
-    for (&m, (first, light)) in &rows {
-        let shift = light.len().max(min_shift);
-        if *first < shift || first + light.len() + shift > bins {
-            continue;
-        }
-        let r = &residual[m * bins..(m + 1) * bins];
-        for (i, &p) in light.iter().enumerate() {
-            let k = first + i;
-            a0 += p * f64::from(r[k]);
-            before += p * f64::from(r[k - shift]);
-            after += p * f64::from(r[k + shift]);
-        }
-    }
-    let shifted = before.max(after);
-    if a0 <= 0.0 {
-        0.0
-    } else if shifted <= 0.0 {
-        f64::INFINITY
-    } else {
-        a0 / shifted
-    }
 }
 
 /// The chosen faces of a region as a mesh of their own: only the vertices they use, and a separate copy
