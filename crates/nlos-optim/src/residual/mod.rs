@@ -103,8 +103,8 @@ pub struct ResidualParams {
     /// The least share (0–1) of the data term a round's patches must explain for another round to follow
     /// (default 0.02). On a figure with 2.4 cm limbs seen by one laser at (−0.1, 0.15) m (the
     /// `nonconfocal` scenario) the first round explained 5.9 % of the data term with the legs' upper halves,
-    /// and a second (1.3 %) 73 faces along the legs and arms: coverage within 5 mm 71.3 → 74.7 %, depth
-    /// error inside 0.80 → 0.68 mm. Where the first round explained little (the same figure with the laser
+    /// and a second (1.3 %) 73 faces along the legs and arms: coverage within 5 mm 71.3 → 73.8 %, depth
+    /// error inside 0.80 → 0.71 mm (a third round, 0.1 %: 74.7 %, 0.68 mm). Where the first round explained little (the same figure with the laser
     /// at the wall's centre, 1.1 %; the confocal bunny, 1.2 %), the later rounds' patches explained 0.1–0.2 %
     /// and moved the results by −2.1 and +0.1 points of coverage within 5 mm.
     pub round_gain: f64,
