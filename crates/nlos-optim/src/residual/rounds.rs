@@ -9,8 +9,8 @@ use crate::error::Result;
 /// [`residual_patches`] in rounds ([`ResidualParams::rounds`]): each round takes the residual of the
 /// rendering as the rounds before it left it, `residual_of(rendered)` (the data minus the model of the data
 /// term; `fit.rendered` gains each accepted patch's share), and tests patches away from the mesh and every
-/// patch accepted before. The rounds end at the first whose patches explain less than
-/// [`ResidualParams::round_gain`] of the data term (`fit.row_loss` over every histogram).
+/// patch accepted before. The rounds end at the first that accepts nothing or whose patches explain less
+/// than [`ResidualParams::round_gain`] of the data term (`fit.row_loss` over every histogram).
 ///
 /// Returns each round's [`Patches`] in order; a round's new vertices are numbered after the mesh's and all
 /// earlier rounds', so appending the rounds in order to the mesh gives the grown mesh.
@@ -39,7 +39,8 @@ pub fn residual_rounds(
         let p = residual_patches(&pos, &tri, measured, residual, fit, params)?;
         pos.extend_from_slice(&p.positions);
         tri.extend_from_slice(&p.triangles);
-        let last = -p.data_change < params.round_gain * data_term;
+        // A round that accepted nothing leaves the residual as it was: another would propose the same.
+        let last = p.accepted == 0 || -p.data_change < params.round_gain * data_term;
         data_term += p.data_change;
         rounds.push(p);
         if last {
