@@ -524,7 +524,8 @@ fn gpu_reconstruction_matches_the_cpu() {
 
 /// The default command (no `--init`) on captures that are not confocal: one laser (centre and corner) and a
 /// 2 × 2 laser grid, each × 16 × 16 sensors. `auto` takes the phasor field, says so in the run's output and
-/// its settings, the start lies at the square's depth, and `--init lct` is a clear input error.
+/// its settings, the start lies at the square's depth (one start: its receding and measured rims are the same
+/// surface), and `--init lct` is a clear input error.
 #[test]
 fn the_default_command_reconstructs_non_confocal_captures() {
     let dir = scratch("nonconfocal");
@@ -544,6 +545,9 @@ fn the_default_command_reconstructs_non_confocal_captures() {
         let run = nlos(&args);
         assert!(run.status.success(), "{name}: {}", text(&run));
         assert!(text(&run).contains("init auto: a non-confocal scan"), "{name}: {}", text(&run));
+        // The square's volume has no dim rim, so its receding and measured starts are one surface: one run.
+        assert!(!text(&run).contains("start: the data chose"), "{name}: {}", text(&run));
+        assert!(!out.join("start_choice.json").exists() && !out.join("start_candidates").exists(), "{name}");
         let settings = std::fs::read_to_string(out.join("settings.toml")).expect("settings");
         assert!(settings.starts_with("# init = \"auto\" chose \"pf\""), "{name}: {settings}");
         let init = nlos_mesh::io::load(out.join("init.obj")).expect("init mesh");

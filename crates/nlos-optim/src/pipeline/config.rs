@@ -134,6 +134,49 @@ pub enum VisibilityChoice {
     Off,
 }
 
+/// How the start's rim gets its depth: the dim columns around the bright core of the volume, which the
+/// lateral blur spreads around an object and puts at the depth of its brighter neighbours
+/// ([`nlos_init::SurfaceParams::core_fraction`]). A convex object's rim recedes from the wall; a concave
+/// one's (a dish with its inside toward the wall) comes toward it; one laser's volume does not tell which.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StartRim {
+    /// `choose` for the phasor field's start (captures that are not confocal grids), `receding` for the
+    /// others.
+    #[default]
+    Auto,
+    /// Behind the nearest core column, receding as a smooth convex silhouette does
+    /// ([`nlos_init::SurfaceParams::object`]).
+    Receding,
+    /// Each column at the depth of its own maximum.
+    Measured,
+    /// Both: the first stage runs from each, and the run goes on from the one that leaves less of the data
+    /// unexplained at the next stage's first step ([`crate::pipeline::StartChoice`]).
+    Choose,
+}
+
+impl StartRim {
+    /// The rim of a start by `method`: `auto` resolved, the others as they are.
+    pub fn resolve(self, method: Method) -> Self {
+        match (self, method) {
+            (Self::Auto, Method::Pf) => Self::Choose,
+            (Self::Auto, _) => Self::Receding,
+            (rim, _) => rim,
+        }
+    }
+}
+
+impl fmt::Display for StartRim {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Auto => "auto",
+            Self::Receding => "receding",
+            Self::Measured => "measured",
+            Self::Choose => "choose",
+        })
+    }
+}
+
 /// How the capture is prepared before anything else.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -315,6 +358,8 @@ pub struct Config {
     /// Where the optimisation starts: `"auto"`, `"lct"`, `"fk"`, `"pf"`, `"carve"` or a mesh file
     /// ([`InitMethod`]).
     pub init: InitMethod,
+    /// The depth of the start's rim ([`StartRim`]): `"auto"`, `"receding"`, `"measured"` or `"choose"`.
+    pub init_rim: StartRim,
     /// Spatially varying albedo ([`crate::albedo`]): cells of this size (metres) over the wall plane, or
     /// `"off"` (one albedo). For objects with printed patterns.
     pub albedo_map: Setting,
@@ -339,6 +384,7 @@ impl Default for Config {
         Self {
             seed: 0,
             init: InitMethod::Auto,
+            init_rim: StartRim::Auto,
             albedo_map: Setting::OFF,
             capture: CaptureConfig::default(),
             reflectance: ReflectanceConfig::default(),
@@ -470,6 +516,11 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
         "init",
         "initial surface: \"auto\" (LCT on confocal grids, else the phasor field), \"lct\", \"fk\", \"pf\", \"carve\" \
          or a mesh file (OBJ/PLY/GLB) facing the wall",
+    ),
+    (
+        "init_rim",
+        "depth of the start's dim rim: \"receding\" (convex), \"measured\" (its own), \"choose\" (both run a stage, \
+         the data choose) or \"auto\" (choose for the phasor field, else receding)",
     ),
     ("albedo_map", "albedo map over the wall plane: cell size in metres, or \"off\" (one albedo)"),
     ("capture.rebin", "sum this many consecutive bins first (1: as captured)"),

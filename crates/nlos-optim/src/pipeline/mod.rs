@@ -38,9 +38,11 @@ use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, Residu
 use crate::{Schedule, SensorBackground, SensorFit};
 pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, check_resumable, run, saved_config};
 
+mod choose;
 mod config;
 mod params;
 mod start;
+pub use choose::{CANDIDATES_DIR, CHOICE_FILE, Candidate, StartChoice, misfit_at_choice, saved_choice};
 use config::config_error;
 pub use config::*;
 pub use start::MAX_START_SLOPE;

@@ -45,6 +45,10 @@ pub fn saved_config(dir: &Path) -> Result<Option<Config>> {
 /// [`OptimError::Checkpoint`] when the checkpoint is missing or cannot be read.
 pub fn check_resumable(dir: &Path) -> Result<()> {
     let path = dir.join(crate::CHECKPOINT_FILE);
+    // Interrupted while its candidate starts ran: they resume (super::choose).
+    if !path.exists() && dir.join(super::CANDIDATES_DIR).is_dir() {
+        return Ok(());
+    }
     std::fs::File::open(&path)
         .map(drop)
         .map_err(|e| OptimError::Checkpoint { message: crate::reconstruct::checkpoint_unreadable(&e), path })
@@ -54,9 +58,10 @@ pub fn check_resumable(dir: &Path) -> Result<()> {
 /// directory `params.out_dir` (none: nothing is written).
 ///
 /// [`Start::New`] creates the directory, writes [`SETTINGS_FILE`] (atomically), extracts the start surface
-/// ([`Prepared::initial_surface`]), writes it as [`INIT_FILE`] and optimises from it
-/// ([`crate::reconstruct_with`]). [`Start::Resume`] continues from the directory's checkpoint
-/// ([`crate::resume`]).
+/// ([`Prepared::start_candidates`]), writes it as [`INIT_FILE`] and optimises from it
+/// ([`crate::reconstruct_with`]); of two candidate starts, the data choose one after the first stage
+/// ([`super::StartChoice`]). [`Start::Resume`] continues from the directory's checkpoint
+/// ([`crate::resume`]), or the candidates' runs when it was interrupted before the choice.
 ///
 /// # Errors
 /// [`OptimError::InvalidParameter`] to resume without a directory; I/O in the directory; those of
@@ -69,6 +74,13 @@ pub fn run(
     hooks: Hooks<'_>,
 ) -> Result<Outcome> {
     match start {
+        Start::Resume
+            if params.out_dir.as_deref().is_some_and(|d| {
+                !d.join(crate::CHECKPOINT_FILE).exists() && d.join(super::CANDIDATES_DIR).is_dir()
+            }) =>
+        {
+            super::choose::run(prepared, config, params, prepared.start_candidates(config)?, hooks)
+        }
         Start::Resume => {
             // The response of a gated capture depends on the start surface (Prepared::with_start_response):
             // the same start gives the same response as when the run began.
@@ -91,7 +103,11 @@ pub fn run(
                 }
                 crate::reconstruct::checkpoint::write_atomic(&dir.join(SETTINGS_FILE), settings.as_bytes())?;
             }
-            let init = prepared.initial_surface(config)?;
+            let mut candidates = prepared.start_candidates(config)?;
+            if candidates.len() > 1 {
+                return super::choose::run(prepared, config, params, candidates, hooks);
+            }
+            let init = candidates.swap_remove(0).1;
             if let Some(dir) = &params.out_dir {
                 nlos_mesh::io::save(&init, dir.join(INIT_FILE))?;
             }
@@ -102,7 +118,7 @@ pub fn run(
 }
 
 /// Creates the run directory (and its parents).
-fn create_dir(dir: &Path) -> Result<()> {
+pub(super) fn create_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
         path: dir.to_owned(),
         fix: OptimError::WRITE_FIX,

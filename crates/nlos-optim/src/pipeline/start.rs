@@ -44,18 +44,48 @@ impl Prepared {
     }
 
     /// The initial surface: a volumetric reconstruction of [`Prepared::full`] turned into a mesh
-    /// ([`Prepared::volume`], [`Prepared::surface_params`]), or the mesh file of [`InitMethod::Mesh`].
+    /// ([`Prepared::volume`], [`Prepared::surface_params`]), or the mesh file of [`InitMethod::Mesh`]; of
+    /// two candidates ([`StartRim::Choose`]), the first ([`Prepared::start_candidates`]).
     ///
     /// # Errors
     /// [`OptimError::Init`] when the volume or its surface fails, [`OptimError::Mesh`] for an unreadable mesh.
     pub fn initial_surface(&self, config: &Config) -> Result<SurfaceMesh> {
+        let mut candidates = self.start_candidates(config)?;
+        Ok(candidates.swap_remove(0).1)
+    }
+
+    /// The starts the run may begin from, each with the rim it was given: one, or two when
+    /// [`Config::init_rim`] resolves to [`StartRim::Choose`] for a volume whose extraction sets a rim
+    /// apart ([`nlos_init::SurfaceParams::core_fraction`]): the receding rim first, then the measured one,
+    /// both from the same volume (one when they are the same surface: a volume without a dim rim). A mesh
+    /// file is one start ([`StartRim::Measured`]: its own depths).
+    ///
+    /// # Errors
+    /// As [`Prepared::initial_surface`].
+    pub fn start_candidates(&self, config: &Config) -> Result<Vec<(StartRim, SurfaceMesh)>> {
         let method = match &config.init {
             InitMethod::Auto => Method::for_scan(self.full.scan()).0,
             InitMethod::Volume(method) => *method,
-            InitMethod::Mesh(file) => return Ok(nlos_mesh::io::load(file)?),
+            InitMethod::Mesh(file) => return Ok(vec![(StartRim::Measured, nlos_mesh::io::load(file)?)]),
         };
         let volume = self.volume(method, config.reflectance.model, None)?;
-        Ok(volume_to_surface(&volume, &self.surface_params(method))?.mesh)
+        let receding = self.surface_params(method);
+        // Without a core there is no rim to place: the extraction keeps every column at its own depth.
+        let measured = SurfaceParams { core_fraction: None, ..receding };
+        let rims = match (config.init_rim.resolve(method), receding.core_fraction) {
+            (_, None) | (StartRim::Measured, _) => vec![(StartRim::Measured, measured)],
+            (StartRim::Choose, Some(_)) => vec![(StartRim::Receding, receding), (StartRim::Measured, measured)],
+            _ => vec![(StartRim::Receding, receding)],
+        };
+        let mut starts: Vec<(StartRim, SurfaceMesh)> = rims
+            .into_iter()
+            .map(|(rim, params)| Ok((rim, volume_to_surface(&volume, &params)?.mesh)))
+            .collect::<Result<_>>()?;
+        // A volume whose every kept column is core gives the same surface twice: one run is enough.
+        if starts.len() == 2 && starts[0].1.to_triangles() == starts[1].1.to_triangles() {
+            starts.truncate(1);
+        }
+        Ok(starts)
     }
 }
 
