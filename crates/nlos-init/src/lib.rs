@@ -61,6 +61,7 @@ pub use pf::{DepthNoise, PfParams, pf};
 pub use prep::Gate;
 pub use rim::round_rim;
 pub use surface::{
-    Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface, volume_to_surface_where,
+    GrowReference, Surface, SurfaceParams, Threshold, connected_components, otsu_threshold, volume_to_surface,
+    volume_to_surface_where,
 };
 pub use volume::{Axis, Volume};

@@ -2,8 +2,8 @@
 
 use glam::Vec3;
 use nlos_init::{
-    Axis, FkParams, Gate, InitError, LctParams, SurfaceParams, Threshold, Volume, fk, lct, otsu_threshold,
-    volume_to_surface,
+    Axis, FkParams, Gate, GrowReference, InitError, LctParams, SurfaceParams, Threshold, Volume, fk, lct,
+    otsu_threshold, volume_to_surface,
 };
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
 
@@ -247,4 +247,45 @@ fn object_growth_stops_at_the_background_noise_floor() {
         volume_to_surface(&noisy, &bad),
         Err(InitError::InvalidParameter { name: "grow_noise_sigmas", .. })
     ));
+}
+
+/// A dim part beside a bright one (the `nonconfocal` scenario's ball beside its dish, one laser): grown
+/// relative to the volume's peak, the dim part keeps only its core; relative to its own peak, its flanks
+/// too, and the bright part is grown as before.
+#[test]
+fn each_region_grows_down_its_own_flanks() {
+    // Bright 6 × 6 square (1.0) with a 1-column flank at 0.15; dim 4 × 4 square (0.3) with a 2-column flank
+    // at 0.05: above 10 % of its own peak, below 10 % of the volume's.
+    let (nx, ny, nz) = (32usize, 16usize, 40usize);
+    let inside =
+        |x: usize, y: usize, x0: usize, y0: usize, n: usize| (x0..x0 + n).contains(&x) && (y0..y0 + n).contains(&y);
+    let mut vol = flat_volume(nx, ny, nz, |_, _| false, 30);
+    for iy in 0..ny {
+        for ix in 0..nx {
+            let v = if inside(ix, iy, 4, 5, 6) {
+                1.0
+            } else if inside(ix, iy, 3, 4, 8) {
+                0.15
+            } else if inside(ix, iy, 20, 6, 4) {
+                0.3
+            } else if inside(ix, iy, 18, 4, 8) {
+                0.05
+            } else {
+                0.0
+            };
+            vol.data[(ix + nx * iy) * nz + 30] = v;
+        }
+    }
+    let kept = |reference| {
+        let p = SurfaceParams {
+            threshold: Threshold::Relative(0.25),
+            grow_reference: reference,
+            ..SurfaceParams::object()
+        };
+        let mask = volume_to_surface(&vol, &p).expect("surface").mask;
+        let count = |x0, n| (0..nx * ny).filter(|&c| mask[c] && inside(c % nx, c / nx, x0, 4, n)).count();
+        (count(3, 8), count(18, 8))
+    };
+    assert_eq!(kept(GrowReference::Volume), (64, 16), "the dim part keeps its core only");
+    assert_eq!(kept(GrowReference::Region), (64, 64), "each part with its flanks");
 }

@@ -148,7 +148,8 @@ pub enum StartRim {
     /// Behind the nearest core column, receding as a smooth convex silhouette does
     /// ([`nlos_init::SurfaceParams::object`]).
     Receding,
-    /// Each column at the depth of its own maximum.
+    /// Each column at the depth of its own maximum, and each part of the volume grown down its own flanks
+    /// ([`nlos_init::GrowReference::Region`]): the volume as measured, without a convex object's priors.
     Measured,
     /// Both: the first stage runs from each, and the run goes on from the one that leaves less of the data
     /// unexplained at the next stage's first step ([`crate::pipeline::StartChoice`]).

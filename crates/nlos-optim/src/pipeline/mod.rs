@@ -24,7 +24,7 @@
 
 use std::path::Path;
 
-use nlos_init::{Gate, Model, PfParams, SurfaceParams, Volume, pf, volume_to_surface};
+use nlos_init::{Gate, GrowReference, Model, PfParams, SurfaceParams, Volume, pf, volume_to_surface};
 use nlos_mesh::SurfaceMesh;
 use nlos_render::{Device, SplatRule, Visibility};
 use nlos_transient::Transient;

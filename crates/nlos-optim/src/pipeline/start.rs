@@ -56,8 +56,9 @@ impl Prepared {
 
     /// The starts the run may begin from, each with the rim it was given: one, or two when
     /// [`Config::init_rim`] resolves to [`StartRim::Choose`] for a volume whose extraction sets a rim
-    /// apart ([`nlos_init::SurfaceParams::core_fraction`]): the receding rim first, then the measured one,
-    /// both from the same volume (one when they are the same surface: a volume without a dim rim). A mesh
+    /// apart ([`nlos_init::SurfaceParams::core_fraction`]): the receding rim first, then the measured one
+    /// (every column at its own depth, each region grown relative to its own peak:
+    /// [`nlos_init::GrowReference::Region`]), both from the same volume (one when they are the same surface: a volume without a dim rim). A mesh
     /// file is one start ([`StartRim::Measured`]: its own depths).
     ///
     /// # Errors
@@ -70,8 +71,10 @@ impl Prepared {
         };
         let volume = self.volume(method, config.reflectance.model, None)?;
         let receding = self.surface_params(method);
-        // Without a core there is no rim to place: the extraction keeps every column at its own depth.
-        let measured = SurfaceParams { core_fraction: None, ..receding };
+        // The volume as measured, without the convex object's priors: no core, so every column stays at its
+        // own depth, and each part grown down its own flanks (a ball beside a brighter dish kept a third of
+        // its pixels when grown relative to the dish's peak).
+        let measured = SurfaceParams { core_fraction: None, grow_reference: GrowReference::Region, ..receding };
         let rims = match (config.init_rim.resolve(method), receding.core_fraction) {
             (_, None) | (StartRim::Measured, _) => vec![(StartRim::Measured, measured)],
             (StartRim::Choose, Some(_)) => vec![(StartRim::Receding, receding), (StartRim::Measured, measured)],
