@@ -94,6 +94,13 @@ fn the_chosen_start_runs_on_as_if_it_had_been_the_only_one() {
     assert_eq!(strip(&chosen), strip(&alone));
     assert!(pipeline::saved_choice(&dir.join("alone")).unwrap().is_none(), "one start: no choice");
 
+    // Without a run directory the candidates run in a temporary one, removed at the end; the same result.
+    let config = config(StartRim::Choose);
+    let prepared = Prepared::new(capture.clone(), &config).unwrap();
+    let params = prepared.params(&config, None).unwrap();
+    let in_memory = pipeline::run(&prepared, &config, &params, Start::New, Hooks::default()).unwrap();
+    assert_eq!(positions(&in_memory), positions(&chosen));
+
     // Stopped at the first candidate's first block, then resumed.
     let mut stop = |p: &Progress| {
         if p.event == ProgressEvent::BlockEnd { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }

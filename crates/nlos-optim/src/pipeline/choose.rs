@@ -125,7 +125,10 @@ pub(super) fn run(
     let (dir, temporary) = match &params.out_dir {
         Some(dir) => (dir.clone(), false),
         None => {
-            let dir = std::env::temp_dir().join(format!("nlos-start-choice-{}", std::process::id()));
+            // Unique to this run: runs without a directory may go on in parallel in one process (Python threads).
+            static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let n = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let dir = std::env::temp_dir().join(format!("nlos-start-choice-{}-{n}", std::process::id()));
             // Left by an earlier process of the same id: nothing in it is this run's.
             let _ = std::fs::remove_dir_all(&dir);
             (dir, true)

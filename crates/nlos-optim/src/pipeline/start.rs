@@ -58,8 +58,9 @@ impl Prepared {
     /// [`Config::init_rim`] resolves to [`StartRim::Choose`] for a volume whose extraction sets a rim
     /// apart ([`nlos_init::SurfaceParams::core_fraction`]): the receding rim first, then the measured one
     /// (every column at its own depth, each region grown relative to its own peak:
-    /// [`nlos_init::GrowReference::Region`]), both from the same volume (one when they are the same surface: a volume without a dim rim). A mesh
-    /// file is one start ([`StartRim::Measured`]: its own depths).
+    /// [`nlos_init::GrowReference::Region`]), both from the same volume; one when the two are the same
+    /// surface (a volume without a dim rim). A method whose extraction sets no rim apart (f-k, FBP,
+    /// carving) and a mesh file are one start each, as they are ([`StartRim::Measured`]).
     ///
     /// # Errors
     /// As [`Prepared::initial_surface`].
@@ -76,7 +77,9 @@ impl Prepared {
         // its pixels when grown relative to the dish's peak).
         let measured = SurfaceParams { core_fraction: None, grow_reference: GrowReference::Region, ..receding };
         let rims = match (config.init_rim.resolve(method), receding.core_fraction) {
-            (_, None) | (StartRim::Measured, _) => vec![(StartRim::Measured, measured)],
+            // The method's own extraction: it has no rim to place.
+            (_, None) => vec![(StartRim::Measured, receding)],
+            (StartRim::Measured, _) => vec![(StartRim::Measured, measured)],
             (StartRim::Choose, Some(_)) => vec![(StartRim::Receding, receding), (StartRim::Measured, measured)],
             _ => vec![(StartRim::Receding, receding)],
         };
