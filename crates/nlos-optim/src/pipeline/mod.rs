@@ -258,6 +258,22 @@ mod tests {
         }
     }
 
+    /// `init_rim = "auto"` runs two starts only for the phasor field on a capture lit from one spot.
+    #[test]
+    fn auto_chooses_between_two_starts_for_one_lasers_phasor_field_only() {
+        use glam::Vec3;
+        use nlos_transient::{PointSet, Scan};
+        let grid = || PointSet::wall_grid(4, 4, 0.25, 0.25).expect("grid");
+        let one = || PointSet::list(vec![Vec3::ZERO]);
+        let auto = |method, scan: &Scan| StartRim::Auto.resolve(method, scan);
+        assert_eq!(auto(Method::Pf, &Scan::exhaustive(one(), grid())), StartRim::Choose);
+        assert_eq!(auto(Method::Pf, &Scan::exhaustive(grid(), one())), StartRim::Choose, "one sensor spot");
+        assert_eq!(auto(Method::Pf, &Scan::exhaustive(grid(), grid())), StartRim::Receding, "several lasers");
+        assert_eq!(auto(Method::Pf, &Scan::paired(grid(), grid())), StartRim::Receding);
+        assert_eq!(auto(Method::Lct, &Scan::confocal(grid())), StartRim::Receding);
+        assert_eq!(StartRim::Choose.resolve(Method::Lct, &Scan::confocal(grid())), StartRim::Choose, "as asked");
+    }
+
     #[test]
     fn overrides_change_only_the_fields_they_name() {
         let base = Config { seed: 7, ..Config::default() };
@@ -303,6 +319,7 @@ mod tests {
             ("[schedule]\nmax_stages = -1\n", "max_stages"),
             ("[render]\nvisibility = \"sometimes\"\n", "visibility"),
             ("no_such_setting = 1\n", "no_such_setting"),
+            ("init_rim = \"sideways\"\n", "init_rim"),
             ("[capture\n", "capture"),
         ] {
             match Config::from_toml(text) {

@@ -76,7 +76,7 @@ impl Prepared {
         // own depth, and each part grown down its own flanks (a ball beside a brighter dish kept a third of
         // its pixels when grown relative to the dish's peak).
         let measured = SurfaceParams { core_fraction: None, grow_reference: GrowReference::Region, ..receding };
-        let rims = match (config.init_rim.resolve(method), receding.core_fraction) {
+        let rims = match (config.init_rim.resolve(method, self.full.scan()), receding.core_fraction) {
             // The method's own extraction: it has no rim to place.
             (_, None) => vec![(StartRim::Measured, receding)],
             (StartRim::Measured, _) => vec![(StartRim::Measured, measured)],
