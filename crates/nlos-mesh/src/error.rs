@@ -73,14 +73,6 @@ pub enum MeshError {
     /// The mesh violates a half-edge invariant (reported by `validate`).
     #[error("mesh invariant violated: {0}; this is a bug in the operation that produced the mesh")]
     Invariant(String),
-    /// A property with this name already exists.
-    #[error("a {kind} property named {name:?} already exists; pick another name or remove the old one")]
-    PropertyExists {
-        /// "vertex", "edge" or "face".
-        kind: &'static str,
-        /// The name.
-        name: String,
-    },
     /// The mesh has no faces where at least one is needed.
     #[error("the mesh has no faces; {what} needs a non-empty triangle mesh")]
     EmptyMesh {

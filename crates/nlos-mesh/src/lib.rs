@@ -7,7 +7,7 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`SurfaceMesh`] | connectivity, properties, check/mutate operations, deletion, validation, construction |
+//! | [`SurfaceMesh`] | connectivity, check/mutate operations, deletion, validation, construction |
 //! | | ([`SurfaceMesh::from_triangles_with`], [`orient_triangles`]), normals, boundary loops, components |
 //! | [`shapes`] | icosphere, open cone, plane grid, height field |
 //! | [`io`] | OBJ and PLY read/write, GLB export, content-based [`io::load`], atomic [`io::save`] |
@@ -59,7 +59,6 @@ pub mod intersect;
 pub mod io;
 pub mod map_metrics;
 pub mod metrics;
-mod property;
 pub mod quality;
 pub mod remeshing;
 pub mod shapes;
@@ -72,6 +71,5 @@ pub use bvh::{ClosestPoint, TriangleBvh};
 pub use error::MeshError;
 pub use handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 pub use metrics::{EvalParams, Metrics, evaluate};
-pub use property::{EdgeProperty, FaceProperty, VertexProperty};
 pub use surface_mesh::{IndexRemap, SurfaceMesh, VertexHalfedges};
 pub use union_find::UnionFind;

@@ -19,7 +19,6 @@ use glam::Vec3;
 
 use crate::error::MeshError;
 use crate::handles::{EdgeId, FaceId, HalfedgeId, VertexId};
-use crate::property::{EdgeProperty, FaceProperty, PropertyContainer, VertexProperty};
 
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct HalfedgeConn {
@@ -48,9 +47,6 @@ pub struct SurfaceMesh {
     pub(crate) n_deleted_vertices: usize,
     pub(crate) n_deleted_edges: usize,
     pub(crate) n_deleted_faces: usize,
-    pub(crate) vprops: PropertyContainer,
-    pub(crate) eprops: PropertyContainer,
-    pub(crate) fprops: PropertyContainer,
 }
 
 /// Old index → new index maps returned by [`SurfaceMesh::garbage_collect`]; removed elements map to the
@@ -317,95 +313,6 @@ impl SurfaceMesh {
         let h = self.find_halfedge(a, b);
         if h.is_valid() { h.edge() } else { EdgeId::INVALID }
     }
-
-    // --- properties -------------------------------------------------------------------------------------
-
-    /// Adds a per-vertex property filled with `default`. Errors if the name is taken.
-    pub fn add_vertex_property<T: Clone + std::fmt::Debug + Send + Sync + 'static>(
-        &mut self,
-        name: &str,
-        default: T,
-    ) -> Result<VertexProperty<T>, MeshError> {
-        self.vprops
-            .add(name, default, self.positions.len())
-            .map(VertexProperty::new)
-            .ok_or_else(|| MeshError::PropertyExists { kind: "vertex", name: name.to_owned() })
-    }
-    /// Adds a per-edge property filled with `default`. Errors if the name is taken.
-    pub fn add_edge_property<T: Clone + std::fmt::Debug + Send + Sync + 'static>(
-        &mut self,
-        name: &str,
-        default: T,
-    ) -> Result<EdgeProperty<T>, MeshError> {
-        self.eprops
-            .add(name, default, self.edeleted.len())
-            .map(EdgeProperty::new)
-            .ok_or_else(|| MeshError::PropertyExists { kind: "edge", name: name.to_owned() })
-    }
-    /// Adds a per-face property filled with `default`. Errors if the name is taken.
-    pub fn add_face_property<T: Clone + std::fmt::Debug + Send + Sync + 'static>(
-        &mut self,
-        name: &str,
-        default: T,
-    ) -> Result<FaceProperty<T>, MeshError> {
-        self.fprops
-            .add(name, default, self.fhalfedge.len())
-            .map(FaceProperty::new)
-            .ok_or_else(|| MeshError::PropertyExists { kind: "face", name: name.to_owned() })
-    }
-    /// Looks up a vertex property by name and type.
-    pub fn vertex_property<T: 'static>(&self, name: &str) -> Option<VertexProperty<T>> {
-        self.vprops.find_typed::<T>(name).map(VertexProperty::new)
-    }
-    /// Looks up an edge property by name and type.
-    pub fn edge_property<T: 'static>(&self, name: &str) -> Option<EdgeProperty<T>> {
-        self.eprops.find_typed::<T>(name).map(EdgeProperty::new)
-    }
-    /// Looks up a face property by name and type.
-    pub fn face_property<T: 'static>(&self, name: &str) -> Option<FaceProperty<T>> {
-        self.fprops.find_typed::<T>(name).map(FaceProperty::new)
-    }
-    /// The values of a vertex property, indexed by `VertexId::idx` (`None` if it was removed or the
-    /// handle belongs to another mesh).
-    pub fn vprop<T: 'static>(&self, p: VertexProperty<T>) -> Option<&[T]> {
-        self.vprops.get(p.slot)
-    }
-    /// Mutable values of a vertex property.
-    pub fn vprop_mut<T: 'static>(&mut self, p: VertexProperty<T>) -> Option<&mut [T]> {
-        self.vprops.get_mut(p.slot)
-    }
-    /// The values of an edge property, indexed by `EdgeId::idx`.
-    pub fn eprop<T: 'static>(&self, p: EdgeProperty<T>) -> Option<&[T]> {
-        self.eprops.get(p.slot)
-    }
-    /// Mutable values of an edge property.
-    pub fn eprop_mut<T: 'static>(&mut self, p: EdgeProperty<T>) -> Option<&mut [T]> {
-        self.eprops.get_mut(p.slot)
-    }
-    /// The values of a face property, indexed by `FaceId::idx`.
-    pub fn fprop<T: 'static>(&self, p: FaceProperty<T>) -> Option<&[T]> {
-        self.fprops.get(p.slot)
-    }
-    /// Mutable values of a face property.
-    pub fn fprop_mut<T: 'static>(&mut self, p: FaceProperty<T>) -> Option<&mut [T]> {
-        self.fprops.get_mut(p.slot)
-    }
-    /// Removes a vertex property; returns whether it existed.
-    pub fn remove_vertex_property<T>(&mut self, p: VertexProperty<T>) -> bool {
-        self.vprops.remove(p.slot)
-    }
-    /// Removes an edge property; returns whether it existed.
-    pub fn remove_edge_property<T>(&mut self, p: EdgeProperty<T>) -> bool {
-        self.eprops.remove(p.slot)
-    }
-    /// Removes a face property; returns whether it existed.
-    pub fn remove_face_property<T>(&mut self, p: FaceProperty<T>) -> bool {
-        self.fprops.remove(p.slot)
-    }
-    /// Names of the vertex, edge and face properties.
-    pub fn property_names(&self) -> [Vec<String>; 3] {
-        [self.vprops.names(), self.eprops.names(), self.fprops.names()]
-    }
 }
 
 /// Clockwise iterator over the outgoing halfedges of a vertex. See [`SurfaceMesh::vertex_halfedges`].
@@ -447,7 +354,6 @@ impl SurfaceMesh {
         self.positions.push(p);
         self.vhalfedge.push(HalfedgeId::INVALID);
         self.vdeleted.push(false);
-        self.vprops.push_default();
         VertexId::new(self.positions.len() - 1)
     }
 
@@ -457,14 +363,12 @@ impl SurfaceMesh {
         self.hconn.push(HalfedgeConn { vertex: b, ..Default::default() });
         self.hconn.push(HalfedgeConn { vertex: a, ..Default::default() });
         self.edeleted.push(false);
-        self.eprops.push_default();
         h
     }
 
     pub(crate) fn new_face(&mut self) -> FaceId {
         self.fhalfedge.push(HalfedgeId::INVALID);
         self.fdeleted.push(false);
-        self.fprops.push_default();
         FaceId::new(self.fhalfedge.len() - 1)
     }
 
@@ -910,7 +814,7 @@ impl SurfaceMesh {
         }
     }
 
-    /// Removes all deleted elements, compacting every array and property (the order of the survivors is
+    /// Removes all deleted elements, compacting every array (the order of the survivors is
     /// kept). Returns the old → new index maps.
     ///
     /// Invalidates every handle held by the caller: translate them with the returned [`IndexRemap`].
@@ -958,12 +862,9 @@ impl SurfaceMesh {
 
         retain_mask(&mut self.positions, &vkeep);
         retain_mask(&mut self.vhalfedge, &vkeep);
-        self.vprops.retain_mask(&vkeep);
         let hkeep: Vec<bool> = ekeep.iter().flat_map(|&k| [k, k]).collect();
         retain_mask(&mut self.hconn, &hkeep);
-        self.eprops.retain_mask(&ekeep);
         retain_mask(&mut self.fhalfedge, &fkeep);
-        self.fprops.retain_mask(&fkeep);
 
         self.vdeleted = vec![false; self.positions.len()];
         self.edeleted = vec![false; self.hconn.len() / 2];
@@ -996,7 +897,7 @@ fn retain_mask<T>(v: &mut Vec<T>, keep: &[bool]) {
 impl SurfaceMesh {
     /// Checks every connectivity invariant and returns the first violation:
     ///
-    /// - array sizes agree (positions, connectivity, deletion flags, properties) and deletion counts match;
+    /// - array sizes agree (positions, connectivity, deletion flags) and deletion counts match;
     /// - every live halfedge has live `next`/`prev`/target/face, `prev(next(h)) == h`, `next(h) != h`,
     ///   `face(next(h)) == face(h)`, and `from(next(h)) == to(h)`;
     /// - every live face is a triangle of three distinct vertices whose halfedges point back to it;
@@ -1009,13 +910,13 @@ impl SurfaceMesh {
         let nv = self.positions.len();
         let nh = self.hconn.len();
         let nf = self.fhalfedge.len();
-        if self.vhalfedge.len() != nv || self.vdeleted.len() != nv || !self.vprops.lengths_ok(nv) {
+        if self.vhalfedge.len() != nv || self.vdeleted.len() != nv {
             return err("vertex arrays have different lengths".into());
         }
-        if !nh.is_multiple_of(2) || self.edeleted.len() * 2 != nh || !self.eprops.lengths_ok(nh / 2) {
+        if !nh.is_multiple_of(2) || self.edeleted.len() * 2 != nh {
             return err("edge arrays have different lengths".into());
         }
-        if self.fdeleted.len() != nf || !self.fprops.lengths_ok(nf) {
+        if self.fdeleted.len() != nf {
             return err("face arrays have different lengths".into());
         }
         let count = |d: &[bool]| d.iter().filter(|&&x| x).count();

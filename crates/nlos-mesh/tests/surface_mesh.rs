@@ -1,7 +1,7 @@
 //! Half-edge invariants under randomized operation sequences, construction errors, garbage collection.
 
 use glam::Vec3;
-use nlos_mesh::{BuildOptions, EdgeId, HalfedgeId, MeshError, SurfaceMesh, VertexId, orient_triangles, shapes};
+use nlos_mesh::{BuildOptions, EdgeId, MeshError, SurfaceMesh, VertexId, orient_triangles, shapes};
 
 /// The workspace's SplitMix64 (`nlos_transient::rng`).
 type Rng = nlos_transient::rng::SplitMix64;
@@ -193,17 +193,8 @@ fn tetrahedron_flip_is_refused() {
 }
 
 #[test]
-fn garbage_collection_preserves_geometry_topology_and_properties() {
+fn garbage_collection_preserves_geometry_and_topology() {
     let mut m = shapes::icosphere(Vec3::ZERO, 1.0, 2);
-    let tag = m.add_vertex_property("tag", 0u32).expect("new property");
-    let ftag = m.add_face_property("ftag", 0u32).expect("new property");
-    let etag = m.add_edge_property("etag", 0u32).expect("new property");
-    for v in m.vertices().collect::<Vec<_>>() {
-        m.vprop_mut(tag).expect("live")[v.idx()] = v.0 + 1000;
-    }
-    for f in m.faces().collect::<Vec<_>>() {
-        m.fprop_mut(ftag).expect("live")[f.idx()] = f.0 + 7;
-    }
     let mut rng = Rng::new(7);
     for _ in 0..150 {
         let e = random_live_edge(&m, &mut rng);
@@ -211,16 +202,9 @@ fn garbage_collection_preserves_geometry_topology_and_properties() {
             m.collapse(e.halfedge(0));
         }
     }
-    // mark the surviving edges by their endpoint positions
-    for e in m.edges().collect::<Vec<_>>() {
-        m.eprop_mut(etag).expect("live")[e.idx()] = e.0;
-    }
     assert!(m.has_garbage());
     let (pos_before, tris_before) = m.to_triangles();
-    let tags_before: Vec<u32> = m.vertices().map(|v| m.vprop(tag).expect("live")[v.idx()]).collect();
-    let ftags_before: Vec<u32> = m.faces().map(|f| m.fprop(ftag).expect("live")[f.idx()]).collect();
-    let edges_before: Vec<(u32, [Vec3; 2])> =
-        m.edges().map(|e| (m.eprop(etag).expect("live")[e.idx()], m.edge_vertices(e).map(|v| m.position(v)))).collect();
+    let edges_before: Vec<[Vec3; 2]> = m.edges().map(|e| m.edge_vertices(e).map(|v| m.position(v))).collect();
     let old = m.clone();
     let remap = m.garbage_collect();
     m.validate().expect("valid after gc");
@@ -229,12 +213,7 @@ fn garbage_collection_preserves_geometry_topology_and_properties() {
     assert_eq!(pos_before, pos_after);
     assert_eq!(tris_before, tris_after);
     assert_eq!(m.positions(), pos_after.as_slice());
-    let tags_after: Vec<u32> = m.vertices().map(|v| m.vprop(tag).expect("live")[v.idx()]).collect();
-    assert_eq!(tags_before, tags_after);
-    let ftags_after: Vec<u32> = m.faces().map(|f| m.fprop(ftag).expect("live")[f.idx()]).collect();
-    assert_eq!(ftags_before, ftags_after);
-    let edges_after: Vec<(u32, [Vec3; 2])> =
-        m.edges().map(|e| (m.eprop(etag).expect("live")[e.idx()], m.edge_vertices(e).map(|v| m.position(v)))).collect();
+    let edges_after: Vec<[Vec3; 2]> = m.edges().map(|e| m.edge_vertices(e).map(|v| m.position(v))).collect();
     assert_eq!(edges_before, edges_after);
     // the remap sends every live old element to its new index
     for v in old.vertices() {
@@ -348,20 +327,4 @@ fn delete_face_and_vertex_keep_invariants() {
     s.delete_vertex(VertexId(0));
     s.validate().expect("valid");
     assert_eq!(s.boundary_loops().len(), 1);
-}
-
-#[test]
-fn properties_follow_element_creation() {
-    let mut m = shapes::plane_grid(1.0, 1.0, 2, 2);
-    let w = m.add_vertex_property("weight", 1.5f32).expect("new");
-    assert!(m.add_vertex_property("weight", 0.0f32).is_err());
-    assert!(m.vertex_property::<f32>("weight").is_some());
-    assert!(m.vertex_property::<u32>("weight").is_none(), "typed lookup");
-    let e = m.edges().next().expect("edge");
-    let v = m.split_edge(e, Vec3::splat(0.1));
-    assert_eq!(m.vprop(w).expect("live")[v.idx()], 1.5);
-    assert!(m.remove_vertex_property(w));
-    assert!(m.vprop(w).is_none());
-    let h: HalfedgeId = m.vertex_halfedge(v);
-    assert!(h.is_valid());
 }

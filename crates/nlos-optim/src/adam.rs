@@ -16,6 +16,8 @@
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::surface::VertexField;
+
 /// Hyper-parameters of Adam (Kingma & Ba's defaults: β1 = 0.9, β2 = 0.999, ε = 1e-8).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AdamParams {
@@ -45,75 +47,52 @@ impl AdamParams {
     }
 }
 
-/// Per-vertex isotropic Adam state (module docs).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+/// One vertex's isotropic Adam moments (module docs): a field of the loop's surface
+/// ([`crate::surface::Surface`], [`SHAPE_MOMENTS`]), so that they follow every remeshing.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Moments {
+    /// First moment.
+    pub m: DVec3,
+    /// Isotropic second moment (mean over x, y, z of g²).
+    pub v: f64,
+}
+
+impl Moments {
+    /// Zero moments: a vertex that has taken no step.
+    pub const ZERO: Self = Self { m: DVec3::ZERO, v: 0.0 };
+}
+
+/// The shape's Adam moments, per vertex of the loop's surface.
+pub const SHAPE_MOMENTS: VertexField<Moments> = VertexField::new("shape_adam", Moments::ZERO);
+
+/// Per-vertex isotropic Adam (module docs): the step count; the moments are per vertex ([`Moments`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct VertexAdam {
-    /// First moment per vertex.
-    pub m: Vec<DVec3>,
-    /// Isotropic second moment per vertex (mean over x, y, z of g²).
-    pub v: Vec<f64>,
     /// Steps taken.
     pub t: u64,
 }
 
 impl VertexAdam {
-    /// Zero state for `n` vertices.
-    pub fn new(n: usize) -> Self {
-        Self { m: vec![DVec3::ZERO; n], v: vec![0.0; n], t: 0 }
-    }
-
-    /// Number of vertices.
-    pub fn len(&self) -> usize {
-        self.v.len()
-    }
-
-    /// Whether there are no vertices.
-    pub fn is_empty(&self) -> bool {
-        self.v.is_empty()
-    }
-
-    /// One step: updates the moments with `grad` and returns the displacement of every vertex, with
-    /// learning rate `lr[i]` for vertex i. The caller guarantees `grad.len() == lr.len() == self.len()`.
-    pub fn step(&mut self, p: &AdamParams, grad: &[Vec3], lr: impl Fn(usize) -> f64) -> Vec<Vec3> {
+    /// One step: updates `moments` with `grad` and returns the displacement of every vertex, with
+    /// learning rate `lr(i)` for vertex i. The caller guarantees `grad.len() == moments.len()`.
+    pub fn step(
+        &mut self,
+        p: &AdamParams,
+        moments: &mut [Moments],
+        grad: &[Vec3],
+        lr: impl Fn(usize) -> f64,
+    ) -> Vec<Vec3> {
         self.t += 1;
         let (c1, c2) = p.corrections(self.t);
         let mut d = Vec::with_capacity(grad.len());
-        for (i, g) in grad.iter().enumerate() {
+        for (i, (g, mo)) in grad.iter().zip(moments.iter_mut()).enumerate() {
             let g = g.as_dvec3();
-            self.m[i] = p.beta1 * self.m[i] + (1.0 - p.beta1) * g;
-            self.v[i] = p.beta2 * self.v[i] + (1.0 - p.beta2) * g.length_squared() / 3.0;
-            let step = -lr(i) * (self.m[i] / c1) / ((self.v[i] / c2).sqrt() + p.eps);
+            mo.m = p.beta1 * mo.m + (1.0 - p.beta1) * g;
+            mo.v = p.beta2 * mo.v + (1.0 - p.beta2) * g.length_squared() / 3.0;
+            let step = -lr(i) * (mo.m / c1) / ((mo.v / c2).sqrt() + p.eps);
             d.push(step.as_vec3());
         }
         d
-    }
-
-    /// The state of a renumbered vertex set: new vertex `i` takes the moments of old vertex `source[i]`,
-    /// or zero moments for `None` (a new vertex) or an old index out of range. The step count is kept.
-    pub fn select(&self, source: &[Option<u32>]) -> Self {
-        let old = |j: Option<u32>| j.and_then(|j| Some((*self.m.get(j as usize)?, *self.v.get(j as usize)?)));
-        let (m, v) = source.iter().map(|&j| old(j).unwrap_or((DVec3::ZERO, 0.0))).unzip();
-        Self { m, v, t: self.t }
-    }
-
-    /// The state carried to a new vertex set: `weights[i]` lists `(old vertex, weight)` pairs whose weighted
-    /// sum gives new vertex i's moments (e.g. barycentric interpolation on the closest old face). The step
-    /// count is kept, so the bias corrections continue.
-    pub fn transfer(&self, weights: &[[(u32, f32); 3]]) -> Self {
-        let mut out = Self { m: Vec::with_capacity(weights.len()), v: Vec::with_capacity(weights.len()), t: self.t };
-        for w in weights {
-            let (mut m, mut v) = (DVec3::ZERO, 0.0f64);
-            for &(j, wj) in w {
-                if let (Some(mj), Some(vj)) = (self.m.get(j as usize), self.v.get(j as usize)) {
-                    m += f64::from(wj) * *mj;
-                    v += f64::from(wj) * *vj;
-                }
-            }
-            out.m.push(m);
-            // Guard: interpolation weights are ≥ 0, but keep v ≥ 0 against rounding.
-            out.v.push(v.max(0.0));
-        }
-        out
     }
 }
 
@@ -154,27 +133,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn select_keeps_renumbered_moments_and_zeroes_new_vertices() {
-        let mut a = VertexAdam::new(3);
-        let g = [Vec3::X, Vec3::Y * 2.0, Vec3::Z * 3.0];
-        a.step(&AdamParams::default(), &g, |_| 0.1);
-        let b = a.select(&[Some(2), None, Some(0), Some(9)]);
-        assert_eq!((b.len(), b.t), (4, a.t));
-        assert_eq!((b.m[0], b.v[0]), (a.m[2], a.v[2]));
-        assert_eq!((b.m[2], b.v[2]), (a.m[0], a.v[0]));
-        for i in [1, 3] {
-            assert_eq!((b.m[i], b.v[i]), (DVec3::ZERO, 0.0), "vertex {i}: new or out of range");
-        }
-        assert!(a.v[2] > 0.0, "a non-trivial state");
-    }
-
-    #[test]
     fn first_step_has_length_lr_along_the_gradient() {
         // Bias correction makes |Δ_1| = η for every non-zero gradient (Kingma & Ba, Sec. 2.1), and the
         // isotropic variant keeps the direction of g.
-        let mut a = VertexAdam::new(2);
+        let mut a = VertexAdam::default();
+        let mut moments = [Moments::ZERO; 2];
         let g = [Vec3::new(3.0, -4.0, 0.0), Vec3::new(1e-3, 0.0, 0.0)];
-        let d = a.step(&AdamParams::default(), &g, |i| if i == 0 { 0.01 } else { 0.02 });
+        let d = a.step(&AdamParams::default(), &mut moments, &g, |i| if i == 0 { 0.01 } else { 0.02 });
         // ‖m̂‖/√v̂ = ‖g‖/(‖g‖/√3) = √3.
         assert!((d[0].length() - 0.01 * 3f32.sqrt()).abs() < 1e-6);
         assert!(d[0].normalize().dot(-g[0].normalize()) > 0.99999);
@@ -193,17 +158,5 @@ mod tests {
             x[1] += d[1];
         }
         assert!(x[0].abs() < 1e-2 && x[1].abs() < 1e-2, "{x:?}");
-    }
-
-    #[test]
-    fn transfer_interpolates_moments() {
-        let mut a = VertexAdam::new(3);
-        a.m = vec![DVec3::X, DVec3::Y, DVec3::Z];
-        a.v = vec![1.0, 2.0, 3.0];
-        a.t = 7;
-        let b = a.transfer(&[[(0, 0.5), (1, 0.5), (2, 0.0)], [(2, 1.0), (0, 0.0), (0, 0.0)]]);
-        assert_eq!(b.t, 7);
-        assert!((b.m[0] - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-12 && (b.v[0] - 1.5).abs() < 1e-12);
-        assert!((b.v[1] - 3.0).abs() < 1e-12);
     }
 }

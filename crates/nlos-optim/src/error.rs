@@ -16,6 +16,20 @@ pub enum OptimError {
     /// Reflectance parameters could not be turned into a BRDF.
     #[error("BRDF: {0}; start from parameters inside the model's domain")]
     Brdf(#[from] nlos_brdf::BrdfError),
+    /// A field of the loop's surface ([`crate::surface::Surface`]) was read before it was written, or under a
+    /// name that holds another type.
+    #[error(
+        "surface {kind} field {name:?}: {reason}; a field is written (created with its initial value) before it is \
+         read, and each name holds one type"
+    )]
+    Field {
+        /// The field's name.
+        name: String,
+        /// "vertex" or "face".
+        kind: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
     /// A parameter is outside its domain.
     #[error("invalid parameter {name} = {value}: {reason}")]
     InvalidParameter {

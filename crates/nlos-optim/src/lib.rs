@@ -19,6 +19,8 @@
 //!   scenes whose reflectance varies (printed patterns), which a uniform albedo turns into relief;
 //! - [`pipeline`]: the reconstruction as users run it — settings ([`pipeline::Config`], TOML), capture
 //!   preparation, every `auto` decision and the initial surface;
+//! - [`surface`]: the loop's surface — positions, triangles and named per-vertex and per-face fields (the
+//!   shape's Adam moments) that every change of topology carries through one map ([`Remap`]);
 //! - [`adam`]: Adam (Kingma & Ba 2015), per-vertex isotropic for positions, plain for reflectance θ;
 //! - [`reconstruct()`](crate::reconstruct()): the loop — coarse-to-fine schedule, remeshing, rollback on
 //!   non-finite values, checkpoints and [`resume`], the JSON run log, collision-aware evolution of each
@@ -50,8 +52,9 @@ pub mod reflectance;
 pub mod regularizer;
 pub mod residual;
 pub mod schedule;
+pub mod surface;
 
-pub use adam::{AdamParams, VectorAdam, VertexAdam};
+pub use adam::{AdamParams, Moments, SHAPE_MOMENTS, VectorAdam, VertexAdam};
 pub use albedo::{AlbedoMap, AlbedoMapParams};
 pub use boundary_smoothing::BoundarySmoothing;
 pub use data_term::{
@@ -64,8 +67,8 @@ pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
     IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,
-    ProgressFn, RUN_LOG_FILE, RunLog, StageRecord, StartRecord, StepKind, StopReason, describe_device, reconstruct,
-    reconstruct_with, resume,
+    ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, StageRecord, StartRecord, StepKind, StopReason, describe_device,
+    reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};
@@ -74,3 +77,4 @@ pub use residual::{
     residual_patches, residual_rounds,
 };
 pub use schedule::{PHASOR_START_BLOCKS, Schedule, faces_at};
+pub use surface::{Remap, Source, Surface};

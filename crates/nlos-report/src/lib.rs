@@ -43,7 +43,7 @@ use std::path::{Path, PathBuf};
 
 use nlos_mesh::SurfaceMesh;
 use nlos_mesh::metrics::Metrics;
-use nlos_optim::{DataTerm, Loss, Reflectance, RunLog, SensorFit};
+use nlos_optim::{DataTerm, Loss, Reflectance, RunLog, RunRecord, SensorFit};
 use nlos_render::{RenderParams, Renderer};
 use nlos_transient::Transient;
 use nlos_viz::RgbImage;
@@ -153,41 +153,16 @@ pub fn read_run_log(dir: &Path) -> Result<RunLog> {
     serde_json::from_slice(&read(&path)?).map_err(|e| ReportError::Json { file: path, message: e.to_string() })
 }
 
-/// The reflectance recorded in `checkpoint.json`, or `None` when there is no checkpoint.
+/// The run record of a run directory ([`nlos_optim::RunRecord`], its `checkpoint.json`), or `None` when it
+/// has none.
 ///
 /// # Errors
-/// [`ReportError::Io`], or [`ReportError::Json`] for a checkpoint without a valid `reflectance`.
-pub fn read_reflectance(dir: &Path) -> Result<Option<Reflectance>> {
-    let path = dir.join(nlos_optim::CHECKPOINT_FILE);
-    if !path.is_file() {
+/// [`ReportError::Optim`] for a record that cannot be read, of another version or inconsistent.
+pub fn read_record(dir: &Path) -> Result<Option<RunRecord>> {
+    if !dir.join(nlos_optim::CHECKPOINT_FILE).is_file() {
         return Ok(None);
     }
-    let json = |message: String| ReportError::Json { file: path.clone(), message };
-    let v: serde_json::Value = serde_json::from_slice(&read(&path)?).map_err(|e| json(e.to_string()))?;
-    let r = v.get("reflectance").ok_or_else(|| json("no `reflectance` field".into()))?;
-    Ok(Some(serde_json::from_value(r.clone()).map_err(|e| json(e.to_string()))?))
-}
-
-/// The albedo map recorded in `checkpoint.json` (`nlos_optim::ReconstructParams::albedo_map`), or `None`
-/// when there is no checkpoint or the run had no map.
-///
-/// # Errors
-/// [`ReportError::Io`], or [`ReportError::Json`] for a checkpoint whose `albedo` is malformed.
-pub fn read_albedo(dir: &Path) -> Result<Option<nlos_optim::AlbedoMap>> {
-    let path = dir.join(nlos_optim::CHECKPOINT_FILE);
-    if !path.is_file() {
-        return Ok(None);
-    }
-    let json = |message: String| ReportError::Json { file: path.clone(), message };
-    let v: serde_json::Value = serde_json::from_slice(&read(&path)?).map_err(|e| json(e.to_string()))?;
-    match v.get("albedo") {
-        None | Some(serde_json::Value::Null) => Ok(None),
-        Some(a) => {
-            let map: nlos_optim::AlbedoMap = serde_json::from_value(a.clone()).map_err(|e| json(e.to_string()))?;
-            map.validate().map_err(|e| json(format!("`albedo`: {e}")))?;
-            Ok(Some(map))
-        }
-    }
+    Ok(Some(RunRecord::read(dir)?))
 }
 
 fn save(img: &RgbImage, dir: &Path, name: &str, images: &mut Vec<String>) -> Result<()> {
@@ -229,8 +204,9 @@ pub fn write_report(
     let final_mesh = load_mesh(&dir.join(MESH_FILE), "nlos reconstruct writes it when the run finishes")?;
     let init_path = dir.join(INIT_FILE);
     let init_mesh = if init_path.is_file() { Some(load_mesh(&init_path, "")?) } else { None };
-    let (reflectance, reflectance_note) = match read_reflectance(dir)? {
-        Some(r) => (r, "from checkpoint.json"),
+    let record = read_record(dir)?;
+    let (reflectance, reflectance_note) = match &record {
+        Some(r) => (r.reflectance().clone(), "from checkpoint.json"),
         None => (Reflectance::default(), "no checkpoint.json: Lambertian assumed"),
     };
 
@@ -240,8 +216,8 @@ pub fn write_report(
     let gated = |t: &Transient| -> Result<Transient> { Ok(if gate > ax.t0 { t.gate(gate)? } else { t.clone() }) };
     let (positions, triangles) = final_mesh.to_triangles();
     let mut renderer = Renderer::new(&positions, &triangles, measured.scan(), &ax, opts.render)?;
-    let albedo = read_albedo(dir)?;
-    if let Some(map) = &albedo {
+    let albedo = record.as_ref().and_then(RunRecord::albedo);
+    if let Some(map) = albedo {
         renderer.set_face_weights(Some(&map.face_weights(&positions, &triangles)))?;
     }
     let rendered = renderer.forward_any(&reflectance.brdf()?);

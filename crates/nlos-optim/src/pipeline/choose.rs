@@ -23,17 +23,11 @@ use std::path::{Path, PathBuf};
 use nlos_mesh::SurfaceMesh;
 use serde::{Deserialize, Serialize};
 
-use super::run_dir::{INIT_FILE, create_dir};
+use super::files::{CANDIDATES_DIR, CHOICE_FILE, INIT_FILE, create_dir};
 use super::{Config, Prepared, StartRim};
 use crate::error::{OptimError, Result};
-use crate::reconstruct::checkpoint::write_atomic;
+use crate::reconstruct::record::write_atomic;
 use crate::{CHECKPOINT_FILE, Hooks, Outcome, Progress, ProgressEvent, RUN_LOG_FILE, ReconstructParams, RunLog};
-
-/// The folder of a run directory that holds each candidate start's run, one folder per rim
-/// (`start_candidates/receding`, `start_candidates/measured`).
-pub const CANDIDATES_DIR: &str = "start_candidates";
-/// The file of a run directory that records which start the data chose ([`StartChoice`]).
-pub const CHOICE_FILE: &str = "start_choice.json";
 
 /// Which start the data chose, and by how much ([`CHOICE_FILE`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -22,148 +22,28 @@
 //! # Ok(()) }
 //! ```
 
-use std::path::Path;
-
-use nlos_init::{Gate, GrowReference, Model, PfParams, SurfaceParams, Volume, pf, volume_to_surface};
-use nlos_mesh::SurfaceMesh;
-use nlos_render::{Device, SplatRule, Visibility};
-use nlos_transient::Transient;
-use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
-
-use crate::error::{OptimError, Result};
-
-mod run_dir;
-mod start_response;
-use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
-use crate::{Schedule, SensorBackground, SensorFit};
-pub use run_dir::{INIT_FILE, SETTINGS_FILE, Start, check_resumable, run, saved_config};
-
 mod choose;
 mod config;
-mod params;
-mod start;
-pub use choose::{CANDIDATES_DIR, CHOICE_FILE, Candidate, StartChoice, misfit_at_choice, saved_choice};
-use config::config_error;
-pub use config::*;
-pub use start::MAX_START_SLOPE;
-use start::wall_spacing;
+mod files;
+mod prepared;
+mod run_dir;
 
-/// A capture prepared as the optimiser fits it ([`Prepared::new`]), with the intermediate forms the sensor
-/// fit and the initial surface need.
-#[derive(Debug, Clone)]
-pub struct Prepared {
-    /// As read and rebinned, before the gate and the max depth: it still holds the direct reflection off the
-    /// wall (the capture's own response) and the background-only bins at the end of the axis.
-    pub read: Transient,
-    /// Whether the gate zeroed the direct light.
-    pub gated: bool,
-    /// After the gate and an explicit max depth: what the initial surface is reconstructed from (the whole
-    /// scan grid: a volume from a subsampled grid is blurred twice as wide).
-    pub full: Transient,
-    /// `full` cut after the last return (`max_depth = "auto"`) and subsampled: what the optimiser fits.
-    pub measured: Transient,
-    /// The depth beyond which the initial surface takes no voxel (`max_depth = "auto"`).
-    pub surface_depth: Option<f64>,
-    /// What the `auto` settings decided, one sentence each, for the user.
-    pub notes: Vec<String>,
-    /// The configuration's schedule sized to the fitted capture ([`Schedule::sized_to`]).
-    pub schedule: Schedule,
-}
-
-impl Prepared {
-    /// Reads the capture at `path` (any format [`nlos_transient::read`] knows) and prepares it.
-    ///
-    /// # Errors
-    /// [`OptimError::Capture`] naming the file when it cannot be read, and those of [`Prepared::new`].
-    pub fn load(path: &Path, config: &Config) -> Result<Self> {
-        let read = nlos_transient::read_with(path, &config.capture.read_options()?)
-            .map_err(|source| OptimError::Capture { path: path.to_owned(), source: Box::new(source) })?;
-        Self::new(read, config)
-    }
-
-    /// Prepares a capture: rebin, gate, max depth, subsample (in that order).
-    ///
-    /// `max_depth = "auto"` drops the late bins from the fitted data only: the initial volume is reconstructed
-    /// from the whole axis and its surface cut at the depth instead. The LCT's volume depends on the length
-    /// of the axis it resamples (a simulation of the bunny with 0.01 background counts per bin, cut after its
-    /// last return at 0.57 m, gave an initial surface with a mean depth error of 9.6 mm against 8.5 mm from
-    /// the whole axis, and a fit of 7.3 against 5.8 mm).
-    ///
-    /// # Errors
-    /// [`OptimError::Config`] for a rebin or subsample factor of 0 or one the capture does not allow, a
-    /// non-finite gate, a depth that is not positive or leaves no bin.
-    pub fn new(capture: Transient, config: &Config) -> Result<Self> {
-        let c = &config.capture;
-        let mut notes = Vec::new();
-        let mut read = capture;
-        if c.rebin > 1 {
-            read = read.rebin(c.rebin).map_err(|e| config_error("capture.rebin", e.to_string()))?;
-        } else if c.rebin == 0 {
-            return Err(config_error("capture.rebin", "0 bins: give 1 to keep the capture's bins"));
-        }
-        let gate = match c.gate {
-            Setting::Word(Word::Auto) => Gate::Auto,
-            Setting::Word(Word::Off) => Gate::None,
-            Setting::Value(g) => Gate::Path(g),
-        };
-        let gate = gate.path(&read).map_err(|e| config_error("capture.gate", e.to_string()))?;
-        let gate = gate.filter(|g| *g > read.time().t0);
-        let mut full = match gate {
-            Some(g) => read.gate(g).map_err(|e| config_error("capture.gate", e.to_string()))?,
-            None => read.clone(),
-        };
-        let (fitted, surface_depth) = match c.max_depth {
-            Setting::Word(Word::Off) => (None, None),
-            Setting::Value(d) => {
-                if !(d.is_finite() && d > 0.0) {
-                    return Err(config_error("capture.max_depth", format!("{d}: a depth in metres (finite, > 0)")));
-                }
-                let t0 = full.time().t0;
-                full = full.crop_path(t0, 2.0 * d).map_err(|e| config_error("capture.max_depth", e.to_string()))?;
-                (None, None)
-            }
-            Setting::Word(Word::Auto) => {
-                let ax = *full.time();
-                let end = full.signal_end_path(gate.unwrap_or(ax.t0));
-                if end < ax.end() {
-                    // Each leg of a path is at least the depth of its point, so no surface lies deeper than
-                    // half the last return's path, whatever the scan.
-                    let depth = format!(" (depth at most {:.4} m)", end / 2.0);
-                    notes.push(format!(
-                        "max_depth auto: the last return ends at {end:.4} m of path{depth}; the {} later bins hold \
-                         only background and are not fitted (capture.max_depth = \"off\" keeps them)",
-                        ax.bins - ((end - ax.t0) / ax.bin_width).ceil() as usize,
-                    ));
-                    let cut =
-                        full.crop_path(ax.t0, end).map_err(|e| config_error("capture.max_depth", e.to_string()))?;
-                    (Some(cut), Some(end / 2.0))
-                } else {
-                    (None, None)
-                }
-            }
-        };
-        let fitted = fitted.unwrap_or_else(|| full.clone());
-        let measured = match c.subsample {
-            0 => return Err(config_error("capture.subsample", "0: give 1 to keep every scan point")),
-            1 => fitted,
-            k => fitted.subsample(k, k).map_err(|e| config_error("capture.subsample", e.to_string()))?,
-        };
-        let (schedule, note) =
-            config.schedule.sized_to(wall_spacing(measured.scan()), measured.time().bin_width, measured.measurements());
-        notes.extend(note);
-        let (method, why) = config.init.resolve(full.scan());
-        if config.init == InitMethod::Auto {
-            notes.push(format!("init auto: {why} (\"{method}\"; init = \"lct\", \"pf\", … chooses another)"));
-        }
-        let (schedule, note) = schedule.for_start(method == InitMethod::Volume(Method::Pf));
-        notes.extend(note);
-        Ok(Self { read, gated: gate.is_some(), full, measured, surface_depth, notes, schedule })
-    }
-}
+pub use choose::{Candidate, StartChoice, misfit_at_choice, saved_choice};
+pub use config::{
+    BoundaryConfig, CaptureConfig, Config, FIELD_DOCS, InitMethod, Method, Noise, OptimiserConfig, ReflectanceConfig,
+    RenderConfig, SensorChoice, SensorConfig, Setting, StartRim, VisibilityChoice, Word,
+};
+pub use files::{CANDIDATES_DIR, CHOICE_FILE, INIT_FILE, SETTINGS_FILE};
+pub use prepared::{MAX_START_SLOPE, Prepared};
+pub use run_dir::{Start, check_resumable, run, saved_config};
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{OptimError, SensorBackground, SensorFit};
+    use nlos_init::Model;
+    use nlos_transient::Transient;
+    use nlos_transient::sensor::BackgroundWindow;
 
     /// Every setting printed has its comment, and every comment names a setting.
     #[test]

@@ -11,14 +11,11 @@
 
 use std::path::Path;
 
+use super::files::{CANDIDATES_DIR, INIT_FILE, SETTINGS_FILE, create_dir};
 use super::{Config, Prepared};
 use crate::error::{OptimError, Result};
+use crate::reconstruct::record::write_atomic;
 use crate::{Hooks, Outcome, ReconstructParams};
-
-/// The file of a run directory that keeps the run's settings ([`Config::to_toml`]).
-pub const SETTINGS_FILE: &str = "settings.toml";
-/// The file of a run directory that keeps the start surface.
-pub const INIT_FILE: &str = "init.obj";
 
 /// Whether [`run`] starts a run or continues the one in its directory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,7 +43,7 @@ pub fn saved_config(dir: &Path) -> Result<Option<Config>> {
 pub fn check_resumable(dir: &Path) -> Result<()> {
     let path = dir.join(crate::CHECKPOINT_FILE);
     // Interrupted while its candidate starts ran: they resume (super::choose).
-    if !path.exists() && dir.join(super::CANDIDATES_DIR).is_dir() {
+    if !path.exists() && dir.join(CANDIDATES_DIR).is_dir() {
         return Ok(());
     }
     std::fs::File::open(&path)
@@ -75,9 +72,10 @@ pub fn run(
 ) -> Result<Outcome> {
     match start {
         Start::Resume
-            if params.out_dir.as_deref().is_some_and(|d| {
-                !d.join(crate::CHECKPOINT_FILE).exists() && d.join(super::CANDIDATES_DIR).is_dir()
-            }) =>
+            if params
+                .out_dir
+                .as_deref()
+                .is_some_and(|d| !d.join(crate::CHECKPOINT_FILE).exists() && d.join(CANDIDATES_DIR).is_dir()) =>
         {
             super::choose::run(prepared, config, params, prepared.start_candidates(config)?, hooks)
         }
@@ -101,7 +99,7 @@ pub fn run(
                     let (method, why) = config.init.resolve(prepared.full.scan());
                     settings.insert_str(0, &format!("# init = \"auto\" chose \"{method}\": {why}\n"));
                 }
-                crate::reconstruct::checkpoint::write_atomic(&dir.join(SETTINGS_FILE), settings.as_bytes())?;
+                write_atomic(&dir.join(SETTINGS_FILE), settings.as_bytes())?;
             }
             let mut candidates = prepared.start_candidates(config)?;
             if candidates.len() > 1 {
@@ -115,13 +113,4 @@ pub fn run(
             crate::reconstruct_with(&prepared.measured, &init, &params, hooks)
         }
     }
-}
-
-/// Creates the run directory (and its parents).
-pub(super) fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
-        path: dir.to_owned(),
-        fix: OptimError::WRITE_FIX,
-        source,
-    })
 }

@@ -11,14 +11,16 @@ use nlos_mesh::SurfaceMesh;
 use nlos_render::Renderer;
 use nlos_transient::Transient;
 
-use super::checkpoint::{State, write_outputs};
+use super::evaluation::{Attempt, Fit, evaluate};
 use super::plan::{BlockEnd, Next, Plan};
-use super::topology::{append, collision_step, drop_faces, mesh_of, surface_area, untangle};
+use super::record::RunRecord;
+use super::rollback::{GoodReflectance, GoodShape, rollback, rollback_refl};
+use super::topology::{collision_step, drop_faces, untangle};
 use super::{
-    Attempt, Evolve, EvolveRecord, Fit, GoodReflectance, Hooks, IntersectionCheck, IterationRecord, ProgressEvent,
-    StepKind, evaluate, progress, report, rollback, rollback_refl, set_albedo_weights,
+    Evolve, EvolveRecord, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, StepKind, progress, report,
+    set_albedo_weights,
 };
-use crate::adam::VertexAdam;
+use crate::adam::SHAPE_MOMENTS;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::data_term::RowLoss;
 use crate::data_term::counts::SensorRows;
@@ -27,6 +29,7 @@ use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_rounds};
+use crate::surface::Remap;
 
 /// What every block of a run shares: its settings and what was decided from them once.
 pub(super) struct RunCtx<'a> {
@@ -47,7 +50,7 @@ pub(super) struct RunCtx<'a> {
 }
 
 impl<'a> RunCtx<'a> {
-    pub(super) fn new(st: &State, params: &'a ReconstructParams, plan: Plan) -> Self {
+    pub(super) fn new(st: &RunRecord, params: &'a ReconstructParams, plan: Plan) -> Self {
         let sch = params.schedule;
         // A Lambertian (or retroreflective) albedo is a pure scale factor: with the scale solved in closed form
         // its gradient is zero, and a reflectance block would spend full forward/adjoint renders to leave θ
@@ -102,7 +105,7 @@ pub(super) struct Block<'a> {
 /// caller's `evolve` hook (if any) and then collision-aware evolution ([`ReconstructParams::collision`]:
 /// no step makes the surface intersect itself), rolled back on a non-finite loss, gradient or position.
 pub(super) fn shape_block<'e>(
-    st: &mut State,
+    st: &mut RunRecord,
     ctx: &RunCtx<'_>,
     b: &mut Block<'_>,
     hooks: &mut Hooks<'_>,
@@ -110,15 +113,15 @@ pub(super) fn shape_block<'e>(
 ) -> Result<()> {
     let params = ctx.params;
     let w_edge = params.boundary_smoothing;
-    let mut good: Option<(Vec<Vec3>, VertexAdam)> = None;
+    let mut good: Option<GoodShape> = None;
     let mut it = 0;
     while it < params.schedule.shape_iterations {
         let attempt = (|| -> Result<Option<Attempt>> {
             let ev = evaluate(st, &b.renderer, &b.fit, ctx.counts)?;
-            let (r_n, mut rg) = b.reg.evaluate(&st.positions, &st.triangles)?;
+            let (r_n, mut rg) = b.reg.evaluate(st.surface.positions(), st.surface.triangles())?;
             let mut r = r_n;
             if w_edge > 0.0 {
-                let (r_e, eg) = b.edge_reg.evaluate(&st.positions)?;
+                let (r_e, eg) = b.edge_reg.evaluate(st.surface.positions())?;
                 r += w_edge * r_e;
                 for (g, e) in rg.iter_mut().zip(&eg) {
                     *g += w_edge as f32 * *e;
@@ -132,7 +135,7 @@ pub(super) fn shape_block<'e>(
             continue;
         };
         if it == 0 {
-            let area = surface_area(&st.positions, &st.triangles);
+            let area = st.surface.area();
             // With counts, the regulariser is weighed against the part of the data term above its noise
             // floor (crate::data_term::counts, "Noise floor"; DataTerm::noise_floor); at least 1 % of the data term,
             // so a fit that has reached the floor keeps some smoothing.
@@ -159,42 +162,44 @@ pub(super) fn shape_block<'e>(
             reg_weight: lam,
             scale: ev.scale,
             step_size: step,
-            faces: st.triangles.len(),
-            vertices: st.positions.len(),
+            faces: st.surface.n_faces(),
+            vertices: st.surface.n_vertices(),
             time_s: ctx.elapsed(),
             noise_floor: ctx.counts.then_some(ev.floor),
         });
         let _ = report(hooks, &progress(st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed()));
         let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
-        good = Some((st.positions.clone(), st.shape_adam.clone()));
+        good = Some((st.surface.clone(), st.shape_adam));
         let (li, lb) = (params.lr_interior * b.target * st.lr_scale, params.lr_boundary * b.target * st.lr_scale);
         let boundary = &b.boundary;
-        let disp = st.shape_adam.step(&params.shape_adam, &grad, |i| if boundary[i] { lb } else { li });
+        let moments = st.surface.vertex_mut(SHAPE_MOMENTS)?;
+        let disp = st.shape_adam.step(&params.shape_adam, moments, &grad, |i| if boundary[i] { lb } else { li });
+        let surface = &st.surface;
         let proposed = match evolve.as_deref_mut() {
-            Some(hook) => Some(hook.evolve(&st.positions, &st.triangles, &disp)?),
+            Some(hook) => Some(hook.evolve(surface.positions(), surface.triangles(), &disp)?),
             None => None,
         };
-        if proposed.as_ref().is_some_and(|p| p.len() != st.positions.len() || p.iter().any(|p| !p.is_finite())) {
+        if proposed.as_ref().is_some_and(|p| p.len() != surface.n_vertices() || p.iter().any(|p| !p.is_finite())) {
             rollback(st, &mut good, &mut b.renderer, params, "positions")?;
             continue;
         }
         let new = match (proposed, params.collision) {
             (Some(p), None) => p,
-            (None, None) => st.positions.iter().zip(&disp).map(|(p, d)| *p + *d).collect(),
+            (None, None) => surface.positions().iter().zip(&disp).map(|(p, d)| *p + *d).collect(),
             (proposed, Some(ep)) => {
                 let d = match proposed {
-                    Some(p) => p.iter().zip(&st.positions).map(|(p, q)| *p - *q).collect(),
+                    Some(p) => p.iter().zip(surface.positions()).map(|(p, q)| *p - *q).collect(),
                     None => disp,
                 };
-                collision_step(st, &d, b.target as f32, ep, &mut b.collisions)?
+                collision_step(surface, &d, b.target as f32, ep, &mut b.collisions)?
             }
         };
         if new.iter().any(|p| !p.is_finite()) {
             rollback(st, &mut good, &mut b.renderer, params, "positions")?;
             continue;
         }
-        st.positions = new;
-        b.renderer.set_positions(&st.positions)?;
+        st.surface.set_positions(new)?;
+        b.renderer.set_positions(st.surface.positions())?;
         st.iteration += 1;
         it += 1;
     }
@@ -207,7 +212,7 @@ pub(super) fn shape_block<'e>(
 /// Step 3: the reflectance block — Adam steps on θ (and on the albedo map's log-albedo) with the shape
 /// fixed, rolled back on a non-finite loss or gradient.
 pub(super) fn reflectance_block(
-    st: &mut State,
+    st: &mut RunRecord,
     ctx: &RunCtx<'_>,
     b: &mut Block<'_>,
     hooks: &mut Hooks<'_>,
@@ -217,9 +222,9 @@ pub(super) fn reflectance_block(
     // The map's factors at the faces' current centroids (the shape block moved them), so that the
     // renderer's dE/dw_t and the map's chain rule see the same w_t.
     set_albedo_weights(st, &mut b.renderer)?;
-    let (mut r, _) = b.reg.evaluate(&st.positions, &st.triangles)?;
+    let (mut r, _) = b.reg.evaluate(st.surface.positions(), st.surface.triangles())?;
     if w_edge > 0.0 {
-        r += w_edge * b.edge_reg.evaluate(&st.positions)?.0;
+        r += w_edge * b.edge_reg.evaluate(st.surface.positions())?.0;
     }
     let mut good_refl: Option<GoodReflectance> = None;
     let mut it = 0;
@@ -254,8 +259,8 @@ pub(super) fn reflectance_block(
             reg_weight: st.reg_weight,
             scale: ev.scale,
             step_size: lr,
-            faces: st.triangles.len(),
-            vertices: st.positions.len(),
+            faces: st.surface.n_faces(),
+            vertices: st.surface.n_vertices(),
             time_s: ctx.elapsed(),
             noise_floor: None,
         });
@@ -267,10 +272,10 @@ pub(super) fn reflectance_block(
             st.reflectance.add_theta(&delta);
         }
         if let (Some(map), Some(ap)) = (st.albedo.as_mut(), params.albedo_map.as_ref()) {
-            let g = map.chain(&st.positions, &st.triangles, &ev.grad_faces);
+            let g = map.chain(st.surface.positions(), st.surface.triangles(), &ev.grad_faces);
             let delta = st.albedo_adam.step(&params.reflectance_adam, &g, ap.lr * st.lr_scale);
             map.add(&delta, ap.max_log);
-            map.recentre(&st.positions, &st.triangles);
+            map.recentre(st.surface.positions(), st.surface.triangles());
             set_albedo_weights(st, &mut b.renderer)?;
         }
         st.iteration += 1;
@@ -279,21 +284,18 @@ pub(super) fn reflectance_block(
     Ok(())
 }
 
-/// The mesh of a stage as fitted, before residual patches joined it.
-type StageMesh = (Vec<Vec3>, Vec<[u32; 3]>);
-
 /// Step 4: boundary pruning ([`crate::prune`]) and, at the end of a stage but the last, the residual
 /// patches ([`crate::residual`], in rounds). Returns the stage's mesh as fitted when patches joined it.
 pub(super) fn prune_and_patch(
-    st: &mut State,
+    st: &mut RunRecord,
     ctx: &RunCtx<'_>,
     b: &Block<'_>,
     end: &BlockEnd,
-) -> Result<Option<StageMesh>> {
+) -> Result<Option<SurfaceMesh>> {
     let params = ctx.params;
     let residual =
         params.residual.as_ref().filter(|r| end.stage_ends && !end.last_block && r.stages.is_none_or(|n| st.stage < n));
-    let mut stage_mesh: Option<StageMesh> = None;
+    let mut stage_mesh: Option<SurfaceMesh> = None;
     if params.prune.is_none() && residual.is_none() {
         return Ok(stage_mesh);
     }
@@ -322,9 +324,9 @@ pub(super) fn prune_and_patch(
         None => &data_rows,
     };
     if let Some(pp) = &params.prune {
-        let p = prune_boundary(&st.triangles, &b.renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
+        let p = prune_boundary(st.surface.triangles(), &b.renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
         if p.removed > 0 {
-            drop_faces(st, &p.keep);
+            drop_faces(st, &p.keep)?;
         }
         st.prune_log.push(PruneRecord {
             stage: st.stage,
@@ -350,12 +352,14 @@ pub(super) fn prune_and_patch(
             Ok(data.iter().zip(&model).map(|(&m, &e)| (f64::from(m) - e) as f32).collect())
         };
         let fit = PatchFit { render: *b.renderer.params(), brdf: &brdf, rendered: &mut rendered, row_loss };
-        let rounds = residual_rounds(&st.positions, &st.triangles, b.measured, &mut residual_of, fit, rp)?;
+        let (positions, triangles) = (st.surface.positions(), st.surface.triangles());
+        let rounds = residual_rounds(positions, triangles, b.measured, &mut residual_of, fit, rp)?;
         for (round, p) in rounds.into_iter().enumerate() {
             if !p.triangles.is_empty() && stage_mesh.is_none() {
-                stage_mesh = Some((st.positions.clone(), st.triangles.clone()));
+                stage_mesh = Some(st.surface.mesh()?);
             }
-            append(st, &p.positions, &p.triangles);
+            let remap = Remap::append(&st.surface, &p.positions, &p.triangles);
+            st.surface.apply(remap)?;
             let record = ResidualRecord {
                 stage: st.stage,
                 round,
@@ -376,20 +380,20 @@ pub(super) fn prune_and_patch(
 /// Step 5b: the bookkeeping — self-intersections removed, the stage advanced (its mesh saved as
 /// `stage_NN.obj`) or the next block counted, and the checkpoint and run log written.
 pub(super) fn bookkeeping(
-    st: &mut State,
+    st: &mut RunRecord,
     ctx: &RunCtx<'_>,
     b: &Block<'_>,
     end: &BlockEnd,
-    stage_mesh: Option<StageMesh>,
+    stage_mesh: Option<SurfaceMesh>,
 ) -> Result<()> {
     let params = ctx.params;
     untangle(st, IntersectionCheck::BlockEnd)?;
     st.blocks_done += 1;
     if end.stage_ends {
         if let Some(dir) = &params.out_dir {
-            let m = match &stage_mesh {
-                Some((p, t)) => SurfaceMesh::from_triangles(p, t)?,
-                None => mesh_of(st)?,
+            let m = match stage_mesh {
+                Some(m) => m,
+                None => st.surface.mesh()?,
             };
             nlos_mesh::io::save(&m, dir.join(format!("stage_{:02}.obj", st.stage)))?;
         }
@@ -403,7 +407,7 @@ pub(super) fn bookkeeping(
     }
     st.elapsed_s = ctx.elapsed();
     if let Some(dir) = &params.out_dir {
-        write_outputs(dir, st)?;
+        st.write(dir)?;
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ use glam::Vec3;
 use nlos_render::Renderer;
 use nlos_transient::Transient;
 
-use super::checkpoint::State;
+use super::record::RunRecord;
 use crate::data_term::counts::SensorModel;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
@@ -35,7 +35,7 @@ pub(super) struct Fit<'a> {
 
 /// The data term, its scale and gradients at the current state; with `want_floor`, also the data term's
 /// noise floor (for the automatic regulariser weight).
-pub(super) fn evaluate(st: &State, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
+pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: bool) -> Result<Eval> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
     let rendered = r.forward_any(&brdf);

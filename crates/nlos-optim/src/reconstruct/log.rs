@@ -1,7 +1,7 @@
 //! The run log (`run_log.json`): one record per iteration, per collision-aware evolution and per
 //! self-intersection check, and why the run ended.
 
-use super::*;
+use serde::{Deserialize, Serialize};
 
 /// Which block an iteration belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

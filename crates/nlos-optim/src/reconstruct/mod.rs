@@ -45,19 +45,14 @@
 //! (`tests/end_to_end.rs`, `a_run_does_not_depend_on_the_thread_count`: pools of 1 and 3 threads). A resumed
 //! run continues from the exact state of the checkpoint (f32/f64 values are stored exactly).
 
-use std::ops::ControlFlow;
-use std::path::Path;
-use std::time::Instant;
-
 use glam::Vec3;
-use nlos_mesh::evolve::{EvolveParams, evolve};
-use nlos_mesh::intersect::triangle_self_intersections;
-use nlos_mesh::{SurfaceMesh, TriangleBvh, remeshing::uniform_remeshing};
+use nlos_mesh::SurfaceMesh;
 use nlos_render::{RenderParams, Renderer, Sampling};
-use nlos_transient::{Scan, TimeAxis, Transient};
+use nlos_transient::Transient;
 use serde::{Deserialize, Serialize};
+use std::ops::ControlFlow;
 
-use crate::adam::{VectorAdam, VertexAdam};
+use crate::adam::{SHAPE_MOMENTS, VectorAdam, VertexAdam};
 use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
@@ -66,28 +61,31 @@ use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
 use crate::regularizer::NormalSmoothing;
 use crate::residual::ResidualRecord;
+use crate::surface::Surface;
 
 mod block;
-pub(crate) mod checkpoint;
 mod evaluation;
 mod log;
 mod plan;
+pub(crate) mod record;
 mod rollback;
 mod topology;
 
 use block::{Block, RunCtx};
-use checkpoint::*;
-use evaluation::*;
-pub use log::*;
+use evaluation::{Fit, StageData, data_normaliser};
+pub use log::{
+    EvolveRecord, IntersectionCheck, IntersectionRecord, IterationRecord, RunLog, StageRecord, StartRecord, StepKind,
+    StopReason,
+};
 pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Plan};
-use rollback::*;
-use topology::*;
+pub use record::RunRecord;
+use record::{SettingsRecord, fingerprint, first_difference, next_u64};
+use topology::{prepare_topology, untangle};
 
 /// File name of the checkpoint inside the output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// File name of the run log inside the output directory.
 pub const RUN_LOG_FILE: &str = "run_log.json";
-const CHECKPOINT_VERSION: u32 = 3;
 
 /// A caller's own per-step rule: turns the current positions and an Adam displacement into new positions.
 /// Without one, the displacement is used as it is ([`DirectEvolve`] does the same). Collision handling,
@@ -268,21 +266,19 @@ pub fn reconstruct_with(
             reason: "the initial mesh has a non-finite vertex (value = its index)",
         });
     }
-    let n = positions.len();
     // The map covers the initial surface with two cells to spare; points beyond take the edge's value.
     let albedo = match &params.albedo_map {
         Some(a) => Some(AlbedoMap::covering(&positions, a.cell, 2.0 * a.cell)?),
         None => None,
     };
     let albedo_adam = VectorAdam::new(albedo.as_ref().map_or(0, |m| m.log_albedo.len()));
-    let mut state = State {
-        version: CHECKPOINT_VERSION,
+    let mut state = RunRecord {
+        version: RunRecord::VERSION,
         fingerprint: fingerprint(measured),
         settings: SettingsRecord::of(params)?,
-        positions,
-        triangles,
+        surface: Surface::new(positions, triangles)?,
         reflectance: params.reflectance.clone(),
-        shape_adam: VertexAdam::new(n),
+        shape_adam: VertexAdam::default(),
         reflectance_adam: VectorAdam::new(params.reflectance.theta().len()),
         stage: 0,
         block_in_stage: 0,
@@ -303,8 +299,7 @@ pub fn reconstruct_with(
     };
     // A start that intersects itself would leave collision-aware evolution nothing to guarantee.
     untangle(&mut state, IntersectionCheck::Start)?;
-    state.log.start =
-        Some(StartRecord { faces: state.triangles.len(), area: surface_area(&state.positions, &state.triangles) });
+    state.log.start = Some(StartRecord { faces: state.surface.n_faces(), area: state.surface.area() });
     if let Some(dir) = &params.out_dir {
         std::fs::create_dir_all(dir).map_err(|source| OptimError::Io {
             path: dir.clone(),
@@ -340,30 +335,23 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     };
     let path = dir.join(CHECKPOINT_FILE);
     let ck = |message: String| OptimError::Checkpoint { path: path.clone(), message };
-    let bytes = std::fs::read(&path).map_err(|e| ck(checkpoint_unreadable(&e)))?;
-    let state: State = serde_json::from_slice(&bytes).map_err(|e| ck(e.to_string()))?;
-    if state.version != CHECKPOINT_VERSION {
-        return Err(ck(format!(
-            "written by another version of nlos (checkpoint version {}, this build reads {CHECKPOINT_VERSION}); \
-             start the run afresh",
-            state.version
-        )));
-    }
+    let state = RunRecord::read(dir)?;
     if state.fingerprint != fingerprint(measured) {
         return Err(ck("it was written for a different measurement".into()));
     }
-    if state.settings.version != SETTINGS_VERSION {
+    if state.settings.version != record::SETTINGS_VERSION {
         return Err(ck(format!(
-            "settings record version {} (this build writes {SETTINGS_VERSION}); start the run afresh",
-            state.settings.version
+            "settings record version {} (this build writes {}); start the run afresh",
+            state.settings.version,
+            record::SETTINGS_VERSION
         )));
     }
     let now = SettingsRecord::of(params)?;
     if let Some((field, was, now)) = first_difference(&state.settings.params, &now.params, "") {
         return Err(OptimError::SettingsChanged { path: path.clone(), field, was, now });
     }
-    if state.shape_adam.len() != state.positions.len()
-        || state.triangles.is_empty()
+    if state.surface.vertex(SHAPE_MOMENTS).is_err()
+        || state.surface.n_faces() == 0
         || state.albedo.is_some() != params.albedo_map.is_some()
         || state.albedo.as_ref().is_some_and(|m| {
             m.validate().is_err()
@@ -397,7 +385,7 @@ fn render_params(params: &ReconstructParams, stage: u32, rng: &mut u64) -> Rende
 
 /// The loop over blocks, from `st` (a new run's first state or a checkpoint's) to the end of the schedule;
 /// each block's steps are in [`block`].
-fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
+fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut hooks: Hooks<'_>) -> Result<Outcome> {
     let data = measured.data();
     if let Some(i) = data.iter().position(|x| !x.is_finite()) {
         return Err(OptimError::NonFiniteMeasurement { index: i, value: data[i] });
@@ -426,8 +414,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         // Step 1: topology (remeshing at the stage's edge), then the block's renderer and regularisers.
         let (boundary, remesh_refused) = prepare_topology(&mut st, target as f32, params, stage_capture)?;
         let mut renderer = Renderer::new(
-            &st.positions,
-            &st.triangles,
+            st.surface.positions(),
+            st.surface.triangles(),
             stage_capture.scan(),
             stage_capture.time(),
             render_params(params, st.stage, &mut st.rng),
@@ -440,8 +428,8 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
             measured: stage_capture,
             fit: Fit { params, measured: stage_capture.data(), sensor: sd.sensor.as_ref(), norm },
             renderer,
-            reg: NormalSmoothing::new(st.positions.len(), &st.triangles)?,
-            edge_reg: BoundarySmoothing::new(st.positions.len(), &st.triangles)?,
+            reg: NormalSmoothing::new(st.surface.n_vertices(), st.surface.triangles())?,
+            edge_reg: BoundarySmoothing::new(st.surface.n_vertices(), st.surface.triangles())?,
             boundary,
             collisions: EvolveRecord {
                 stage: st.stage,
@@ -469,10 +457,10 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
         let end = progress(&st, ProgressEvent::BlockEnd, ctx.planned, b.last, target, st.elapsed_s);
         let flow = report(&mut hooks, &Progress { stage: block_stage, ..end });
         if flow.is_break() && st.finished.is_none() {
-            return Ok(outcome(&st, mesh_of(&st)?, StopReason::Interrupted));
+            return Ok(outcome(&st, st.surface.mesh()?, StopReason::Interrupted));
         }
     }
-    let mesh = mesh_of(&st)?;
+    let mesh = st.surface.mesh()?;
     if let Some(dir) = &params.out_dir {
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
         match &st.albedo {
@@ -494,7 +482,7 @@ fn run(measured: &Transient, mut st: State, params: &ReconstructParams, mut hook
 }
 
 /// The outcome of a run in state `st` with its mesh.
-fn outcome(st: &State, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
+fn outcome(st: &RunRecord, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
     Outcome {
         mesh,
         reflectance: st.reflectance.clone(),
@@ -511,7 +499,7 @@ fn outcome(st: &State, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
 }
 
 /// What the progress hook is told of `st` now.
-fn progress(st: &State, event: ProgressEvent, planned: u64, loss: f64, target: f64, elapsed_s: f64) -> Progress {
+fn progress(st: &RunRecord, event: ProgressEvent, planned: u64, loss: f64, target: f64, elapsed_s: f64) -> Progress {
     Progress {
         event,
         stage: st.stage,
@@ -520,7 +508,7 @@ fn progress(st: &State, event: ProgressEvent, planned: u64, loss: f64, target: f
         iteration: st.iteration,
         iterations_planned: planned,
         loss,
-        faces: st.triangles.len(),
+        faces: st.surface.n_faces(),
         target_edge_length: target,
         elapsed_s,
     }
@@ -533,9 +521,9 @@ fn report(hooks: &mut Hooks<'_>, p: &Progress) -> ControlFlow<()> {
 
 /// Gives the renderer the albedo map's per-triangle factors at the current positions (nothing without a
 /// map).
-fn set_albedo_weights(st: &State, renderer: &mut Renderer) -> Result<()> {
+fn set_albedo_weights(st: &RunRecord, renderer: &mut Renderer) -> Result<()> {
     if let Some(map) = &st.albedo {
-        renderer.set_face_weights(Some(&map.face_weights(&st.positions, &st.triangles)))?;
+        renderer.set_face_weights(Some(&map.face_weights(st.surface.positions(), st.surface.triangles())))?;
     }
     Ok(())
 }

@@ -6,8 +6,7 @@
 //! (their sum is what has been *spent*), not timed: a run stays a deterministic function of its inputs on
 //! every machine ([`crate::Schedule::reference_seconds`]).
 
-use super::checkpoint::State;
-use super::topology::surface_area;
+use super::record::RunRecord;
 use super::{StageRecord, StopReason};
 use crate::schedule::{Schedule, faces_at};
 
@@ -124,18 +123,18 @@ impl Plan {
     }
 
     /// The shape steps' faces so far: what the budget has spent.
-    pub(super) fn spent(st: &State) -> f64 {
+    pub(super) fn spent(st: &RunRecord) -> f64 {
         st.log.iterations.iter().map(|r| r.faces as f64).sum()
     }
 
     /// The edge stage `stage` would be planned at now, after a stage of edge `previous`.
-    fn planned_now(&self, st: &State, stage: u32, previous: f64) -> f64 {
-        self.planned_edge(stage, previous, surface_area(&st.positions, &st.triangles), Self::spent(st))
+    fn planned_now(&self, st: &RunRecord, stage: u32, previous: f64) -> f64 {
+        self.planned_edge(stage, previous, st.surface.area(), Self::spent(st))
     }
 
     /// The target edge of the current stage: as recorded when it started (a resumed run keeps it), or planned
     /// now and recorded ([`StageRecord`], with the bins it sums: `bins_summed` of the edge).
-    pub(super) fn stage_edge(&self, st: &mut State, bins_summed: impl Fn(f64) -> usize) -> f64 {
+    pub(super) fn stage_edge(&self, st: &mut RunRecord, bins_summed: impl Fn(f64) -> usize) -> f64 {
         if let Some(r) = st.log.stages.iter().find(|r| r.stage == st.stage) {
             return r.edge_length;
         }
@@ -154,16 +153,16 @@ impl Plan {
     /// The end of a block of the stage at edge `target` whose loss went from `first` to `last`: the
     /// relative-decrease test and the budget — the next block of this stage, and the first of the next stage
     /// at its planned face count, must fit.
-    pub(super) fn block_end(&self, st: &State, target: f64, first: f64, last: f64) -> BlockEnd {
+    pub(super) fn block_end(&self, st: &RunRecord, target: f64, first: f64, last: f64) -> BlockEnd {
         let s = &self.schedule;
         let rel = (first - last) / first.abs().max(f64::MIN_POSITIVE);
         // NaN-safe: a NaN `rel` counts as converged (the rollback logic has already run out otherwise).
         let converged = !(rel >= s.rel_tol);
         let spent = Self::spent(st);
-        let over_budget = !self.block_fits(spent, st.triangles.len() as f64);
+        let over_budget = !self.block_fits(spent, st.surface.n_faces() as f64);
         let stage_ends = converged || st.block_in_stage + 1 >= s.max_blocks_per_stage || over_budget;
         let next_edge = self.planned_now(st, st.stage + 1, target);
-        let next_faces = faces_at(surface_area(&st.positions, &st.triangles), next_edge);
+        let next_faces = faces_at(st.surface.area(), next_edge);
         let next_over_budget = stage_ends && !self.block_fits(spent, next_faces);
         let last_block = stage_ends && (st.stage + 1 >= s.max_stages || next_over_budget);
         BlockEnd { stage_ends, next_over_budget, last_block }
@@ -173,13 +172,13 @@ impl Plan {
     /// changed the mesh: [`StopReason::MaxStages`] after the last stage; [`StopReason::FaceLimit`] when the
     /// next stage, planned on the mesh as it is now, would exceed `max_faces`; [`StopReason::TimeBudget`]
     /// when its first block did not fit at the block's end ([`Plan::block_end`]); else the next stage's edge.
-    pub(super) fn next_stage(&self, st: &State, end: &BlockEnd, previous: f64) -> Next {
+    pub(super) fn next_stage(&self, st: &RunRecord, end: &BlockEnd, previous: f64) -> Next {
         let s = &self.schedule;
         if st.stage >= s.max_stages {
             return Next::Stop(StopReason::MaxStages);
         }
         let edge = self.planned_now(st, st.stage, previous);
-        if faces_at(surface_area(&st.positions, &st.triangles), edge) > s.max_faces as f64 {
+        if faces_at(st.surface.area(), edge) > s.max_faces as f64 {
             Next::Stop(StopReason::FaceLimit)
         } else if end.next_over_budget {
             Next::Stop(StopReason::TimeBudget)

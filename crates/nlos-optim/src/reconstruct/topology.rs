@@ -1,7 +1,20 @@
-//! The mesh between shape steps: unlit boundary faces, remeshing with the Adam state carried over,
-//! self-intersection repair, faces deleted or appended, and the collision-aware evolution of a block.
+//! The mesh between shape steps: unlit boundary faces, remeshing with the surface's fields carried over,
+//! self-intersection repair, faces deleted, and the collision-aware evolution of a block.
 
-use super::*;
+use std::time::Instant;
+
+use glam::Vec3;
+use nlos_mesh::SurfaceMesh;
+use nlos_mesh::evolve::{EvolveParams, evolve};
+use nlos_mesh::intersect::triangle_self_intersections;
+use nlos_mesh::remeshing::uniform_remeshing;
+use nlos_transient::{Scan, TimeAxis, Transient};
+
+use super::record::RunRecord;
+use super::{EvolveRecord, IntersectionCheck, IntersectionRecord};
+use crate::error::{OptimError, Result};
+use crate::params::ReconstructParams;
+use crate::surface::{Remap, Surface};
 
 /// Whether a face with corners `p` can receive light in some measurement (one-sided faces, positive wall
 /// cosines, path length inside the time window) — tested at the centroid.
@@ -19,16 +32,16 @@ pub(super) fn face_lit(p: [Vec3; 3], scan: &Scan, time: &TimeAxis, two_sided: bo
     })
 }
 
-/// Step 1 of a block: unlit boundary faces, remeshing, Adam transfer. Returns the boundary flags and the
-/// operations the remeshing refused because they would have made the surface intersect itself.
+/// Step 1 of a block: unlit boundary faces, remeshing, every surface field carried over ([`Remap::closest`]).
+/// Returns the boundary flags and the operations the remeshing refused because they would have made the
+/// surface intersect itself.
 pub(super) fn prepare_topology(
-    st: &mut State,
+    st: &mut RunRecord,
     target: f32,
     params: &ReconstructParams,
     measured: &Transient,
 ) -> Result<(Vec<bool>, usize)> {
-    let (old_pos, old_tris) = (st.positions.clone(), st.triangles.clone());
-    let mut mesh = SurfaceMesh::from_triangles(&st.positions, &st.triangles)?;
+    let mut mesh = st.surface.mesh()?;
     // Boundary faces no measurement can see carry no signal and no gradient: they go before remeshing.
     let dark: Vec<_> = mesh
         .faces()
@@ -59,63 +72,28 @@ pub(super) fn prepare_topology(
     if is_manifold(&remeshed) {
         mesh = remeshed;
     }
-    let (pos, tris) = mesh.to_triangles();
-    if tris.is_empty() {
+    if mesh.n_faces() == 0 {
         return Err(OptimError::EmptyMesh { context: "after remeshing" });
     }
-    let boundary: Vec<bool> = mesh.vertices().map(|v| mesh.is_boundary_vertex(v)).collect();
-    let bvh = TriangleBvh::from_triangles(&old_pos, &old_tris)?;
-    let weights: Vec<[(u32, f32); 3]> = pos
-        .iter()
-        .map(|p| {
-            let cp = bvh.closest_point(*p);
-            let t = old_tris[cp.triangle as usize];
-            let b = cp.barycentric;
-            [(t[0], b.x.max(0.0)), (t[1], b.y.max(0.0)), (t[2], b.z.max(0.0))]
-        })
-        .collect();
-    st.shape_adam = st.shape_adam.transfer(&weights);
-    st.positions = pos;
-    st.triangles = tris;
-    let faces = st.triangles.len();
+    // The fields of the surface before both changes, at the new vertices.
+    let remap = Remap::closest(&st.surface, &mesh)?;
+    st.surface.apply(remap)?;
     untangle(st, IntersectionCheck::Remeshed)?;
-    if st.triangles.len() == faces {
-        return Ok((boundary, refused));
-    }
-    // Faces went: the boundary flags of the mesh as it now is.
-    let mesh = mesh_of(st)?;
-    Ok((mesh.vertices().map(|v| mesh.is_boundary_vertex(v)).collect(), refused))
+    Ok((st.surface.boundary_vertices(), refused))
 }
 
-/// Keeps the triangles flagged in `keep` and the vertices they use (renumbered in order), with their Adam
-/// moments.
-pub(super) fn drop_faces(st: &mut State, keep: &[bool]) {
-    let mut new_index = vec![u32::MAX; st.positions.len()];
-    let mut old_of_new: Vec<u32> = Vec::new();
-    let mut triangles = Vec::with_capacity(st.triangles.len());
-    for (t, _) in st.triangles.iter().zip(keep).filter(|(_, k)| **k) {
-        let mut out = [0u32; 3];
-        for (o, &v) in out.iter_mut().zip(t) {
-            if new_index[v as usize] == u32::MAX {
-                new_index[v as usize] = old_of_new.len() as u32;
-                old_of_new.push(v);
-            }
-            *o = new_index[v as usize];
-        }
-        triangles.push(out);
-    }
-    let source: Vec<Option<u32>> = old_of_new.iter().map(|&v| Some(v)).collect();
-    st.shape_adam = st.shape_adam.select(&source);
-    st.positions = old_of_new.iter().map(|&v| st.positions[v as usize]).collect();
-    st.triangles = triangles;
+/// Keeps the triangles flagged in `keep` and the vertices they use (renumbered in order), with every field.
+pub(super) fn drop_faces(st: &mut RunRecord, keep: &[bool]) -> Result<()> {
+    let remap = Remap::keep_faces(&st.surface, keep);
+    st.surface.apply(remap)
 }
 
 /// Checks the surface for self-intersections and deletes the faces that cause them ([`IntersectionRecord`]),
-/// with their vertices' Adam state; the check is logged. After the start, where collision handling should
+/// with their vertices' fields; the check is logged. After the start, where collision handling should
 /// leave nothing to find, pairs found are an error under `NLOS_REQUIRE_NO_INTERSECTIONS=1`
 /// ([`OptimError::SelfIntersecting`]).
-pub(super) fn untangle(st: &mut State, check: IntersectionCheck) -> Result<()> {
-    let pairs = triangle_self_intersections(&st.positions, &st.triangles)?;
+pub(super) fn untangle(st: &mut RunRecord, check: IntersectionCheck) -> Result<()> {
+    let pairs = triangle_self_intersections(st.surface.positions(), st.surface.triangles())?;
     if check != IntersectionCheck::Start && !pairs.is_empty() && require_no_intersections() {
         let check = match check {
             IntersectionCheck::Remeshed => "remeshed",
@@ -137,25 +115,26 @@ pub(super) fn untangle(st: &mut State, check: IntersectionCheck) -> Result<()> {
         pairs_left: pairs.len(),
     };
     if !pairs.is_empty() {
+        let (positions, triangles) = (st.surface.positions(), st.surface.triangles());
         let area = |f: u32| {
-            let t = st.triangles[f as usize].map(|v| st.positions[v as usize]);
+            let t = triangles[f as usize].map(|v| positions[v as usize]);
             (t[1] - t[0]).cross(t[2] - t[0]).length()
         };
         let smaller: Vec<u32> = pairs.iter().map(|&(f, g)| if area(f) <= area(g) { f } else { g }).collect();
         let both: Vec<u32> = pairs.iter().flat_map(|&(f, g)| [f, g]).collect();
         for doomed in [smaller, both] {
-            let mut keep = vec![true; st.triangles.len()];
+            let mut keep = vec![true; st.surface.n_faces()];
             for f in doomed {
                 keep[f as usize] = false;
             }
-            let kept: Vec<[u32; 3]> = st.triangles.iter().zip(&keep).filter(|(_, k)| **k).map(|(t, _)| *t).collect();
+            let remap = Remap::keep_faces(&st.surface, &keep);
             // Guard: deleting faces can pinch a vertex into a bow tie, or delete everything.
-            if kept.is_empty() || SurfaceMesh::from_triangles(&st.positions, &kept).is_err() {
+            if remap.triangles.is_empty() || SurfaceMesh::from_triangles(&remap.positions, &remap.triangles).is_err() {
                 continue;
             }
-            record.faces_removed = st.triangles.len() - kept.len();
-            drop_faces(st, &keep);
-            record.pairs_left = triangle_self_intersections(&st.positions, &st.triangles)?.len();
+            record.faces_removed = st.surface.n_faces() - remap.triangles.len();
+            st.surface.apply(remap)?;
+            record.pairs_left = triangle_self_intersections(st.surface.positions(), st.surface.triangles())?.len();
             break;
         }
     }
@@ -175,29 +154,6 @@ pub(super) fn is_manifold(mesh: &SurfaceMesh) -> bool {
     !t.is_empty() && SurfaceMesh::from_triangles(&p, &t).is_ok()
 }
 
-pub(super) fn surface_area(p: &[Vec3], t: &[[u32; 3]]) -> f64 {
-    t.iter()
-        .map(|f| {
-            let (a, b, c) = (p[f[0] as usize], p[f[1] as usize], p[f[2] as usize]);
-            0.5 * f64::from((b - a).cross(c - a).length())
-        })
-        .sum()
-}
-
-/// Appends new vertices (numbered from the current count on) and faces; old vertices keep their Adam
-/// moments, the new ones start at zero.
-pub(super) fn append(st: &mut State, positions: &[Vec3], triangles: &[[u32; 3]]) {
-    let source: Vec<Option<u32>> =
-        (0..st.positions.len() as u32).map(Some).chain(positions.iter().map(|_| None)).collect();
-    st.shape_adam = st.shape_adam.select(&source);
-    st.positions.extend(positions);
-    st.triangles.extend(triangles);
-}
-
-pub(super) fn mesh_of(st: &State) -> Result<SurfaceMesh> {
-    Ok(SurfaceMesh::from_triangles(&st.positions, &st.triangles)?)
-}
-
 /// One shape step: moves the mesh by `displacement` so that the surface does not pass through itself, on the
 /// way or at the end (`nlos_mesh::evolve`, after El Topo, Brochu & Bridson 2009: continuous collision
 /// detection, proximity impulses, impact zones, fail-safe, then the exact static check of the end state),
@@ -205,19 +161,19 @@ pub(super) fn mesh_of(st: &State) -> Result<SurfaceMesh> {
 /// the input is not checked again. A vertex no collision touches ends at exactly `x₀ + d`. The step is
 /// tallied in `record`.
 pub(super) fn collision_step(
-    st: &State,
+    surface: &Surface,
     displacement: &[Vec3],
     target: f32,
     ep: EvolveParams,
     record: &mut EvolveRecord,
 ) -> Result<Vec<Vec3>> {
     let t0 = Instant::now();
-    let mut mesh = SurfaceMesh::from_triangles(&st.positions, &st.triangles)?;
+    let mut mesh = surface.mesh()?;
     let ep = EvolveParams { improve: false, check_input: false, edge_length: ep.edge_length.or(Some(target)), ..ep };
     let report = evolve(&mut mesh, displacement, &ep)?;
     let pos = mesh.positions();
-    if pos.len() != st.positions.len() || pos.iter().any(|p| !p.is_finite()) {
-        return Err(OptimError::EvolveOutput { expected: st.positions.len(), got: pos.len() });
+    if pos.len() != surface.n_vertices() || pos.iter().any(|p| !p.is_finite()) {
+        return Err(OptimError::EvolveOutput { expected: surface.n_vertices(), got: pos.len() });
     }
     record.seconds += t0.elapsed().as_secs_f64();
     record.steps += 1;
