@@ -19,10 +19,7 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
-
-use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
 
 mod detail;
 mod nonconfocal;

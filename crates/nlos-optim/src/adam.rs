@@ -16,8 +16,6 @@
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::surface::VertexField;
-
 /// Hyper-parameters of Adam (Kingma & Ba's defaults: β1 = 0.9, β2 = 0.999, ε = 1e-8).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct AdamParams {
@@ -48,7 +46,7 @@ impl AdamParams {
 }
 
 /// One vertex's isotropic Adam moments (module docs): a field of the loop's surface
-/// ([`crate::surface::Surface`], [`SHAPE_MOMENTS`]), so that they follow every remeshing.
+/// ([`crate::surface::Surface`], [`crate::reconstruct::SHAPE_MOMENTS`]), so that they follow every remeshing.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Moments {
     /// First moment.
@@ -61,9 +59,6 @@ impl Moments {
     /// Zero moments: a vertex that has taken no step.
     pub const ZERO: Self = Self { m: DVec3::ZERO, v: 0.0 };
 }
-
-/// The shape's Adam moments, per vertex of the loop's surface.
-pub const SHAPE_MOMENTS: VertexField<Moments> = VertexField::new("shape_adam", Moments::ZERO);
 
 /// Per-vertex isotropic Adam (module docs): the step count; the moments are per vertex ([`Moments`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -54,7 +54,7 @@ pub mod residual;
 pub mod schedule;
 pub mod surface;
 
-pub use adam::{AdamParams, Moments, SHAPE_MOMENTS, VectorAdam, VertexAdam};
+pub use adam::{AdamParams, Moments, VectorAdam, VertexAdam};
 pub use albedo::{AlbedoMap, AlbedoMapParams};
 pub use boundary_smoothing::BoundarySmoothing;
 pub use data_term::{
@@ -67,8 +67,8 @@ pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
     BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
     IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,
-    ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, StageRecord, StartRecord, StepKind, StopReason, describe_device,
-    reconstruct, reconstruct_with, resume,
+    ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, SHAPE_MOMENTS, StageRecord, StartRecord, StepKind, StopReason,
+    describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
 pub use regularizer::{NormalSmoothing, auto_weight};

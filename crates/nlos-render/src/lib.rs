@@ -84,7 +84,7 @@
 //! (8 mm faces at 0.4 m, 1.2 mm bins, spans of about 10 bins) that is up to 64 samples per (face,
 //! measurement). The splat rule instead takes the integrand at the centroid and τ linear over the face, whose
 //! area density over τ is a hat (rising from the smallest corner value to the middle one, falling to the
-//! largest), and integrates it against the tent kernel in closed form (`render/cpu/splat.rs`: a piecewise cubic, its
+//! largest), and integrates it against the tent kernel in closed form (`render/splat.rs`: a piecewise cubic, its
 //! second differences are the bin weights; their derivatives with respect to the three corner path lengths
 //! are closed form too). Two first-order corrections shift the hat: τ's convexity (the face's exact mean
 //! path length for a quadratic τ) and the fall-off of the distance factor across the face. A face is cut

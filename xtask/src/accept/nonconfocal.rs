@@ -21,9 +21,8 @@ use nlos_transient::{Format, PointSet, Scan, TimeAxis, Transient};
 
 use super::{
     BUNNY, Metrics, Opts, REFERENCE_DIR, Ran, Runner, SOAP, Section, TABLE_HEAD, check, own_shapes, p,
-    reconstruct_args, s,
+    reconstruct_args, s, shared, with_photons,
 };
-use super::{shared, with_photons};
 
 /// What a case reconstructs.
 #[derive(Clone, Copy)]

@@ -1,7 +1,9 @@
 //! The `real` scenario: the Stanford captures (the 40 cm chart, the diffuse S, the S and U) through the default
 //! command, judged on time, the chart's plane and the letters.
 
-use super::*;
+use std::fmt::Write as _;
+
+use crate::accept::{MEASURED_DIR, Opts, Runner, Section, check, p, reconstruct_args, s, shared};
 
 pub(super) fn real(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     let dir = shared(MEASURED_DIR);

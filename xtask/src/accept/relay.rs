@@ -19,8 +19,9 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use nlos_transient::{Format, Layout, PointSet, Scan, TimeAxis, Transient};
 
-use super::{BUNNY, MEASURED_DIR, Opts, Runner, Section, TABLE_HEAD, check, p, reconstruct_args_list, s};
-use super::{shared, with_photons};
+use super::{
+    BUNNY, MEASURED_DIR, Opts, Runner, Section, TABLE_HEAD, check, p, reconstruct_args_list, s, shared, with_photons,
+};
 
 /// The wall's height at `x` (metres) and its normal: a cylinder's bend of ±3 cm across the spots.
 fn curved_wall(x: f32, y: f32) -> (Vec3, Vec3) {

@@ -1,7 +1,10 @@
 //! `docs/results.md`, one section per scenario replaced by its latest run, and the README's status table made
 //! from it.
 
-use super::*;
+use std::fmt::Write as _;
+
+use crate::accept::SCENARIOS;
+use std::path::Path;
 
 const RESULTS: &str = "docs/results.md";
 const RESULTS_HEAD: &str = "# Results\n\n\

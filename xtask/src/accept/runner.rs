@@ -2,7 +2,10 @@
 //! records every run is judged on, the photon draw shared by the synthetic captures, and one reconstruction with
 //! its evaluation (`reconstruct_and_eval`).
 
-use super::*;
+use nlos_transient::sensor::{PhotonBudget, SpadModel};
+
+use crate::accept::{Instant, Metrics, Opts, THRESHOLD, check};
+use crate::{Command, Path, PathBuf};
 
 /// CPU seconds (user + system) of this process's waited-for children (`/proc/self/stat` fields 16–17).
 pub(super) fn children_cpu_s() -> f64 {

@@ -1,7 +1,14 @@
 //! The `sensor` scenario: SPAD counts (measured jitter, background) fitted by the sensor-aware Poisson fit and by
 //! plain L2.
 
-use super::*;
+use std::fmt::Write as _;
+
+use nlos_transient::sensor::{JitterResponse, PhotonBudget, SpadModel};
+
+use crate::accept::{
+    BUNNY, JITTER, Opts, Runner, Section, TABLE_HEAD, check, p, reconstruct_and_eval, reconstruct_args, s, seed_tag,
+    shared, timing_line,
+};
 
 pub(super) fn sensor(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     // The clean transient: the render at Tsai et al. 2019's setup of the shared bunny (64×64×1200 bins of 1.2 mm, the same

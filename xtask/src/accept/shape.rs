@@ -1,7 +1,13 @@
 //! The scenarios on rendered shapes: the bunny, the soap bar, the independent renderer's bunny and the glossy
 //! (GGX) bunny, each judged on coverage within 5 mm and the depth error inside the silhouette.
 
-use super::*;
+use std::fmt::Write as _;
+
+use crate::accept::{
+    BUNNY, Opts, Outcome, REFERENCE_DIR, Runner, SOAP, Section, TABLE_HEAD, check, reconstruct_and_eval,
+    reconstruct_args, s, shared, timing_line, with_photons,
+};
+use std::path::Path;
 
 /// The judged targets of a shape scenario (the accuracy issue's decisions): coverage within 5 mm, the
 /// mean depth error inside the silhouette, the normal error, and better than the LCT start and the f-k surface

@@ -90,7 +90,7 @@ pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError>
         "glb" => write_glb(mesh),
         _ => write_obj(mesh),
     };
-    write_atomically(path, &ext, &bytes)
+    write_atomically(path, &bytes)
 }
 
 /// Writes `mesh` with a per-vertex albedo to the binary PLY file `path`, atomically ([`write_ply_with_albedo`]:
@@ -106,13 +106,16 @@ pub fn save_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], path: impl AsRef
         return Err(MeshError::format(&path.display().to_string(), "extension", "an albedo is written to .ply only"));
     }
     let bytes = write_ply_with_albedo(mesh, albedo, PlyEncoding::BinaryLittleEndian)?;
-    write_atomically(path, &ext, &bytes)
+    write_atomically(path, &bytes)
 }
 
-/// Writes `bytes` to `path` through a temporary file beside it.
-fn write_atomically(path: &Path, ext: &str, bytes: &[u8]) -> Result<(), MeshError> {
+/// Writes `bytes` to `path` atomically through `atomic_write_file` (as every crate of the workspace: a uniquely
+/// named temporary file beside it, synced, renamed over `path`; two writers of one file no longer share a
+/// temporary name).
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
+    use std::io::Write as _;
     let io = |source| MeshError::Io { file: path.to_owned(), source };
-    let tmp = path.with_extension(format!("{ext}.tmp"));
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    let mut file = atomic_write_file::AtomicWriteFile::open(path).map_err(io)?;
+    file.write_all(bytes).map_err(io)?;
+    file.commit().map_err(io)
 }

@@ -17,10 +17,9 @@ use super::record::RunRecord;
 use super::rollback::{GoodReflectance, GoodShape, rollback, rollback_refl};
 use super::topology::{collision_step, drop_faces, untangle};
 use super::{
-    Evolve, EvolveRecord, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, StepKind, progress, report,
-    set_albedo_weights,
+    Evolve, EvolveRecord, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, SHAPE_MOMENTS, StepKind, progress,
+    report, set_albedo_weights,
 };
-use crate::adam::SHAPE_MOMENTS;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::data_term::RowLoss;
 use crate::data_term::counts::SensorRows;

@@ -52,7 +52,7 @@ use nlos_transient::Transient;
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 
-use crate::adam::{SHAPE_MOMENTS, VectorAdam, VertexAdam};
+use crate::adam::{Moments, VectorAdam, VertexAdam};
 use crate::albedo::AlbedoMap;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
@@ -61,7 +61,7 @@ use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
 use crate::regularizer::NormalSmoothing;
 use crate::residual::ResidualRecord;
-use crate::surface::Surface;
+use crate::surface::{Surface, VertexField};
 
 mod block;
 mod evaluation;
@@ -81,6 +81,11 @@ pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Plan};
 pub use record::RunRecord;
 use record::{SettingsRecord, fingerprint, first_difference, next_u64};
 use topology::{prepare_topology, untangle};
+
+/// The shape's Adam moments, a field of the loop's surface ([`Surface`]): carried to the new vertices by
+/// every change of topology (interpolated on the closest old face after a remeshing), zero for appended
+/// patches.
+pub const SHAPE_MOMENTS: VertexField<Moments> = VertexField::new("shape_adam", Moments::ZERO);
 
 /// File name of the checkpoint inside the output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";

@@ -33,7 +33,7 @@ pub struct RunRecord {
     /// The surface with its fields (the shape's Adam moments among them).
     pub(crate) surface: Surface,
     pub(crate) reflectance: Reflectance,
-    /// The shape's Adam step count (its moments are [`crate::adam::SHAPE_MOMENTS`] of the surface).
+    /// The shape's Adam step count (its moments are [`crate::reconstruct::SHAPE_MOMENTS`] of the surface).
     pub(crate) shape_adam: VertexAdam,
     pub(crate) reflectance_adam: VectorAdam,
     pub(crate) stage: u32,

@@ -72,7 +72,7 @@ fn appended_elements_start_at_the_initial_value() {
 fn remeshing_interpolates_vertex_fields_and_picks_face_fields() {
     let mut s = with_fields(grid(6));
     let n = s.n_vertices();
-    for (i, m) in s.vertex_mut(crate::adam::SHAPE_MOMENTS).expect("new").iter_mut().enumerate() {
+    for (i, m) in s.vertex_mut(crate::reconstruct::SHAPE_MOMENTS).expect("new").iter_mut().enumerate() {
         *m = Moments { m: DVec3::new(i as f64, 0.0, 0.0), v: 2.0 };
     }
     let mut mesh = s.mesh().expect("mesh");
@@ -84,7 +84,7 @@ fn remeshing_interpolates_vertex_fields_and_picks_face_fields() {
     for (p, h) in s.positions().iter().zip(s.vertex(HEIGHT).expect("carried")) {
         assert!((f64::from(p.x) - h).abs() < 1e-5, "x {} carried as {h}", p.x);
     }
-    for (m, source) in s.vertex(crate::adam::SHAPE_MOMENTS).expect("carried").iter().zip(&remap.vertices) {
+    for (m, source) in s.vertex(crate::reconstruct::SHAPE_MOMENTS).expect("carried").iter().zip(&remap.vertices) {
         let Source::Interpolated(w) = *source else { panic!("interpolated: {source:?}") };
         let want: f64 = w.iter().map(|&(j, wj)| f64::from(wj) * j as f64).sum();
         assert!((m.m.x - want).abs() < 1e-9 && (m.v - 2.0).abs() < 1e-5, "{m:?} against {want}");
@@ -131,7 +131,8 @@ fn a_field_is_read_by_its_name_and_type() {
 #[test]
 fn a_surface_round_trips_exactly() {
     let mut s = with_fields(grid(3));
-    s.vertex_mut(crate::adam::SHAPE_MOMENTS).expect("new")[1] = Moments { m: DVec3::new(0.1, 1e-17, -3.3), v: 1e-9 };
+    s.vertex_mut(crate::reconstruct::SHAPE_MOMENTS).expect("new")[1] =
+        Moments { m: DVec3::new(0.1, 1e-17, -3.3), v: 1e-9 };
     let mut p = s.positions().to_vec();
     p[0] = Vec3::new(0.1, 0.2 + 1e-7, 0.3);
     s.set_positions(p).expect("same count");

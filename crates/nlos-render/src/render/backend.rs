@@ -2,20 +2,24 @@
 //! [`Scene`] and evaluates the forward pass (eq. 1 of Tsai et al. 2019) and the adjoint pass
 //! (Proposition 1) of a BRDF on it, and says which settings it runs ([`Backend::supports`]).
 //!
-//! Two backends: the CPU's (`cpu::CpuBackend`: every setting, the reference) and the GPU's (`gpu::GpuBackend`,
-//! feature `gpu`: what [`crate::gpu_support`] accepts). [`super::Renderer`] runs each pass on the GPU when one
-//! is attached and supports the call, else on the CPU. A new backend implements this trait in its own module
-//! and is attached by `Renderer::set_device` (a [`super::Device`] variant).
+//! Two backends: the CPU's (`cpu::CpuBackend`: every setting, the reference, always there) and the GPU's
+//! (`gpu::GpuBackend`, feature `gpu`: what [`crate::gpu_support`] accepts, where an adapter is found).
+//! [`super::Renderer`] holds them as trait objects, the CPU last, and runs each pass on the first that
+//! supports it and succeeds (`Backends::run` in the parent module). The trait is compiled in every build;
+//! only `accelerator` (the parent's), which opens a GPU, depends on the feature. A new backend implements this
+//! trait in its own module and is returned by `accelerator` for its [`super::Device`] variant.
 
-use nlos_brdf::Model;
+use nlos_brdf::{AnyBrdf, Model};
 
 use super::scene::Scene;
-use super::{Gradient, RenderParams};
+use super::{Device, Gradient, RenderParams};
 use crate::error::Result;
-use nlos_brdf::FittedBrdf;
 
 /// Where the renderer's forward and adjoint passes run.
-pub(crate) trait Backend {
+pub(crate) trait Backend: std::fmt::Debug + Send + Sync {
+    /// The device it runs on.
+    fn device(&self) -> Device;
+
     /// Whether this backend runs a renderer with settings `params` for BRDFs of `model`, or why not (words
     /// naming what to change).
     ///
@@ -27,12 +31,11 @@ pub(crate) trait Backend {
     ///
     /// # Errors
     /// What kept the backend from running the pass (the CPU's never fails).
-    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>>;
+    fn forward(&self, scene: &Scene, brdf: &AnyBrdf) -> Result<Vec<f32>>;
 
-    /// The adjoint pass of `d_loss = dE/dI` (`measurements × bins` values).
+    /// The adjoint pass of `d_loss = dE/dI` (`measurements × bins` values, checked by the caller).
     ///
     /// # Errors
-    /// [`crate::RenderError::LengthMismatch`] for a `d_loss` of another length, and what kept the backend from
-    /// running the pass.
-    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient>;
+    /// What kept the backend from running the pass.
+    fn adjoint(&self, scene: &Scene, brdf: &AnyBrdf, d_loss: &[f32]) -> Result<Gradient>;
 }

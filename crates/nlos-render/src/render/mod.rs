@@ -5,31 +5,32 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicUsize;
 
 use glam::Vec3;
+use nlos_brdf::{AnyBrdf, FittedBrdf, Model};
 use nlos_transient::{Scan, TimeAxis, Transient};
 
 use crate::brdf::gpu_terms;
 use crate::error::{RenderError, Result};
 use crate::kernel::{Kernel, KernelEval};
 use crate::loss::Loss;
-use crate::render::cpu::soa::{self, Isa};
-use nlos_brdf::Model;
-use nlos_brdf::{AnyBrdf, FittedBrdf};
+use soa::Isa;
 
-#[cfg(feature = "gpu")]
 mod backend;
 pub(crate) mod cpu;
 #[cfg(feature = "gpu")]
 pub(crate) mod gpu;
 mod params;
 pub(crate) mod scene;
+pub(crate) mod soa;
+pub(crate) mod splat;
 
-#[cfg(feature = "gpu")]
 use backend::Backend;
 use cpu::CpuBackend;
-use scene::Scene;
-
 use cpu::lobe::Lobe;
-pub use params::*;
+use params::check_params;
+pub use params::{
+    DeterministicRule, Device, Gradient, LossAndGradient, RenderParams, RowSpan, Sampling, SplatRule, Visibility,
+};
+use scene::Scene;
 
 /// Where a renderer with settings `params` runs when [`Renderer::set_device`] is given `device`, and why, in
 /// words for a run's log: `the CPU (render.device = "auto": …)` or `the GPU NAME (…)`; for [`Device::Gpu`]
@@ -118,10 +119,11 @@ const FLUSH: usize = 16;
 #[derive(Debug)]
 pub struct Renderer {
     scene: Scene,
+    /// The CPU's passes that no other backend runs (steady state, per-triangle shares).
     cpu: CpuBackend,
-    /// The GPU that runs the forward and adjoint passes ([`Renderer::set_device`]), None for the CPU.
-    #[cfg(feature = "gpu")]
-    gpu: Option<gpu::GpuBackend>,
+    /// Where the forward and adjoint passes run: the attached accelerator ([`Renderer::set_device`]) where it
+    /// takes the pass, else the CPU.
+    backends: Backends,
 }
 
 impl Renderer {
@@ -157,11 +159,11 @@ impl Renderer {
         params: RenderParams,
         progress: Option<Arc<AtomicUsize>>,
     ) -> Result<Self> {
+        let cpu = CpuBackend::detect();
         Ok(Self {
             scene: Scene::new(positions, triangles, scan, time, params, progress)?,
-            cpu: CpuBackend::detect(),
-            #[cfg(feature = "gpu")]
-            gpu: None,
+            cpu,
+            backends: Backends::cpu(cpu),
         })
     }
 
@@ -229,28 +231,13 @@ impl Renderer {
     /// [`RenderError::Gpu`] for [`Device::Gpu`] when the build has no GPU backend, no adapter is found, or the
     /// renderer's settings have no GPU version. [`Device::Auto`] never fails: it takes the CPU then.
     pub fn set_device(&mut self, device: Device) -> Result<()> {
-        #[cfg(feature = "gpu")]
-        {
-            self.gpu = gpu::attach(device, &self.scene.params)?;
-            Ok(())
-        }
-        #[cfg(not(feature = "gpu"))]
-        match device {
-            Device::Gpu => Err(RenderError::Gpu(
-                "this build has no GPU backend: build with the feature `gpu` (cargo build --features gpu)".into(),
-            )),
-            Device::Cpu | Device::Auto => Ok(()),
-        }
+        self.backends.attach(device, &self.scene.params)
     }
 
     /// Where the forward and adjoint passes run: [`Device::Gpu`] when a GPU is attached
     /// ([`Renderer::set_device`]), else [`Device::Cpu`].
     pub fn device(&self) -> Device {
-        #[cfg(feature = "gpu")]
-        if self.gpu.is_some() {
-            return Device::Gpu;
-        }
-        Device::Cpu
+        self.backends.device()
     }
 
     /// Sets one reflectance factor per mesh triangle (`None`: all 1): triangle t's contribution to the
@@ -289,13 +276,7 @@ impl Renderer {
     /// The forward pass, eq. (1): `I[m·bins + k] = Σ_t ∫_t K_k(τ(x)) f(x) v(x,l) v(x,s) dA(x)` with f the
     /// product of eq. (2) (see the crate docs for the scale convention).
     pub fn forward<B: FittedBrdf>(&self, brdf: &B) -> Vec<f32> {
-        #[cfg(feature = "gpu")]
-        if let Some(out) =
-            self.gpu.as_ref().and_then(|g| g.attempt::<B, _>(&self.scene, |g| g.forward(&self.scene, brdf)))
-        {
-            return out;
-        }
-        self.cpu.forward(&self.scene, brdf)
+        self.forward_any(&brdf.to_any())
     }
 
     /// [`Renderer::forward`] wrapped as a [`Transient`] with the renderer's scan and time axis.
@@ -314,15 +295,7 @@ impl Renderer {
     /// # Errors
     /// [`RenderError::LengthMismatch`] when `d_loss` is not measurements × bins long.
     pub fn adjoint<B: FittedBrdf>(&self, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
-        // A wrong length is the CPU pass's error to report.
-        #[cfg(feature = "gpu")]
-        if d_loss.len() == self.len()
-            && let Some(out) =
-                self.gpu.as_ref().and_then(|g| g.attempt::<B, _>(&self.scene, |g| g.adjoint(&self.scene, brdf, d_loss)))
-        {
-            return Ok(out);
-        }
-        self.cpu.adjoint(&self.scene, brdf, d_loss)
+        self.adjoint_any(&brdf.to_any(), d_loss)
     }
 
     /// Steady-state (time-integrated) intensity, one value per measurement: `S(l, s) = ∫_S f(x) v(x,l) v(x,s)
@@ -397,7 +370,11 @@ impl Renderer {
 impl Renderer {
     /// [`Renderer::forward`].
     pub fn forward_any(&self, brdf: &AnyBrdf) -> Vec<f32> {
-        nlos_brdf::with_brdf!(brdf, b => self.forward(b))
+        match self.backends.run(&self.scene, brdf, |b| b.forward(&self.scene, brdf)) {
+            Ok(out) => out,
+            // The CPU's forward pass cannot fail.
+            Err(_) => nlos_brdf::with_brdf!(brdf, b => self.cpu.forward(&self.scene, b)),
+        }
     }
 
     /// [`Renderer::adjoint`].
@@ -405,7 +382,10 @@ impl Renderer {
     /// # Errors
     /// As [`Renderer::adjoint`].
     pub fn adjoint_any(&self, brdf: &AnyBrdf, d_loss: &[f32]) -> Result<Gradient> {
-        nlos_brdf::with_brdf!(brdf, b => self.adjoint(b, d_loss))
+        if d_loss.len() != self.len() {
+            return Err(RenderError::LengthMismatch { what: "d_loss", expected: self.len(), got: d_loss.len() });
+        }
+        self.backends.run(&self.scene, brdf, |b| b.adjoint(&self.scene, brdf, d_loss))
     }
 
     /// [`Renderer::forward_triangle`].
@@ -414,6 +394,73 @@ impl Renderer {
     /// As [`Renderer::forward_triangle`].
     pub fn forward_triangle_any(&self, brdf: &AnyBrdf, triangle: usize) -> Result<Vec<RowSpan>> {
         nlos_brdf::with_brdf!(brdf, b => self.forward_triangle(b, triangle))
+    }
+}
+
+/// The backends of one renderer, in the order a pass tries them: an accelerator first where one is attached,
+/// the CPU last.
+#[derive(Debug)]
+struct Backends {
+    accelerator: Option<Box<dyn Backend>>,
+    cpu: CpuBackend,
+}
+
+impl Backends {
+    /// The CPU alone.
+    fn cpu(cpu: CpuBackend) -> Self {
+        Self { accelerator: None, cpu }
+    }
+
+    /// Attaches the accelerator for `device` ([`accelerator`]), or none.
+    ///
+    /// # Errors
+    /// As [`accelerator`].
+    fn attach(&mut self, device: Device, params: &RenderParams) -> Result<()> {
+        self.accelerator = accelerator(device, params)?;
+        Ok(())
+    }
+
+    /// Where passes run when the accelerator takes them: its device, else the CPU.
+    fn device(&self) -> Device {
+        self.accelerator.as_ref().map_or(Device::Cpu, |a| a.device())
+    }
+
+    /// Runs `pass` on the first backend that supports `brdf`'s model with the scene's settings and succeeds;
+    /// the CPU, last, runs every pass. The one dispatch of the renderer.
+    ///
+    /// # Errors
+    /// The CPU pass's error.
+    fn run<T>(&self, scene: &Scene, brdf: &AnyBrdf, pass: impl Fn(&dyn Backend) -> Result<T>) -> Result<T> {
+        if let Some(a) = &self.accelerator
+            && a.supports(brdf.model(), &scene.params).is_ok()
+            && let Ok(out) = pass(a.as_ref())
+        {
+            return Ok(out);
+        }
+        pass(&self.cpu)
+    }
+}
+
+/// The accelerator a renderer with settings `params` gets for `device`: the GPU with the feature `gpu` and an
+/// adapter (for [`Device::Auto`], a hardware one whose settings have a GPU version), else none.
+///
+/// # Errors
+/// [`RenderError::Gpu`] for [`Device::Gpu`] when the build has no GPU backend, no adapter is found, or the
+/// settings have no GPU version.
+fn accelerator(device: Device, params: &RenderParams) -> Result<Option<Box<dyn Backend>>> {
+    #[cfg(feature = "gpu")]
+    {
+        Ok(gpu::attach(device, params)?.map(|g| Box::new(g) as Box<dyn Backend>))
+    }
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = params;
+        match device {
+            Device::Gpu => Err(crate::error::RenderError::Gpu(
+                "this build has no GPU backend: build with the feature `gpu` (cargo build --features gpu)".into(),
+            )),
+            Device::Cpu | Device::Auto => Ok(None),
+        }
     }
 }
 

@@ -1,7 +1,10 @@
 //! What a [`Renderer`] is asked to do: the sampling rules, visibility, the parameters and their checks, and
 //! the shapes of its results.
 
-use super::*;
+use glam::Vec3;
+
+use crate::error::Result;
+use crate::{Kernel, RenderError};
 
 /// The deterministic barycentric rule: triangle `t` is cut, for measurement `m`, into `n²` congruent
 /// sub-triangles (n per edge) and each contributes its centroid value times its area (the centroid rule).

@@ -2,18 +2,19 @@
 //! updated here (positions, visibility cache, subdivision levels, per-face factors); the vertex distribution
 //! of per-triangle gradients ([`Scene::distribute`]), which both backends share.
 
-use glam::{DVec3, Vec3};
-use nlos_transient::{Scan, TimeAxis};
-use rayon::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::{DVec3, Vec3};
+use nlos_brdf::FittedBrdf;
+use nlos_transient::{Scan, TimeAxis};
+use rayon::prelude::*;
 
 use super::{Gradient, RenderParams, Sampling, Visibility, check_params};
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
-use crate::render::cpu::soa::{BLOCK, Soa};
+use crate::render::soa::{BLOCK, Soa};
 use crate::visibility::Bvh;
-use nlos_brdf::FittedBrdf;
 
 /// Per-measurement wall geometry, structure of arrays.
 #[derive(Debug, Clone)]

@@ -1,9 +1,10 @@
 //! Unit tests of the renderer's internals (kernel instantiations, the visibility cache, block culling).
 
-use super::*;
-use crate::render::cpu::soa::{BLOCK, Packed};
 use nlos_brdf::{Fresnel, Ggx};
 use nlos_transient::PointSet;
+
+use super::*;
+use crate::render::soa::{BLOCK, Packed};
 
 /// The AVX2 + FMA instantiations of the block kernels compute the same bits as the baseline ones (no
 /// fused multiply-adds are requested, and every lane is independent), on a CPU that has AVX2 (else the
@@ -169,11 +170,11 @@ fn block_culling_is_exact() {
 /// The backend seam: the CPU runs every setting, the GPU what `gpu_support` accepts, and through the trait
 /// both render the same scene — the CPU bit for bit as the renderer does, the GPU to f32 rounding. The GPU
 /// half is skipped (with a line saying so) where no adapter is found, unless `NLOS_REQUIRE_GPU=1`.
-#[cfg(feature = "gpu")]
 #[test]
 fn both_backends_render_the_same_scene_through_the_seam() {
-    use super::backend::Backend;
     use nlos_brdf::Lambertian;
+
+    use super::backend::Backend;
     let mut p = Vec::new();
     let mut f = Vec::new();
     for i in 0..40u32 {
@@ -195,7 +196,29 @@ fn both_backends_render_the_same_scene_through_the_seam() {
     for model in Model::ALL {
         assert_eq!(r.cpu.supports(model, &live), Ok(()), "the CPU runs {model} with live visibility");
     }
-    let gpu = match gpu::attach(Device::Gpu, &params) {
+    // The seam is compiled in every build: through it the CPU renders the renderer's own bits.
+    let brdf = Lambertian::new(0.7f32).expect("valid");
+    let any = brdf.to_any();
+    assert_eq!(Backend::forward(&r.cpu, &r.scene, &any).expect("the CPU's pass"), r.forward(&brdf));
+    assert_eq!(r.device(), Device::Cpu);
+    #[cfg(feature = "gpu")]
+    gpu_half(&r, &params, &live);
+    #[cfg(not(feature = "gpu"))]
+    {
+        let mut r = r;
+        assert!(matches!(r.set_device(Device::Gpu), Err(RenderError::Gpu(_))), "no GPU backend in this build");
+        r.set_device(Device::Auto).expect("auto takes the CPU");
+        assert_eq!(r.device(), Device::Cpu);
+    }
+}
+
+/// The GPU half of the seam's test.
+#[cfg(feature = "gpu")]
+fn gpu_half(r: &Renderer, params: &RenderParams, live: &RenderParams) {
+    use nlos_brdf::Lambertian;
+
+    use super::backend::Backend;
+    let gpu = match gpu::attach(Device::Gpu, params) {
         Ok(Some(g)) => g,
         Err(e) if std::env::var("NLOS_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("NLOS_REQUIRE_GPU=1 but {e}"),
         Ok(None) | Err(_) => {
@@ -203,21 +226,23 @@ fn both_backends_render_the_same_scene_through_the_seam() {
             return;
         }
     };
-    assert!(gpu.supports(Model::Ggx, &params).is_err());
-    assert!(gpu.supports(Model::Lambert, &live).is_err());
-    assert_eq!(gpu.supports(Model::Retroreflective, &params), Ok(()));
+    assert!(gpu.supports(Model::Ggx, params).is_err());
+    assert!(gpu.supports(Model::Lambert, live).is_err());
+    assert_eq!(gpu.supports(Model::Retroreflective, params), Ok(()));
     let brdf = Lambertian::new(0.7f32).expect("valid");
-    let on_cpu = Backend::forward(&r.cpu, &r.scene, &brdf).expect("the CPU's pass");
+    let any = brdf.to_any();
+    assert_eq!((Backend::device(&r.cpu), Backend::device(&gpu)), (Device::Cpu, Device::Gpu));
+    let on_cpu = Backend::forward(&r.cpu, &r.scene, &any).expect("the CPU's pass");
     assert_eq!(on_cpu, r.forward(&brdf), "the renderer without a GPU runs the CPU's pass");
-    let on_gpu = Backend::forward(&gpu, &r.scene, &brdf).expect("the GPU's pass");
+    let on_gpu = Backend::forward(&gpu, &r.scene, &any).expect("the GPU's pass");
     let peak = on_cpu.iter().copied().fold(0.0f32, f32::max);
     assert!(peak > 0.0);
     let worst = on_cpu.iter().zip(&on_gpu).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(worst <= 1e-4 * peak, "forward: {worst} against a peak of {peak}");
     let d: Vec<f32> = (0..on_cpu.len()).map(|i| (i as f32 * 0.37).sin()).collect();
     let (a, b) = (
-        Backend::adjoint(&r.cpu, &r.scene, &brdf, &d).expect("cpu"),
-        Backend::adjoint(&gpu, &r.scene, &brdf, &d).expect("gpu"),
+        Backend::adjoint(&r.cpu, &r.scene, &any, &d).expect("cpu"),
+        Backend::adjoint(&gpu, &r.scene, &any, &d).expect("gpu"),
     );
     let scale = a.vertices.iter().map(|g| g.length()).fold(0.0f32, f32::max);
     let worst = a.vertices.iter().zip(&b.vertices).map(|(x, y)| (*x - *y).length()).fold(0.0f32, f32::max);

@@ -2,14 +2,16 @@
 //! loss with respect to the vertices, the reflectance parameters and the per-face weights, per rule.
 
 use glam::Vec3;
+use nlos_brdf::FittedBrdf;
 use rayon::prelude::*;
 
-use super::*;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
-use crate::render::cpu::soa::{self, Acc, BLOCK, Packed, Scratch, TentAxis};
-use crate::render::cpu::splat::{self, Knots};
-use nlos_brdf::FittedBrdf;
+use crate::render::cpu::{Cpu, Pair, Pass, Row, Tile};
+use crate::render::soa::{self, Acc, BLOCK, Packed, Scratch, TentAxis};
+use crate::render::splat::{self, Knots};
+use crate::render::{FLUSH, subtriangles};
+use crate::{Gradient, Visibility};
 
 impl Cpu<'_> {
     /// The adjoint pass with kernel `k` (its bin count sets the row length of `d_loss`).

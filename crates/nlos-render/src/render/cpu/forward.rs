@@ -2,14 +2,16 @@
 //! stratified Monte Carlo) the transient of every measurement, and one triangle's share of it.
 
 use glam::Vec3;
+use nlos_brdf::FittedBrdf;
 use rayon::prelude::*;
 
-use super::*;
 use crate::error::{RenderError, Result};
 use crate::kernel::KernelEval;
-use crate::render::cpu::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
-use crate::render::cpu::splat::{self, Knots};
-use nlos_brdf::FittedBrdf;
+use crate::render::cpu::{Cpu, Pair, Pass, Tile};
+use crate::render::soa::{self, BLOCK, Block, Frame, Packed, Scratch, SpotBox, TentAxis};
+use crate::render::splat::{self, Knots};
+use crate::render::{M_CHUNK, subtriangles};
+use crate::{RowSpan, Visibility};
 
 impl Cpu<'_> {
     /// The forward pass with kernel `k` (its bin count sets the histogram length).

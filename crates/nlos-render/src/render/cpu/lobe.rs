@@ -1,6 +1,6 @@
 //! Multiple importance sampling of a GGX lobe for the stratified rule ([`Renderer::set_lobe_sampling`]).
 
-use super::*;
+use glam::Vec3;
 
 /// The GGX lobe sampler of [`Renderer::set_lobe_sampling`] for one (triangle, confocal spot): microfacet
 /// normals `m ~ D(m)(m·n)` about the oriented unit normal `n`, mapped to the plane through the ray from `l`

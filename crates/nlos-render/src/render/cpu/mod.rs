@@ -1,13 +1,19 @@
 //! The CPU backend (rayon, byte-identical whatever the thread count): the forward and adjoint passes
 //! ([`forward`], [`adjoint`]: blocks of triangles swept over chunks of measurements), the sampling rules
-//! ([`sampling`], [`lobe`]), the structure-of-arrays blocks and their vector kernels ([`soa`]) and the
-//! splat rule's closed-form time integration ([`splat`]). `super::gpu` is the other backend.
+//! ([`sampling`], [`lobe`]), the structure-of-arrays blocks and their vector kernels ([`super::soa`], which the scene stores its triangles in) and the
+//! splat rule's closed-form time integration ([`super::splat`]). `super::gpu` is the other backend.
 //!
 //! The passes are methods of [`Cpu`], a view of the [`Scene`] with the instruction set of the block kernels;
 //! the scene's own geometric queries (a measurement's frame, points, orientation, live visibility, levels)
 //! are in [`sampling`], shared with the visibility cache.
 
-use super::*;
+use nlos_brdf::{AnyBrdf, FittedBrdf, Model};
+
+use super::backend::Backend;
+use super::scene::Scene;
+use crate::error::Result;
+use crate::render::soa::{self, Isa};
+use crate::{Device, Gradient, RenderParams};
 
 /// The CPU backend: rayon over blocks of triangles and chunks of measurements, with the block kernels of the
 /// instruction set found at run time. Runs every setting of the renderer.
@@ -47,20 +53,22 @@ impl CpuBackend {
     }
 }
 
-/// The CPU as one of several backends (with the feature `gpu`; without it the renderer has only the CPU's
-/// passes and calls them directly).
-#[cfg(feature = "gpu")]
+/// The CPU as the renderer's backend of last resort: every setting, every model.
 impl Backend for CpuBackend {
+    fn device(&self) -> Device {
+        Device::Cpu
+    }
+
     fn supports(&self, _model: Model, _params: &RenderParams) -> std::result::Result<(), String> {
         Ok(())
     }
 
-    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
-        Ok(CpuBackend::forward(self, scene, brdf))
+    fn forward(&self, scene: &Scene, brdf: &AnyBrdf) -> Result<Vec<f32>> {
+        Ok(nlos_brdf::with_brdf!(brdf, b => CpuBackend::forward(self, scene, b)))
     }
 
-    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
-        CpuBackend::adjoint(self, scene, brdf, d_loss)
+    fn adjoint(&self, scene: &Scene, brdf: &AnyBrdf, d_loss: &[f32]) -> Result<Gradient> {
+        nlos_brdf::with_brdf!(brdf, b => CpuBackend::adjoint(self, scene, b, d_loss))
     }
 }
 
@@ -83,8 +91,6 @@ mod adjoint;
 mod forward;
 pub(crate) mod lobe;
 mod sampling;
-pub(crate) mod soa;
-pub(crate) mod splat;
 
 /// What every call of a pass reads besides the renderer: the BRDF and the time kernel — the point rules'
 /// [`crate::kernel::KernelEval`] or the splat rule's [`soa::TentAxis`].

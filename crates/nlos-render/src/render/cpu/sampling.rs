@@ -3,11 +3,12 @@
 //! stratified samples.
 
 use glam::Vec3;
-
-use super::*;
-use crate::kernel::KernelEval;
-use crate::render::cpu::soa::{BLOCK, Frame, TentAxis};
 use nlos_transient::rng::SplitMix64;
+
+use crate::kernel::KernelEval;
+use crate::render::soa::{BLOCK, Frame, TentAxis};
+use crate::render::{Lobe, Scene, subtriangles};
+use crate::{DeterministicRule, Sampling};
 
 impl Scene {
     #[inline(always)]

@@ -17,9 +17,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use bytemuck::{Pod, Zeroable};
+use nlos_brdf::{AnyBrdf, FittedBrdf, Model};
 
-use super::*;
 use crate::brdf::{GpuTerms, gpu_terms};
+use crate::error::Result;
+use crate::render::backend::Backend;
+use crate::render::scene::Scene;
+use crate::{Device, Gradient, RenderError, RenderParams, Renderer, Visibility};
 
 /// Threads of a workgroup (the shader's `WG`).
 const WG: u32 = 256;
@@ -625,43 +629,39 @@ pub(super) fn attach(device: Device, p: &RenderParams) -> Result<Option<GpuBacke
 }
 
 impl GpuBackend {
-    /// Runs `pass` on the GPU where it applies: None when this backend does not support the BRDF's model with
-    /// the scene's settings ([`Backend::supports`]), when it failed before, or when the pass fails now (reported
-    /// once on stderr); the renderer then runs the pass on the CPU.
-    pub(super) fn attempt<B: FittedBrdf, T>(&self, scene: &Scene, pass: impl FnOnce(&Self) -> Result<T>) -> Option<T> {
-        if self.supports(B::MODEL, &scene.params).is_err() || self.failed.load(Ordering::Relaxed) {
-            return None;
-        }
-        match pass(self) {
-            Ok(v) => Some(v),
-            Err(e) => {
-                if !self.failed.swap(true, Ordering::Relaxed) {
-                    eprintln!("warning: {e}; this renderer continues on the CPU");
-                }
-                None
-            }
-        }
-    }
-
-    /// The shared GPU, locked for one pass.
+    /// Runs `f` on the shared GPU, locked for one pass. A failure is reported once on stderr and sends this
+    /// renderer to the CPU for good ([`Backend::supports`] refuses from then on).
     fn locked<T>(&self, f: impl FnOnce(&mut GpuRenderer) -> Result<T>) -> Result<T> {
-        match self.gpu.lock() {
+        let out = match self.gpu.lock() {
             Ok(mut g) => f(&mut g),
             Err(_) => Err(gpu_err("the device's lock was poisoned by a panic")),
+        };
+        if let Err(e) = &out
+            && !self.failed.swap(true, Ordering::Relaxed)
+        {
+            eprintln!("warning: {e}; this renderer continues on the CPU");
         }
+        out
     }
 }
 
 impl Backend for GpuBackend {
+    fn device(&self) -> Device {
+        Device::Gpu
+    }
+
     fn supports(&self, model: Model, params: &RenderParams) -> std::result::Result<(), String> {
+        if self.failed.load(Ordering::Relaxed) {
+            return Err("the GPU failed before in this renderer".into());
+        }
         crate::gpu_support(model, params)
     }
 
-    fn forward<B: FittedBrdf>(&self, scene: &Scene, brdf: &B) -> Result<Vec<f32>> {
-        self.locked(|g| g.forward_scene(scene, brdf))
+    fn forward(&self, scene: &Scene, brdf: &AnyBrdf) -> Result<Vec<f32>> {
+        nlos_brdf::with_brdf!(brdf, b => self.locked(|g| g.forward_scene(scene, b)))
     }
 
-    fn adjoint<B: FittedBrdf>(&self, scene: &Scene, brdf: &B, d_loss: &[f32]) -> Result<Gradient> {
-        self.locked(|g| g.adjoint_scene(scene, brdf, d_loss))
+    fn adjoint(&self, scene: &Scene, brdf: &AnyBrdf, d_loss: &[f32]) -> Result<Gradient> {
+        nlos_brdf::with_brdf!(brdf, b => self.locked(|g| g.adjoint_scene(scene, b, d_loss)))
     }
 }

@@ -2,8 +2,11 @@
 //! forward samples, the adjoint's path lengths, the tent kernel's gather and the adjoint's per-sample
 //! gradients, each over a block of triangles at once.
 
-use super::*;
 use nlos_brdf::FittedBrdf;
+
+use crate::kernel::TentAxis;
+use crate::render::Isa;
+use crate::render::soa::{Block, Frame, PairGeom, Scratch, at, pair_geometry};
 
 /// Forward, one sample `(u, v, w)` per triangle of the block: `tau[i]` and `g[i]` = weight × visibility ×
 /// f_s × Q (0 where the pair or the sample is skipped); with `TENT`, also the tent kernel's padded bin index

@@ -3,10 +3,12 @@
 //! block of triangles at once.
 
 use glam::Vec3;
-
-use super::*;
-use crate::render::cpu::splat::MAX_SPAN;
 use nlos_brdf::FittedBrdf;
+
+use crate::kernel::TentAxis;
+use crate::render::Isa;
+use crate::render::soa::{Acc, Block, Frame, PairGeom, Scratch, at, pair_geometry};
+use crate::render::splat::MAX_SPAN;
 
 /// One splat sub-triangle of the triangles of a block: its three corners and centroid in barycentric
 /// coordinates `(u, v)` (u along e1, v along e2) and its weight `w` (fraction of the triangle's area).
@@ -94,8 +96,8 @@ fn short_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
         4 => short_lanes_best::<4, 0>(isa, len, lanes, lo, short),
         8 => short_lanes_best::<8, 0>(isa, len, lanes, lo, short),
         _ => {
-            short_lanes_best::<{ crate::render::cpu::splat::MAX_SPAN }, 0>(isa, len, lanes, lo, short);
-            short_lanes_best::<{ crate::render::cpu::splat::MAX_SPAN }, 8>(isa, len, lanes, hi, short);
+            short_lanes_best::<{ MAX_SPAN }, 0>(isa, len, lanes, lo, short);
+            short_lanes_best::<{ MAX_SPAN }, 8>(isa, len, lanes, hi, short);
         }
     }
 }
@@ -137,7 +139,7 @@ kernel! {
         };
         for i in 0..len {
             let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
-            let w = crate::render::cpu::splat::window_weights::<OFF>(&p);
+            let w = crate::render::splat::window_weights::<OFF>(&p);
             (w0[i], w1[i], w2[i], w3[i]) = (w[0], w[1], w[2], w[3]);
             if N > 4 {
                 (w4[i], w5[i], w6[i], w7[i]) = (w[4], w[5], w[6], w[7]);
@@ -178,7 +180,7 @@ fn splat_samples_body<B: FittedBrdf, const CONFOCAL: bool>(
         let val = sub.w * vis[i] * fs * q;
         g[i] = if ok { val } else { 0.0 };
         let tc = if CONFOCAL { 2.0 * ra2.sqrt() } else { ra2.sqrt() + rb2.sqrt() };
-        let (t0, t1, t2) = crate::render::cpu::splat::centred(
+        let (t0, t1, t2) = crate::render::splat::centred(
             corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[0], tent).0,
             corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[1], tent).0,
             corner::<CONFOCAL>(p0, d1, d2, fr, sub.corners[2], tent).0,
@@ -277,7 +279,7 @@ kernel! {
             let (t2, g2) = corner::<CONFOCAL>(p0, q1, q2, fr, sub.corners[2], tent);
             let tc = r + r2;
             let (t0, t1, t2) =
-                crate::render::cpu::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt, power);
+                crate::render::splat::centred(t0, t1, t2, (tc - tent.t0) * tent.inv_dt - 0.5, tc * tent.inv_dt, power);
             (k0[i], k1[i], k2[i]) = (t0, t1, t2);
             (d0[i], d1[i], d2[i]) = (g0.x, g0.y, g0.z);
             (d3[i], d4[i], d5[i]) = (g1.x, g1.y, g1.z);
@@ -317,7 +319,7 @@ kernel! {
         let (l0, l1, l2, l3, l4) = (&mut l0[..len], &mut l1[..len], &mut l2[..len], &mut l3[..len], &mut l4[..len]);
         let (l5, l6, l7, l8, l9) = (&mut l5[..len], &mut l6[..len], &mut l7[..len], &mut l8[..len], &mut l9[..len]);
         for i in 0..len {
-            let p = crate::render::cpu::splat::prepare(k0[i], k1[i], k2[i]);
+            let p = crate::render::splat::prepare(k0[i], k1[i], k2[i]);
             (l0[i], l1[i], l2[i], l3[i], l4[i]) = (p[0], p[1], p[2], p[3], p[4]);
             (l5[i], l6[i], l7[i], l8[i], l9[i]) = (p[5], p[6], p[7], p[8], p[9]);
         }
@@ -402,7 +404,7 @@ kernel! {
             let q = (pos.max(0.0).min(top) + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()) as usize;
             let q = q.min(last);
             let r = |m: usize| if m < N { adj[q + m] } else { 0.0 };
-            let o = crate::render::cpu::splat::gather_window::<OFF, W>(&p, r);
+            let o = crate::render::splat::gather_window::<OFF, W>(&p, r);
             if OFF == 0 {
                 (w0[i], w1[i], w2[i], w3[i]) = (o[0], o[1], o[2], o[3]);
             } else {

@@ -410,10 +410,10 @@ pub(crate) struct Scratch {
     /// Splat (adjoint): the sample value `w·vis·f_s·Q` of active pairs (stage 3 writes it, stage 4 reads it).
     pub(crate) hs: Vec<f32>,
     /// Splat: the per-pair constants of the closed form (`splat::prepare`).
-    pub(crate) lanes: crate::render::cpu::splat::Lanes,
+    pub(crate) lanes: crate::render::splat::Lanes,
     /// Splat (forward): the bin weights of pairs spanning at most `span` bins (`splat::window_weights`); the
     /// adjoint's gathers in the first four (`splat::gather_window`). `short`: 1.0 for those pairs.
-    pub(crate) sw: [Vec<f32>; crate::render::cpu::splat::MAX_SPAN],
+    pub(crate) sw: [Vec<f32>; crate::render::splat::MAX_SPAN],
     pub(crate) short: Vec<f32>,
     /// The span (4, 8 or `splat::MAX_SPAN` bins) the vector kernels ran with for this block ([`block_span`]).
     pub(crate) span: usize,
@@ -437,7 +437,7 @@ impl Scratch {
             dir: [z(), z(), z(), z(), z(), z(), z(), z(), z()],
             ct: [z(), z(), z()],
             hs: z(),
-            lanes: crate::render::cpu::splat::Lanes::new(BLOCK),
+            lanes: crate::render::splat::Lanes::new(BLOCK),
             sw: std::array::from_fn(|_| z()),
             short: z(),
             span: 4,
@@ -556,5 +556,5 @@ pub(crate) fn orientation_dispatch(isa: Isa, b: &Block<'_>, fr: &Frame, two_side
 
 mod point;
 mod splat;
-pub(crate) use point::*;
-pub(crate) use splat::*;
+pub(crate) use point::{Acc, adjoint_lengths, adjoint_samples, forward_samples, tent_gather};
+pub(crate) use splat::{Sub, short_gathers, splat_corner_terms, splat_lengths, splat_samples};
