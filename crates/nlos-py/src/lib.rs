@@ -59,6 +59,7 @@ fn _nlos(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(recon::default_settings, m)?)?;
     m.add_function(wrap_pyfunction!(recon::initial_surface, m)?)?;
     m.add_function(wrap_pyfunction!(recon::reconstruct, m)?)?;
+    m.add_function(wrap_pyfunction!(recon::read_run, m)?)?;
     m.add_function(wrap_pyfunction!(cli, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // The reflectance models' names (what `brdf=` accepts, besides the alias "lambertian").

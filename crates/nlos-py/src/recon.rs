@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use nlos_optim::pipeline::{self, Config, Method, Prepared, Start};
-use nlos_optim::{Hooks, Progress};
+use nlos_optim::{Hooks, Progress, RunRecord};
 
 use crate::capture::Capture;
 use crate::errors::{self, ConfigError};
@@ -166,6 +166,27 @@ pub(crate) fn reconstruct<'py>(
         err.value(py).setattr("result", &result)?;
         return Err(err);
     }
+    Ok(result)
+}
+
+/// The run recorded in run directory `dir` (its checkpoint, read through [`RunRecord::read`], the one way any
+/// crate reads it): the surface and fit as its last finished block left them, in the dictionary
+/// [`reconstruct`] returns (`stop` is null while the run has blocks left; `notes` is empty: they belong to
+/// the capture's preparation, not to the record).
+#[pyfunction]
+pub(crate) fn read_run(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyDict>> {
+    let record = py.detach(|| RunRecord::read(&dir)).map_err(errors::optim)?;
+    let mesh = record.surface().mesh().map_err(errors::optim)?;
+    let result = PyDict::new(py);
+    let (v, f) = crate::mesh::to_arrays(py, &mesh)?;
+    result.set_item("vertices", v)?;
+    result.set_item("faces", f)?;
+    let brdf = record.reflectance().brdf().map_err(errors::optim)?;
+    result.set_item("reflectance", to_json(&brdf)?)?;
+    result.set_item("log", to_json(record.log())?)?;
+    result.set_item("stop", to_json(&record.finished())?)?;
+    result.set_item("scale", record.scale())?;
+    result.set_item("notes", Vec::<String>::new())?;
     Ok(result)
 }
 

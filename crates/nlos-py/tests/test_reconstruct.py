@@ -86,6 +86,27 @@ def test_a_finished_run_resumes_to_the_same_mesh(builtin_capture, tmp_path):
         nlos.reconstruct(builtin_capture, tmp_path, resume=True, schedule={**FAST["schedule"], "shape_iterations": 4})
 
 
+def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_path):
+    # The record the command line and Python write is read through one API (nlos_optim::RunRecord).
+    first = nlos.reconstruct(builtin_capture, tmp_path, **FAST)
+    record = nlos.read_run(tmp_path)
+    assert np.array_equal(record.vertices, first.vertices) and np.array_equal(record.faces, first.faces)
+    assert (record.reflectance, record.scale, record.stop, record.log) == (
+        first.reflectance,
+        first.scale,
+        first.stop,
+        first.log,
+    )
+    with pytest.raises(nlos.ReconstructError, match="nothing to resume"):
+        nlos.read_run(tmp_path / "empty")
+    checkpoint = tmp_path / "checkpoint.json"
+    old = json.loads(checkpoint.read_text())
+    old["version"] = 3
+    checkpoint.write_text(json.dumps(old))
+    with pytest.raises(nlos.ReconstructError, match="record version 3, this build reads 4"):
+        nlos.read_run(tmp_path)
+
+
 def test_bad_settings_raise_config_errors(builtin_capture):
     with pytest.raises(nlos.ConfigError, match="no_such_section"):
         nlos.reconstruct(builtin_capture, no_such_section={})

@@ -23,65 +23,45 @@ pub trait FieldValue: Copy + PartialEq + std::fmt::Debug + 'static {
     fn blend(parts: &[(Self, f32)]) -> Self;
 }
 
+/// The storage half of a [`FieldValue`] impl: its name and its [`Column`] variant.
+macro_rules! stored_as {
+    ($name:literal, $variant:ident) => {
+        const TYPE: &'static str = $name;
+        fn column(values: Vec<Self>, initial: Self) -> Column {
+            Column::$variant(ColumnOf { values, initial })
+        }
+        fn of(column: &Column) -> Option<&ColumnOf<Self>> {
+            if let Column::$variant(c) = column { Some(c) } else { None }
+        }
+        fn of_mut(column: &mut Column) -> Option<&mut ColumnOf<Self>> {
+            if let Column::$variant(c) = column { Some(c) } else { None }
+        }
+    };
+}
+
 impl FieldValue for f64 {
-    const TYPE: &'static str = "f64";
-    fn column(values: Vec<Self>, initial: Self) -> Column {
-        Column::Real(ColumnOf { values, initial })
-    }
-    fn of(column: &Column) -> Option<&ColumnOf<Self>> {
-        if let Column::Real(c) = column { Some(c) } else { None }
-    }
-    fn of_mut(column: &mut Column) -> Option<&mut ColumnOf<Self>> {
-        if let Column::Real(c) = column { Some(c) } else { None }
-    }
+    stored_as!("f64", Real);
     fn blend(parts: &[(Self, f32)]) -> Self {
         parts.iter().fold(0.0, |s, &(x, w)| s + f64::from(w) * x)
     }
 }
 
 impl FieldValue for DVec3 {
-    const TYPE: &'static str = "DVec3";
-    fn column(values: Vec<Self>, initial: Self) -> Column {
-        Column::Vector(ColumnOf { values, initial })
-    }
-    fn of(column: &Column) -> Option<&ColumnOf<Self>> {
-        if let Column::Vector(c) = column { Some(c) } else { None }
-    }
-    fn of_mut(column: &mut Column) -> Option<&mut ColumnOf<Self>> {
-        if let Column::Vector(c) = column { Some(c) } else { None }
-    }
+    stored_as!("DVec3", Vector);
     fn blend(parts: &[(Self, f32)]) -> Self {
         parts.iter().fold(DVec3::ZERO, |s, &(x, w)| s + f64::from(w) * x)
     }
 }
 
 impl FieldValue for bool {
-    const TYPE: &'static str = "bool";
-    fn column(values: Vec<Self>, initial: Self) -> Column {
-        Column::Flag(ColumnOf { values, initial })
-    }
-    fn of(column: &Column) -> Option<&ColumnOf<Self>> {
-        if let Column::Flag(c) = column { Some(c) } else { None }
-    }
-    fn of_mut(column: &mut Column) -> Option<&mut ColumnOf<Self>> {
-        if let Column::Flag(c) = column { Some(c) } else { None }
-    }
+    stored_as!("bool", Flag);
     fn blend(parts: &[(Self, f32)]) -> Self {
         parts.iter().fold((false, f32::NEG_INFINITY), |best, &(x, w)| if w > best.1 { (x, w) } else { best }).0
     }
 }
 
 impl FieldValue for Moments {
-    const TYPE: &'static str = "Moments";
-    fn column(values: Vec<Self>, initial: Self) -> Column {
-        Column::Moments(ColumnOf { values, initial })
-    }
-    fn of(column: &Column) -> Option<&ColumnOf<Self>> {
-        if let Column::Moments(c) = column { Some(c) } else { None }
-    }
-    fn of_mut(column: &mut Column) -> Option<&mut ColumnOf<Self>> {
-        if let Column::Moments(c) = column { Some(c) } else { None }
-    }
+    stored_as!("Moments", Moments);
     /// Both moments interpolated; the second kept ≥ 0 against rounding.
     fn blend(parts: &[(Self, f32)]) -> Self {
         let (mut m, mut v) = (DVec3::ZERO, 0.0f64);

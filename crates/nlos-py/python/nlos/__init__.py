@@ -67,6 +67,7 @@ __all__ = [
     "pf",
     "main",
     "read_mesh",
+    "read_run",
     "reconstruct",
     "render",
     "write_mesh",
@@ -243,6 +244,15 @@ def reconstruct(
     return _reconstruction(result)
 
 
+def read_run(out: Union[str, "os.PathLike[str]"]) -> "Reconstruction":
+    """The run recorded in run directory ``out`` (by :func:`reconstruct` or ``nlos reconstruct --out``): its
+    surface, reflectance, scale and log as its last finished block left them, read from its checkpoint.
+    ``stop`` is ``None`` while the run has blocks left (continue it with ``reconstruct(..., resume=True)``).
+    Raises :class:`ReconstructError` for a directory without a record, or one written by another version of
+    nlos (saying both versions)."""
+    return _reconstruction(_nlos.read_run(os.fspath(out)))
+
+
 def _reconstruction(result: Dict[str, Any]) -> "Reconstruction":
     return Reconstruction(
         vertices=result["vertices"],
@@ -268,8 +278,9 @@ class Reconstruction:
     reflectance: Dict[str, Any]
     #: The measurement's scale against the rendering (solved in closed form).
     scale: float
-    #: Why the run ended: ``"max_stages"``, ``"face_limit"``, ``"time_budget"`` or ``"interrupted"``.
-    stop: str
+    #: Why the run ended: ``"max_stages"``, ``"face_limit"``, ``"time_budget"`` or ``"interrupted"``
+    #: (``None`` from :func:`read_run` while the run has blocks left).
+    stop: Optional[str]
     #: What the pipeline decided from the capture (gate, last return, sensor fit).
     notes: List[str]
     #: The run log (every iteration's loss, the stages' edge lengths, pruning and residual records).
