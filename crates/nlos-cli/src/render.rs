@@ -25,7 +25,8 @@ pub(crate) struct Args {
     #[command(flatten)]
     read: crate::choices::ReadArgs,
     /// The mesh (OBJ, PLY or GLB; any triangle list, manifold or not); faces reflect on the side of
-    /// `(v1 − v0) × (v2 − v0)` unless --two-sided.
+    /// `(v1 − v0) × (v2 − v0)` unless --two-sided. A PLY's per-vertex `albedo` (as `nlos reconstruct`
+    /// writes `mesh.ply`) scales each face's reflectance by the mean of its corners' (print on a surface).
     mesh: PathBuf,
     /// The output capture; the format follows the extension (.hdf5 → y-tal HDF5_TAL, .npy → npy + json,
     /// .exr → EXR).
@@ -187,6 +188,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let bytes = std::fs::read(&args.mesh).map_err(|e| bad(format!("{}: {e}", args.mesh.display())))?;
     let soup = nlos_mesh::io::read_any(&bytes, &args.mesh.display().to_string()).map_err(bad)?;
     let (positions, triangles) = (soup.positions, soup.triangles);
+    let face_albedo = soup.albedo.as_ref().map(|a| face_means(a, &triangles));
     let visibility = match args.visibility {
         VisibilityArg::Cached if (1..=16).contains(&args.vis_level) => Visibility::Cached { level: args.vis_level },
         VisibilityArg::Cached => return Err(bad(format!("--vis-level {}: must be in 1..=16", args.vis_level))),
@@ -207,6 +209,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     let step = Step::counted(what, Arc::clone(&done), passes * m);
     let mut renderer = Renderer::new_observed(&positions, &triangles, &scan, &time, params, Some(done)).map_err(bad)?;
     renderer.set_device(args.device.into()).map_err(bad)?;
+    if let Some(w) = &face_albedo {
+        renderer
+            .set_face_weights(Some(w))
+            .map_err(|e| bad(format!("{}: its vertex albedo: {e}", args.mesh.display())))?;
+    }
     let rendered: Transient = with_brdf!(brdf, b => renderer.forward_transient(&b)).map_err(bad)?;
     step.finish();
     let out = match &model {
@@ -227,4 +234,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         out.data().iter().map(|&v| f64::from(v)).sum::<f64>()
     );
     Ok(())
+}
+
+/// Each triangle's reflectance factor from a per-vertex albedo: the mean of its three corners' (an index out
+/// of range gives NaN, which the renderer refuses by name).
+fn face_means(albedo: &[f32], triangles: &[[u32; 3]]) -> Vec<f32> {
+    let at = |v: u32| albedo.get(v as usize).copied().unwrap_or(f32::NAN);
+    triangles.iter().map(|t| (at(t[0]) + at(t[1]) + at(t[2])) / 3.0).collect()
 }

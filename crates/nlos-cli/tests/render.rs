@@ -67,6 +67,39 @@ fn renders_a_non_manifold_mesh() {
     assert!(t.data().iter().sum::<f32>() > 0.0, "nothing rendered");
 }
 
+/// A PLY's per-vertex albedo scales its faces' light: the square at albedo 0.25 renders a quarter of the
+/// light at 1 (bit for bit the same shape), with one corner of a triangle at 0 the faces holding it are
+/// darker, and a negative albedo is an input error naming the file.
+#[test]
+fn renders_a_plys_vertex_albedo() {
+    let dir = scratch("albedo");
+    let (mesh, setup) = inputs(&dir);
+    let square = nlos_mesh::io::load(&mesh).expect("mesh");
+    let total = |t: &Transient| t.data().iter().map(|&v| f64::from(v)).sum::<f64>();
+    let with = |name: &str, albedo: &[f32]| {
+        let ply = dir.join(format!("{name}.ply"));
+        nlos_mesh::io::save_ply_with_albedo(&square, albedo, &ply).expect("ply");
+        ply.to_string_lossy().into_owned()
+    };
+    let plain = render_with(&dir, &mesh, &setup, "plain", &[]);
+    let quarter = render_with(&dir, &with("quarter", &[0.25; 4]), &setup, "quarter", &[]);
+    for (q, p) in quarter.data().iter().zip(plain.data()) {
+        assert!((q - 0.25 * p).abs() <= 1e-6 * p.abs().max(1e-30), "{q} against a quarter of {p}");
+    }
+    let dark = render_with(&dir, &with("dark", &[1.0, 1.0, 0.0, 1.0]), &setup, "dark", &[]);
+    let ratio = total(&dark) / total(&plain);
+    assert!(ratio > 0.5 && ratio < 0.9, "one dark corner of both faces keeps {ratio} of the light");
+    let bad = dir.join("bad.ply");
+    let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float albedo\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    let body = "0 0 0.3 1\n0.1 0 0.3 -1\n0 0.1 0.3 1\n3 0 2 1\n";
+    std::fs::write(&bad, format!("{header}{body}")).expect("write ply");
+    let out = dir.join("bad.npy");
+    let r = nlos(&["render", &bad.to_string_lossy(), "--out", &out.to_string_lossy(), "--setup", &setup]);
+    assert_eq!(r.status.code(), Some(2), "{}", text(&r));
+    assert!(text(&r).contains("bad.ply"), "{}", text(&r));
+}
+
 #[test]
 fn bad_arguments_are_input_errors() {
     let dir = scratch("bad");
