@@ -1,4 +1,4 @@
-//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|nonconfocal|relay|detail|all> [--quick]`: the acceptance runs
+//! `cargo xtask accept <bunny|soap|reference|ggx|real|sensor|nonconfocal|relay|detail|holes|all> [--quick]`: the acceptance runs
 //! (and the sensor comparison of the noise-aware fit against L2). Each scenario runs the product end to end through the
 //! built `nlos` binary — `nlos render` (ground truth → transient), `nlos reconstruct --init lct`, `nlos eval`
 //! of the LCT initial mesh and of the result against the ground truth — prints a table, checks the issue's
@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 mod detail;
+mod holes;
 mod nonconfocal;
 mod own_shapes;
 mod preprocessed;
@@ -182,17 +183,18 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
                     "nonconfocal",
                     "relay",
                     "detail",
+                    "holes",
                 ]
                 .map(s),
             ),
             n @ ("bunny" | "soap" | "reference" | "ggx" | "real" | "preprocessed" | "sensor" | "nonconfocal"
-            | "relay" | "detail") => names.push(n.to_string()),
+            | "relay" | "detail" | "holes") => names.push(n.to_string()),
             other => return Err(format!("unknown scenario or option `{other}`; see `cargo xtask help`")),
         }
     }
     if names.is_empty() {
         return Err(
-            "name a scenario: bunny, soap, reference, ggx, real, preprocessed, sensor, nonconfocal, relay or all"
+            "name a scenario: bunny, soap, reference, ggx, real, preprocessed, sensor, nonconfocal, relay, detail, holes or all"
                 .into(),
         );
     }
@@ -213,6 +215,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
             "nonconfocal" => nonconfocal::nonconfocal(&mut r, &opts),
             "relay" => relay::relay(&mut r, &opts),
             "detail" => detail::detail(&mut r, &opts),
+            "holes" => holes::holes(&mut r, &opts),
             _ => sensor(&mut r, &opts),
         };
         let (text, pass) = match res {
@@ -258,7 +261,7 @@ thread_local! {
 }
 
 /// The scenarios in the order of `docs/results.md`, with what each checks (the README's status table).
-pub const SCENARIOS: [(&str, &str); 12] = [
+pub const SCENARIOS: [(&str, &str); 13] = [
     ("bunny", "the shared bunny, rendered at Tsai et al. 2019's setup, 1000 photons: coverage, depth error, time"),
     ("soap", "the shared soap bar (relief lettering), same setup: coverage, depth error, time"),
     ("reference", "the independent renderer's bunny (three bounces): coverage, depth error"),
@@ -284,6 +287,10 @@ pub const SCENARIOS: [(&str, &str); 12] = [
     (
         "detail",
         "what the volume shows, the mesh keeps: the 40 cm chart's front-view detail, the general-NLOS capture thinned to every 4th spot",
+    ),
+    (
+        "holes",
+        "dark strips where the model is exact: a plate with slots, a plate with printed bars, a thin-stroked E, two plates apart — holes or print, never dents",
     ),
     (
         "znlos",

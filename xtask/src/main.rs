@@ -6,7 +6,7 @@
 //!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the LCT
 //!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
-//! - `cargo xtask accept <bunny|soap|reference|ggx|real|preprocessed|sensor|nonconfocal|relay|detail|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
+//! - `cargo xtask accept <bunny|soap|reference|ggx|real|preprocessed|sensor|nonconfocal|relay|detail|holes|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs (see `accept.rs`); each replaces its scenario's section of `docs/results.md`.
 //! - `cargo xtask benchmark znlos DIR [-- ARGS…]`: `nlos benchmark DIR ARGS…` (every Z-NLOS capture of DIR
 //!   with ground-truth maps beside it: LCT, f-k and the surface fit, scored against the maps); its table
@@ -45,7 +45,7 @@ fn main() -> ExitCode {
             );
             println!("                                           acceptance runs, SCENARIO: bunny, soap, reference,");
             println!("                                           ggx, real, preprocessed, sensor, nonconfocal, relay,");
-            println!("                                           detail, all;");
+            println!("                                           detail, holes, all;");
             println!("                                           writes docs/results.md");
             println!("       cargo xtask benchmark znlos DIR [-- ARGS...]");
             println!(

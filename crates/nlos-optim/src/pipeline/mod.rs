@@ -1,7 +1,7 @@
 //! The whole reconstruction as users run it: a capture file in, a mesh out, every `auto` decided here.
 //!
 //! [`Config`] holds every setting a user may change, each with its default ([`Config::default`] takes them
-//! from [`ReconstructParams::default`] and the initialisers' defaults: one source). It reads and writes TOML
+//! from [`ReconstructParams::default`](crate::ReconstructParams::default) and the initialisers' defaults: one source). It reads and writes TOML
 //! ([`Config::from_toml`], [`Config::to_toml`]; `nlos reconstruct --print-config` prints the defaults).
 //! [`Prepared::new`] prepares the capture (rebin, gate, max depth, subsample), [`Prepared::params`] decides
 //! the optimiser's parameters (noise model, sensor fit, background) and [`Prepared::initial_surface`]

@@ -28,7 +28,7 @@ pub struct IterationRecord {
     pub loss: f64,
     /// Normalised data term `E_data/E_0`.
     pub data: f64,
-    /// Regulariser `R + w R_∂` (normal plus boundary smoothing, [`ReconstructParams::boundary_smoothing`]), before λ.
+    /// Regulariser `R + w R_∂` (normal plus boundary smoothing, [`ReconstructParams::boundary_smoothing`](crate::ReconstructParams::boundary_smoothing)), before λ.
     pub regulariser: f64,
     /// Regulariser weight λ.
     pub reg_weight: f64,

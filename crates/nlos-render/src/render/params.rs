@@ -1,4 +1,4 @@
-//! What a [`Renderer`] is asked to do: the sampling rules, visibility, the parameters and their checks, and
+//! What a [`Renderer`](crate::Renderer) is asked to do: the sampling rules, visibility, the parameters and their checks, and
 //! the shapes of its results.
 
 use glam::Vec3;
@@ -93,7 +93,7 @@ impl Default for Sampling {
     }
 }
 
-/// Where [`Renderer::forward`] and [`Renderer::adjoint`] run ([`Renderer::set_device`]).
+/// Where [`Renderer::forward`](crate::Renderer::forward) and [`Renderer::adjoint`](crate::Renderer::adjoint) run ([`Renderer::set_device`](crate::Renderer::set_device)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Device {
@@ -116,8 +116,8 @@ pub enum Visibility {
     #[default]
     Live,
     /// A visible fraction per (triangle, measurement), from the `level²` sub-triangle centroids, stored as
-    /// a byte and multiplied into every sample of that pair. Computed by [`Renderer::new`] and
-    /// [`Renderer::refresh_visibility`] only; [`Renderer::set_positions`] keeps it (refresh after remeshing or
+    /// a byte and multiplied into every sample of that pair. Computed by [`Renderer::new`](crate::Renderer::new) and
+    /// [`Renderer::refresh_visibility`](crate::Renderer::refresh_visibility) only; [`Renderer::set_positions`](crate::Renderer::set_positions) keeps it (refresh after remeshing or
     /// large moves), and with it the grouping of the triangles into blocks (made from the normals at the last
     /// refresh), so results depend on the positions at the last refresh as well as on the current ones.
     /// Memory: one byte per (triangle, measurement).
@@ -127,7 +127,7 @@ pub enum Visibility {
     },
 }
 
-/// Parameters of a [`Renderer`] (defaults: tent kernel, deterministic default rule, live visibility,
+/// Parameters of a [`Renderer`](crate::Renderer) (defaults: tent kernel, deterministic default rule, live visibility,
 /// one-sided faces).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct RenderParams {
@@ -142,7 +142,7 @@ pub struct RenderParams {
     pub two_sided: bool,
 }
 
-/// The non-zero part of one measurement's histogram ([`Renderer::forward_triangle`]): bins
+/// The non-zero part of one measurement's histogram ([`Renderer::forward_triangle`](crate::Renderer::forward_triangle)): bins
 /// `first_bin .. first_bin + values.len()` of measurement `measurement`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RowSpan {
@@ -159,15 +159,15 @@ pub struct RowSpan {
 pub struct Gradient {
     /// One gradient per vertex.
     pub vertices: Vec<Vec3>,
-    /// One per BRDF parameter, in the order of [`FittedBrdf::PARAM_NAMES`].
+    /// One per BRDF parameter, in the order of [`FittedBrdf::PARAM_NAMES`](nlos_brdf::FittedBrdf::PARAM_NAMES).
     pub brdf: Vec<f32>,
     /// One per mesh triangle: dE/dw_t, the derivative with respect to the triangle's reflectance factor
-    /// ([`Renderer::set_face_weights`]; 1 when none are set) at its current value. 0 for degenerate
+    /// ([`Renderer::set_face_weights`](crate::Renderer::set_face_weights); 1 when none are set) at its current value. 0 for degenerate
     /// triangles and for triangles whose factor is 0 (they are skipped, so nothing is sampled on them).
     pub faces: Vec<f32>,
 }
 
-/// What [`Renderer::loss_and_gradient`] returns.
+/// What [`Renderer::loss_and_gradient`](crate::Renderer::loss_and_gradient) returns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LossAndGradient {
     /// The loss E (summed in f64).
