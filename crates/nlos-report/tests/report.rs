@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use nlos_brdf::Lambertian;
 use nlos_mesh::SurfaceMesh;
-use nlos_optim::{IterationRecord, Reflectance, RunLog, StepKind};
+use nlos_optim::{IterationRecord, RunLog, StepKind};
 use nlos_render::{RenderParams, Renderer, Visibility};
 use nlos_report::{ReportError, ReportOptions, write_report};
 use nlos_transient::{PointSet, Scan, TimeAxis, Transient};
@@ -74,7 +74,8 @@ fn record(iteration: u64, stage: u32, loss: f64) -> IterationRecord {
 }
 
 /// A run directory: final mesh and ground truth tilted (z from 0.32 to 0.38 m along x), flat initial
-/// surface, a two-stage log and a checkpoint holding only the reflectance.
+/// surface and a two-stage log; no run record (`checkpoint.json`), so the report renders with the default
+/// reflectance (a real run's record is read in nlos-cli's `reconstruct` tests).
 fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
     let dir = scratch(name);
     let truth = plane(0.35, 0.2);
@@ -91,8 +92,6 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         start: None,
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
-    let ck = serde_json::json!({ "reflectance": Reflectance::default() });
-    std::fs::write(dir.join("checkpoint.json"), ck.to_string()).expect("checkpoint");
     let measured = measure(&truth);
     (dir, measured, truth)
 }
@@ -214,6 +213,12 @@ fn missing_files_and_bad_options_are_typed_errors() {
         let e = write_report(&dir, &measured, None, &opts).expect_err("bad area");
         assert!(matches!(e, ReportError::InvalidOption { name: "area", .. }), "{area:?}: {e}");
     }
+    // A run record of another version (an older build's checkpoint) is refused, saying both versions.
+    std::fs::write(dir.join("checkpoint.json"), br#"{"version": 3, "reflectance": {"lambert": {"albedo": 1.0}}}"#)
+        .expect("write");
+    let e = write_report(&dir, &measured, None, &ReportOptions::default()).expect_err("old record");
+    assert!(matches!(e, ReportError::Optim(_)) && e.to_string().contains("record version 3"), "{e}");
+    std::fs::remove_file(dir.join("checkpoint.json")).expect("rm");
     std::fs::remove_file(dir.join("mesh.obj")).expect("rm");
     let e = write_report(&dir, &measured, None, &ReportOptions::default()).expect_err("no mesh");
     assert!(matches!(e, ReportError::MissingFile { .. }) && e.to_string().contains("mesh.obj"), "{e}");
