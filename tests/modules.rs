@@ -139,10 +139,10 @@ fn modules_of(src: &Path) -> BTreeMap<ModPath, Module> {
     }
     let paths: Vec<ModPath> = modules.keys().cloned().collect();
     for p in &paths {
-        if let Some((last, parent)) = p.split_last() {
-            if let Some(m) = modules.get_mut(parent) {
-                m.children.insert(last.clone());
-            }
+        if let Some((last, parent)) = p.split_last()
+            && let Some(m) = modules.get_mut(parent)
+        {
+            m.children.insert(last.clone());
         }
     }
     for m in modules.values_mut() {
@@ -235,12 +235,12 @@ fn resolve(modules: &BTreeMap<ModPath, Module>, at: &[String], path: &[String], 
             return resolve(modules, &cur, full, depth + 1).or(Some(cur));
         } else if !module.defs.contains(seg) {
             for glob in &module.globs {
-                if let Some(g) = resolve(modules, &cur, glob, depth + 1) {
-                    if modules.get(&g).is_some_and(|m| m.defs.contains(seg) || m.imports.contains_key(seg)) {
-                        let mut p = glob.clone();
-                        p.push(seg.clone());
-                        return resolve(modules, &cur, &p, depth + 1).or(Some(g));
-                    }
+                if let Some(g) = resolve(modules, &cur, glob, depth + 1)
+                    && modules.get(&g).is_some_and(|m| m.defs.contains(seg) || m.imports.contains_key(seg))
+                {
+                    let mut p = glob.clone();
+                    p.push(seg.clone());
+                    return resolve(modules, &cur, &p, depth + 1).or(Some(g));
                 }
             }
             return Some(cur);

@@ -65,6 +65,9 @@ fn strips() -> Vec<Rect> {
         .collect()
 }
 
+/// A flat grid's positions, triangles and each triangle's cell centre (x, y).
+type FlatGrid = (Vec<Vec3>, Vec<[u32; 3]>, Vec<(f32, f32)>);
+
 /// A flat shape at depth `z` made of `cells`: the rectangles of a tensor grid whose lines are every edge of
 /// `rects` and of `outline` plus lines at most `step` apart, kept where `keep(centre)` holds. Faces look at
 /// the wall (normal −z). With `welded`, neighbouring cells share their corners (a manifold plate with holes);
@@ -76,7 +79,7 @@ fn flat_grid(
     step: f32,
     welded: bool,
     keep: impl Fn(f32, f32) -> bool,
-) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<(f32, f32)>) {
+) -> FlatGrid {
     let lines = |k: usize| {
         let (lo, hi) = (outline.0[2 * k], outline.0[2 * k + 1]);
         let mut v: Vec<f32> =
