@@ -384,7 +384,7 @@ fn settings_in(toml: &str) -> Vec<String> {
 /// `section.key` names in backticks whose section is one of the settings' sections.
 fn backticked_settings(line: &str) -> Vec<String> {
     const SECTIONS: [&str; 8] =
-        ["capture", "reflectance", "sensor", "schedule", "optimiser", "render", "boundary", "albedo_map"];
+        ["capture", "reflectance", "sensor", "schedule", "optimiser", "render", "boundary", "albedo"];
     line.split('`')
         .skip(1)
         .step_by(2)

@@ -108,37 +108,48 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     assert!(resumed.status.success(), "{}", text(&resumed));
 }
 
-/// `--albedo-map`: the run fits a map, keeps it in the checkpoint (so `--resume` and `nlos report` find it),
-/// and the report renders with it and shows it.
+/// The per-vertex albedo, on by default: the run fits it, keeps it in the checkpoint (so `--resume` and
+/// `nlos report` find it), writes it into `mesh.ply` (one value per vertex), and the report renders with it
+/// and shows it. `albedo = "off"` fits one albedo, and resuming with it is refused, naming the setting.
 #[test]
-fn albedo_map_is_fitted_kept_and_shown() {
+fn the_albedo_is_fitted_kept_and_shown() {
     let dir = scratch("albedo");
     let data = capture(&dir);
     let out = dir.join("run");
     let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
     let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--set", "schedule.max_stages=1"];
     args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
-    args.extend(["--set", "schedule.shape_iterations=2", "--quiet", "--set", "albedo_map=0.02"]);
+    args.extend(["--set", "schedule.shape_iterations=2", "--quiet"]);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
+    let ply = std::fs::read(out.join("mesh.ply")).expect("mesh.ply");
+    let soup = nlos_mesh::io::read_ply(&ply, "mesh.ply").expect("ply");
+    let albedo = soup.albedo.expect("mesh.ply has an albedo per vertex");
+    assert_eq!(albedo.len(), soup.positions.len());
+    assert!(albedo.iter().all(|a| a.is_finite() && *a >= 0.0), "{albedo:?}");
     let ck: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("checkpoint.json")).expect("checkpoint")).expect("json");
-    let cells = ck["albedo"]["log_albedo"].as_array().map_or(0, Vec::len);
-    assert!(cells >= 100, "a 0.2 m square at 2 cm cells needs at least 10 x 10 cells, got {cells}");
-    let log: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("run_log.json")).expect("log")).expect("json");
-    let kinds: Vec<&str> =
-        log["iterations"].as_array().expect("iterations").iter().filter_map(|r| r["kind"].as_str()).collect();
-    assert!(kinds.contains(&"reflectance"), "a Lambertian run with a map runs reflectance steps: {kinds:?}");
+    assert!(ck.to_string().contains("\"albedo\""), "the checkpoint keeps the albedo field");
     assert!(out.join("albedo.png").is_file(), "{}", text(&run));
     let html = std::fs::read_to_string(out.join("report.html")).expect("report");
     assert!(html.contains("albedo.png"));
-    // Resuming with other settings (no map) is refused, naming the setting; with the run's own it continues.
-    let refused = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume", "--set", "albedo_map=\"off\""]);
+    // Resuming with other settings (one albedo) is refused, naming the setting; with the run's own it continues.
+    let refused = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume", "--set", "albedo=\"off\""]);
     assert_eq!(refused.status.code(), Some(2), "{}", text(&refused));
-    assert!(text(&refused).contains("albedo_map"), "{}", text(&refused));
+    assert!(text(&refused).contains("albedo"), "{}", text(&refused));
     let resumed = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume"]);
     assert!(resumed.status.success(), "{}", text(&resumed));
+    // One albedo: mesh.ply without the property, no albedo figure.
+    let one = dir.join("one");
+    let o1 = one.to_string_lossy().into_owned();
+    let mut args = vec!["reconstruct", d.as_str(), "--out", &o1, "--set", "schedule.max_stages=1"];
+    args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
+    args.extend(["--set", "schedule.shape_iterations=2", "--quiet", "--set", "albedo=\"off\""]);
+    let run = nlos(&args);
+    assert!(run.status.success(), "{}", text(&run));
+    let soup = nlos_mesh::io::read_ply(&std::fs::read(one.join("mesh.ply")).expect("ply"), "mesh.ply").expect("ply");
+    assert!(soup.albedo.is_none());
+    assert!(!one.join("albedo.png").exists());
 }
 
 #[test]
@@ -181,10 +192,8 @@ fn bad_arguments_are_input_errors() {
         vec!["--set", "boundary.residual_margin=-1"],
         vec!["--set", "boundary.residual_tilts=[40, 95]"],
         vec!["--set", "boundary.residual_tilts=steep"],
-        vec!["--set", "albedo_map=fine"],
-        vec!["--set", "albedo_map=0"],
-        vec!["--set", "albedo_map=-0.01"],
-        vec!["--set", "albedo_map=nan"],
+        vec!["--set", "albedo=fine"],
+        vec!["--set", "albedo=0"],
         vec!["--set", "no_such_setting=1"],
         vec!["--set", "schedule.no_such_setting=1"],
         vec!["--set", "schedule"],

@@ -60,6 +60,36 @@ impl Moments {
     pub const ZERO: Self = Self { m: DVec3::ZERO, v: 0.0 };
 }
 
+/// One scalar parameter's Adam moments (a per-vertex albedo's, [`crate::albedo::ALBEDO_MOMENTS`]): a field
+/// of the loop's surface, so that they follow every change of topology.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct ScalarMoments {
+    /// First moment.
+    pub m: f64,
+    /// Second moment.
+    pub v: f64,
+}
+
+impl ScalarMoments {
+    /// Zero moments: a parameter that has taken no step.
+    pub const ZERO: Self = Self { m: 0.0, v: 0.0 };
+}
+
+/// Plain Adam (Algorithm 1) over scalar parameters whose moments live elsewhere (a surface field): one step
+/// of step `t` (≥ 1) with learning rate `lr`; returns the update to add to each parameter. The caller
+/// guarantees `grad.len() == moments.len()`.
+pub fn scalar_step(p: &AdamParams, t: u64, moments: &mut [ScalarMoments], grad: &[f64], lr: f64) -> Vec<f64> {
+    let (c1, c2) = p.corrections(t.max(1));
+    grad.iter()
+        .zip(moments.iter_mut())
+        .map(|(&g, mo)| {
+            mo.m = p.beta1 * mo.m + (1.0 - p.beta1) * g;
+            mo.v = p.beta2 * mo.v + (1.0 - p.beta2) * g * g;
+            -lr * (mo.m / c1) / ((mo.v / c2).sqrt() + p.eps)
+        })
+        .collect()
+}
+
 /// Per-vertex isotropic Adam (module docs): the step count; the moments are per vertex ([`Moments`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct VertexAdam {

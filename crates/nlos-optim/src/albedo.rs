@@ -1,335 +1,262 @@
-//! Spatially varying albedo: a map of log-albedo over the wall plane, fitted with the shape.
+//! Reflectance on the surface: an albedo per vertex, fitted with the shape (on by default).
 //!
-//! Tsai et al. 2019's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies — the
-//! printed bars of a resolution chart, a label — then has only the shape to explain its intensity
-//! variations, and the fit turns them into relief (the 40 cm chart came out as bumps over 0.395–0.49 m,
-//! `docs/results.md`). With a map the same variations become albedo.
+//! Tsai et al. 2019's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies —
+//! the printed bars of a chart, a label — then has only the shape to explain its dark parts, and the fit
+//! turns them into dents: faces pushed back and turned grazing, so that their light arrives later and
+//! weaker. Peers that recover detail carry reflectance per point (Choi et al. 2023, albedo with total
+//! variation; Plack et al. 2023, per-vertex albedo).
 //!
-//! **Model.** The albedo is a function `a(x, y) = exp θ(x, y)` of the position projected onto the wall
-//! (the scene is seen from the wall along its normal, +z, so every visible point has its own (x, y)):
-//! `θ` is bilinear between the centres of a regular grid of cells. Each triangle t reflects with the
-//! factor `w_t = a(c_t)` at its centroid c_t, on top of the BRDF (`nlos_render::Renderer::set_face_weights`).
-//! Tying the albedo to wall coordinates instead of to the mesh keeps it well defined through remeshing,
-//! pruning and growth, which change the faces every block.
+//! **Model.** Each vertex v holds a relative albedo `a_v ≥ 0` ([`ALBEDO`], a field of the loop's surface, so
+//! that it follows every remeshing, deletion and patch). Triangle t reflects with the factor
+//! ```text
+//! w_t = (a_i + a_j + a_k) / 3                                   (t = (i, j, k))
+//! ```
+//! on top of the BRDF, whichever runs (`nlos_render::Renderer::set_face_weights`) — the rule `nlos render`
+//! applies to a PLY's vertex albedo, so a fitted mesh renders as it was fitted.
 //!
-//! **Gradient.** The renderer gives dE/dw_t (`nlos_render::Gradient::faces`); with `w_t = exp θ(c_t)` and
-//! `θ(c_t) = Σ_c B_tc θ_c` (bilinear weights B), `dE/dθ_c = Σ_t dE/dw_t · w_t · B_tc` ([`AlbedoMap::chain`]).
-//! The factors are held fixed while the vertices move (as visibility is): a shape step does not move a face
-//! to a brighter cell.
+//! **Gradient.** The renderer gives dE/dw_t (`nlos_render::Gradient::faces`, Proposition 1 with the factor
+//! as one more BRDF parameter), so `dE/da_v = Σ_{t ∋ v} dE/dw_t / 3` ([`vertex_gradient`]).
 //!
-//! **Gauge.** The measurement's global scale is solved in closed form at every step, so a common shift of
-//! θ changes nothing; after every step θ is shifted so that its area-weighted mean over the mesh is 0
-//! ([`AlbedoMap::recentre`]): the geometric mean albedo is the BRDF's own.
+//! **Prior** (edge-preserving): total variation over the mesh's edges, smoothed (Charbonnier),
+//! ```text
+//! R_TV = Σ_e ℓ_e √((a_i − a_j)² + ε²) / Σ_e ℓ_e                 (ε = TV_EPSILON)
+//! ```
+//! the edge-length-weighted mean jump ([`total_variation`]); its weight is
+//! [`AlbedoParams::tv`] times the data term above its noise floor at the block's first step (as the normal
+//! smoothing's λ is set). A step between two albedos costs its length, not its square: a printed bar stays
+//! sharp, noise within a region is smoothed.
+//!
+//! **Steps.** Every shape step updates the albedos from the same rendering as the vertices (plain Adam,
+//! [`crate::adam::scalar_step`], moments in [`ALBEDO_MOMENTS`]): the fit can make a patch darker while it
+//! would otherwise bend it. Reflectance blocks, where the BRDF has free parameters, update them too.
+//! Albedos are kept in `[0, AlbedoParams::max]`; one that reaches 0 is the data saying "nothing here", and
+//! the region test deletes it when the data cannot tell it from nothing ([`crate::regions`]).
+//!
+//! **Gauge.** With the measurement's scale solved in closed form at every step, a common factor of all
+//! albedos changes nothing; after every step they are divided by their area-weighted mean over the surface
+//! ([`recentre`]): the mean albedo is the BRDF's own.
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use crate::adam::{AdamParams, ScalarMoments, scalar_step};
 use crate::error::{OptimError, Result};
+use crate::surface::{Surface, VertexField};
 
-/// Parameters of the albedo map ([`crate::ReconstructParams::albedo_map`]).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct AlbedoMapParams {
-    /// Cell size in metres (default 0.01). Detail finer than about two cells cannot be represented.
-    pub cell: f64,
-    /// Adam learning rate of θ = log albedo, per reflectance step (default 0.05).
+/// The relative albedo of each vertex (module docs). Appended patches start at the mean, 1.
+pub const ALBEDO: VertexField<f64> = VertexField::new("albedo", 1.0);
+
+/// The Adam moments of [`ALBEDO`].
+pub const ALBEDO_MOMENTS: VertexField<ScalarMoments> = VertexField::new("albedo_adam", ScalarMoments::ZERO);
+
+/// Smoothing ε of the total variation (relative albedo): jumps much larger than it cost their length.
+pub const TV_EPSILON: f64 = 0.01;
+
+/// Parameters of the per-vertex albedo ([`crate::ReconstructParams::albedo`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AlbedoParams {
+    /// Adam learning rate of the relative albedo, per step (default 0.05: an albedo can fall from the mean
+    /// to 0 within a shape block of 20 steps).
     pub lr: f64,
-    /// Largest |θ| (default ln 20 ≈ 3.0: albedo within a factor 20 of the mean either way). A guard: cells
-    /// that see little light cannot run away.
-    pub max_log: f64,
+    /// Weight of the total variation relative to the data term above its noise floor (default 0.05).
+    pub tv: f64,
+    /// Largest relative albedo (default 8): a guard, so that a vertex that sees little light cannot run away.
+    pub max: f64,
 }
 
-impl Default for AlbedoMapParams {
+impl Default for AlbedoParams {
     fn default() -> Self {
-        Self { cell: 0.01, lr: 0.05, max_log: 20f64.ln() }
+        Self { lr: 0.05, tv: 0.05, max: 8.0 }
     }
 }
 
-impl AlbedoMapParams {
+impl AlbedoParams {
     /// Checks the parameters.
     ///
     /// # Errors
-    /// [`OptimError::InvalidParameter`] for a cell size that is not finite and in (0, 1] m, a learning rate
-    /// that is not finite and ≥ 0, a `max_log` that is not finite and > 0.
+    /// [`OptimError::InvalidParameter`] for a learning rate or TV weight that is not finite and ≥ 0, or a
+    /// `max` that is not finite and > 1.
     pub fn validate(&self) -> Result<()> {
         let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
-        if !(self.cell.is_finite() && self.cell > 0.0 && self.cell <= 1.0) {
-            return bad("albedo_map.cell", self.cell, "the cell size must be finite and in (0, 1] metres");
-        }
         if !(self.lr.is_finite() && self.lr >= 0.0) {
-            return bad("albedo_map.lr", self.lr, "the learning rate must be finite and >= 0");
+            return bad("albedo.lr", self.lr, "the learning rate must be finite and >= 0");
         }
-        if !(self.max_log.is_finite() && self.max_log > 0.0) {
-            return bad("albedo_map.max_log", self.max_log, "must be finite and > 0");
+        if !(self.tv.is_finite() && self.tv >= 0.0) {
+            return bad("albedo.tv", self.tv, "the total variation's weight must be finite and >= 0");
+        }
+        if !(self.max.is_finite() && self.max > 1.0) {
+            return bad("albedo.max", self.max, "the largest relative albedo must be finite and > 1 (the mean)");
         }
         Ok(())
     }
 }
 
-/// Log-albedo on a grid of cells over the wall plane (see the module docs).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct AlbedoMap {
-    /// (x, y) of the centre of cell (0, 0), metres.
-    pub origin: [f64; 2],
-    /// Cell size, metres.
-    pub cell: f64,
-    /// Cells along x.
-    pub nx: usize,
-    /// Cells along y.
-    pub ny: usize,
-    /// θ = ln albedo per cell, row-major (index `iy·nx + ix`).
-    pub log_albedo: Vec<f64>,
+/// The factor `w_t` of every triangle: the mean of its corners' albedos (module docs).
+pub fn face_weights(albedo: &[f64], triangles: &[[u32; 3]]) -> Vec<f32> {
+    triangles.iter().map(|t| (t.iter().map(|&v| albedo[v as usize]).sum::<f64>() / 3.0) as f32).collect()
 }
 
-impl AlbedoMap {
-    /// A uniform map (θ = 0) covering the (x, y) bounding box of `positions` with `margin` metres to spare
-    /// on every side. Points outside the map take the value of its nearest edge.
-    ///
-    /// # Errors
-    /// [`OptimError::InvalidParameter`] for an invalid cell size, no or non-finite positions, or a map of
-    /// more than 4 million cells.
-    pub fn covering(positions: &[Vec3], cell: f64, margin: f64) -> Result<Self> {
-        AlbedoMapParams { cell, ..AlbedoMapParams::default() }.validate()?;
-        if positions.is_empty() || positions.iter().any(|p| !p.is_finite()) {
-            return Err(OptimError::InvalidParameter {
-                name: "albedo_map",
-                value: positions.len() as f64,
-                reason: "the map needs finite mesh positions to cover (value = their count)",
-            });
+/// `dE/da_v = Σ_{t ∋ v} dE/dw_t / 3` for `n` vertices, from the renderer's per-face gradient.
+pub fn vertex_gradient(n: usize, triangles: &[[u32; 3]], grad_faces: &[f32]) -> Vec<f64> {
+    let mut g = vec![0.0; n];
+    for (t, &gf) in triangles.iter().zip(grad_faces) {
+        for &v in t {
+            g[v as usize] += f64::from(gf) / 3.0;
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in positions {
-            for (k, c) in [f64::from(p.x), f64::from(p.y)].into_iter().enumerate() {
-                lo[k] = lo[k].min(c - margin);
-                hi[k] = hi[k].max(c + margin);
-            }
-        }
-        let n = |k: usize| (((hi[k] - lo[k]) / cell).ceil() as usize).max(1);
-        let (nx, ny) = (n(0), n(1));
-        if nx.saturating_mul(ny) > 4_000_000 {
-            return Err(OptimError::InvalidParameter {
-                name: "albedo_map.cell",
-                value: cell,
-                reason: "the map would have more than 4 million cells: use a larger cell",
-            });
-        }
-        Ok(Self { origin: [lo[0] + 0.5 * cell, lo[1] + 0.5 * cell], cell, nx, ny, log_albedo: vec![0.0; nx * ny] })
     }
+    g
+}
 
-    /// Checks a map read back from a file (a checkpoint): at least one cell each way, one value per cell,
-    /// a finite positive cell size, finite origin and values. [`AlbedoMap::covering`] makes only valid maps.
-    ///
-    /// # Errors
-    /// [`OptimError::InvalidParameter`] naming the first bad field.
-    pub fn validate(&self) -> Result<()> {
-        let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
-        if self.nx == 0 || self.ny == 0 || self.nx.saturating_mul(self.ny) != self.log_albedo.len() {
-            return bad(
-                "albedo.log_albedo",
-                self.log_albedo.len() as f64,
-                "needs nx, ny >= 1 and nx·ny values (value = their count)",
-            );
-        }
-        if !(self.cell.is_finite() && self.cell > 0.0) {
-            return bad("albedo.cell", self.cell, "the cell size must be finite and > 0");
-        }
-        if let Some(v) = self.origin.iter().chain(&self.log_albedo).find(|v| !v.is_finite()) {
-            return bad("albedo", *v, "the origin and the log-albedo values must be finite");
-        }
-        Ok(())
-    }
-
-    /// The four bilinear taps `(cell index, weight)` at (x, y), weights summing to 1 (clamped at the edges).
-    pub fn taps(&self, x: f64, y: f64) -> [(usize, f64); 4] {
-        let axis = |v: f64, o: f64, n: usize| -> (usize, usize, f64) {
-            let u = ((v - o) / self.cell).clamp(0.0, (n - 1) as f64);
-            // Guard: a NaN coordinate clamps to NaN; send it to cell 0 with weight 1.
-            let u = if u.is_nan() { 0.0 } else { u };
-            let i0 = (u.floor() as usize).min(n - 1);
-            let i1 = (i0 + 1).min(n - 1);
-            (i0, i1, u - i0 as f64)
-        };
-        let (x0, x1, fx) = axis(x, self.origin[0], self.nx);
-        let (y0, y1, fy) = axis(y, self.origin[1], self.ny);
-        let at = |ix: usize, iy: usize| iy * self.nx + ix;
-        [
-            (at(x0, y0), (1.0 - fx) * (1.0 - fy)),
-            (at(x1, y0), fx * (1.0 - fy)),
-            (at(x0, y1), (1.0 - fx) * fy),
-            (at(x1, y1), fx * fy),
-        ]
-    }
-
-    /// θ at (x, y).
-    pub fn log_albedo_at(&self, x: f64, y: f64) -> f64 {
-        self.taps(x, y).iter().map(|&(c, w)| w * self.log_albedo[c]).sum()
-    }
-
-    fn centroid(positions: &[Vec3], t: &[u32; 3]) -> (f64, f64) {
-        let c = (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0;
-        (f64::from(c.x), f64::from(c.y))
-    }
-
-    /// The reflectance factor `w_t = exp θ(c_t)` of every triangle (c_t its centroid).
-    pub fn face_weights(&self, positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<f32> {
-        triangles
-            .iter()
-            .map(|t| {
-                let (x, y) = Self::centroid(positions, t);
-                self.log_albedo_at(x, y).exp() as f32
-            })
-            .collect()
-    }
-
-    /// dE/dθ per cell from dE/dw_t per triangle (`d_faces`, `nlos_render::Gradient::faces`):
-    /// `Σ_t dE/dw_t · w_t · B_tc`.
-    ///
-    /// # Panics
-    /// If `d_faces` does not hold one value per triangle.
-    pub fn chain(&self, positions: &[Vec3], triangles: &[[u32; 3]], d_faces: &[f32]) -> Vec<f64> {
-        assert_eq!(d_faces.len(), triangles.len(), "one dE/dw per triangle");
-        let mut g = vec![0.0; self.log_albedo.len()];
-        for (t, &d) in triangles.iter().zip(d_faces) {
-            let (x, y) = Self::centroid(positions, t);
-            let taps = self.taps(x, y);
-            let w = taps.iter().map(|&(c, b)| b * self.log_albedo[c]).sum::<f64>().exp();
-            for (c, b) in taps {
-                g[c] += f64::from(d) * w * b;
-            }
-        }
-        g
-    }
-
-    /// Adds `delta` to θ, clamped to `±max_log`.
-    ///
-    /// # Panics
-    /// If `delta` does not hold one value per cell.
-    pub fn add(&mut self, delta: &[f64], max_log: f64) {
-        assert_eq!(delta.len(), self.log_albedo.len(), "one update per cell");
-        for (t, d) in self.log_albedo.iter_mut().zip(delta) {
-            *t = (*t + d).clamp(-max_log, max_log);
+/// The smoothed total variation `R_TV` of the module docs and its gradient with respect to each albedo.
+/// Each interior edge counts once (it is seen from its two faces; both halves are summed and halved).
+pub fn total_variation(positions: &[Vec3], triangles: &[[u32; 3]], albedo: &[f64]) -> (f64, Vec<f64>) {
+    let (mut sum, mut length) = (0.0, 0.0);
+    let mut g = vec![0.0; albedo.len()];
+    for t in triangles {
+        for k in 0..3 {
+            let (i, j) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let l = 0.5 * f64::from(positions[i].distance(positions[j]));
+            let d = albedo[i] - albedo[j];
+            let r = (d * d + TV_EPSILON * TV_EPSILON).sqrt();
+            sum += l * r;
+            length += l;
+            g[i] += l * d / r;
+            g[j] -= l * d / r;
         }
     }
-
-    /// Shifts θ so that its area-weighted mean over the mesh's triangles is 0 (the gauge; see the module
-    /// docs). A mesh without area leaves θ as it is.
-    pub fn recentre(&mut self, positions: &[Vec3], triangles: &[[u32; 3]]) {
-        let (mut sum, mut area) = (0.0f64, 0.0f64);
-        for t in triangles {
-            let (a, b, c) = (positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]);
-            let da = 0.5 * f64::from((b - a).cross(c - a).length());
-            let (x, y) = Self::centroid(positions, t);
-            sum += da * self.log_albedo_at(x, y);
-            area += da;
-        }
-        if area > 0.0 && sum.is_finite() {
-            let mean = sum / area;
-            self.log_albedo.iter_mut().for_each(|t| *t -= mean);
-        }
+    if !(length > 0.0) {
+        return (0.0, vec![0.0; albedo.len()]);
     }
+    g.iter_mut().for_each(|x| *x /= length);
+    (sum / length, g)
+}
 
-    /// The albedo (exp θ) per cell, row-major, for pictures.
-    pub fn albedo(&self) -> Vec<f64> {
-        self.log_albedo.iter().map(|t| t.exp()).collect()
+/// Divides every albedo by the area-weighted mean of the face factors, so that the mean is 1 (module docs,
+/// "Gauge"). A surface of zero area or zero mean albedo is left as it is.
+pub fn recentre(albedo: &mut [f64], positions: &[Vec3], triangles: &[[u32; 3]]) {
+    let (mut num, mut den) = (0.0, 0.0);
+    for t in triangles {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let area = 0.5 * f64::from((b - a).cross(c - a).length());
+        num += area * t.iter().map(|&v| albedo[v as usize]).sum::<f64>() / 3.0;
+        den += area;
     }
+    if num > 0.0 && den > 0.0 {
+        let k = den / num;
+        albedo.iter_mut().for_each(|a| *a *= k);
+    }
+}
+
+/// One Adam step of the surface's albedo ([`ALBEDO`], moments [`ALBEDO_MOMENTS`]) from the renderer's
+/// per-face gradient `grad_faces` (of the normalised data term) plus `tv_weight` times the total variation's;
+/// `steps` is the albedo's step count, `lr` the step's learning rate. The albedos are clamped to
+/// `[0, params.max]` and, with `recentre_mean` (the scale is solved), recentred ([`recentre`]).
+///
+/// # Errors
+/// [`OptimError::Field`] when the surface has no albedo, [`OptimError::LengthMismatch`] for a gradient
+/// that is not one per face.
+#[allow(clippy::too_many_arguments)]
+pub fn step(
+    surface: &mut Surface,
+    steps: &mut u64,
+    adam: &AdamParams,
+    params: &AlbedoParams,
+    grad_faces: &[f32],
+    tv_weight: f64,
+    lr: f64,
+    recentre_mean: bool,
+) -> Result<()> {
+    if grad_faces.len() != surface.n_faces() {
+        return Err(OptimError::LengthMismatch {
+            what: "albedo face gradient",
+            expected: surface.n_faces(),
+            got: grad_faces.len(),
+        });
+    }
+    let mut grad = vertex_gradient(surface.n_vertices(), surface.triangles(), grad_faces);
+    if tv_weight > 0.0 {
+        let (_, g) = total_variation(surface.positions(), surface.triangles(), surface.vertex(ALBEDO)?);
+        grad.iter_mut().zip(&g).for_each(|(x, t)| *x += tv_weight * t);
+    }
+    *steps += 1;
+    let delta = scalar_step(adam, *steps, surface.vertex_mut(ALBEDO_MOMENTS)?, &grad, lr);
+    let (positions, triangles) = (surface.positions().to_vec(), surface.triangles().to_vec());
+    let albedo = surface.vertex_mut(ALBEDO)?;
+    for (a, d) in albedo.iter_mut().zip(&delta) {
+        *a = (*a + d).clamp(0.0, params.max);
+    }
+    if recentre_mean {
+        recentre(albedo, &positions, &triangles);
+    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn quad() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let p = vec![
-            Vec3::new(-0.1, -0.1, 0.4),
-            Vec3::new(0.1, -0.1, 0.4),
-            Vec3::new(0.1, 0.1, 0.4),
-            Vec3::new(-0.1, 0.1, 0.4),
-        ];
-        (p, vec![[0, 2, 1], [0, 3, 2]])
+    fn square() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        (p, vec![[0, 1, 2], [0, 2, 3]])
+    }
+
+    /// The vertex gradient is the chain rule of `face_weights`: checked against a finite difference of a
+    /// linear function of the face factors.
+    #[test]
+    fn vertex_gradient_is_the_chain_rule_of_the_face_weights() {
+        let (_, t) = square();
+        let gf = [0.7f32, -1.3];
+        let e = |a: &[f64]| face_weights(a, &t).iter().zip(&gf).map(|(w, g)| f64::from(*w * *g)).sum::<f64>();
+        let a = [1.0, 0.5, 2.0, 0.1];
+        let g = vertex_gradient(4, &t, &gf);
+        for v in 0..4 {
+            let mut b = a;
+            b[v] += 1e-3;
+            let fd = (e(&b) - e(&a)) / 1e-3;
+            assert!((fd - g[v]).abs() < 1e-5, "vertex {v}: {fd} vs {}", g[v]);
+        }
+    }
+
+    /// Total variation: zero gradient on a uniform albedo, the mean jump for a step, and its gradient checked
+    /// by finite differences.
+    #[test]
+    fn total_variation_is_the_mean_jump_and_its_gradient_is_exact() {
+        let (p, t) = square();
+        let (r, g) = total_variation(&p, &t, &[1.0; 4]);
+        assert!((r - TV_EPSILON).abs() < 1e-12 && g.iter().all(|x| x.abs() < 1e-12));
+        let a = [1.0, 0.2, 0.3, 1.1];
+        let (r, g) = total_variation(&p, &t, &a);
+        for v in 0..4 {
+            let mut b = a;
+            b[v] += 1e-6;
+            let fd = (total_variation(&p, &t, &b).0 - r) / 1e-6;
+            assert!((fd - g[v]).abs() < 1e-4, "vertex {v}: {fd} vs {}", g[v]);
+        }
+        // A step of 1 across the diagonal-free half: edges 0–1 and 2–3 (length 1) and 0–2 (√2) jump.
+        let (r, _) = total_variation(&p, &t, &[1.0, 0.0, 0.0, 1.0]);
+        let jumps = 1.0 + 1.0 + std::f64::consts::SQRT_2;
+        let total = 4.0 + std::f64::consts::SQRT_2;
+        assert!((r - jumps / total).abs() < 1e-3, "{r}");
     }
 
     #[test]
-    fn taps_interpolate_linear_functions_exactly() {
-        let (p, _) = quad();
-        let mut m = AlbedoMap::covering(&p, 0.03, 0.01).expect("valid");
-        for iy in 0..m.ny {
-            for ix in 0..m.nx {
-                let (x, y) = (m.origin[0] + ix as f64 * m.cell, m.origin[1] + iy as f64 * m.cell);
-                m.log_albedo[iy * m.nx + ix] = 0.3 * x - 2.0 * y + 0.1;
-            }
-        }
-        for &(x, y) in &[(0.0, 0.0), (0.031, -0.07), (-0.09, 0.095)] {
-            let taps = m.taps(x, y);
-            assert!((taps.iter().map(|t| t.1).sum::<f64>() - 1.0).abs() < 1e-12);
-            assert!((m.log_albedo_at(x, y) - (0.3 * x - 2.0 * y + 0.1)).abs() < 1e-12, "({x}, {y})");
-        }
-        // Outside the map: the nearest edge's value; NaN: a finite value, no panic.
-        let edge = m.log_albedo_at(m.origin[0] - 5.0, 0.0);
-        assert!((edge - m.log_albedo_at(m.origin[0], 0.0)).abs() < 1e-12);
-        assert!(m.log_albedo_at(f64::NAN, 0.0).is_finite());
+    fn recentring_makes_the_area_mean_one() {
+        let (p, t) = square();
+        let mut a = vec![2.0, 4.0, 2.0, 0.0];
+        recentre(&mut a, &p, &t);
+        let w = face_weights(&a, &t);
+        assert!((0.5 * f64::from(w[0] + w[1]) - 1.0).abs() < 1e-6, "{w:?}");
     }
 
     #[test]
-    fn chain_matches_finite_differences() {
-        // E(θ) = Σ_t c_t w_t(θ) with fixed c_t: dE/dw_t = c_t.
-        let (p, t) = quad();
-        let mut m = AlbedoMap::covering(&p, 0.05, 0.0).expect("valid");
-        for (i, v) in m.log_albedo.iter_mut().enumerate() {
-            *v = 0.1 * (i as f64).sin();
-        }
-        let c = [0.7f32, -1.3];
-        let e = |m: &AlbedoMap| -> f64 {
-            m.face_weights(&p, &t).iter().zip(&c).map(|(w, c)| f64::from(*w) * f64::from(*c)).sum()
-        };
-        let g = m.chain(&p, &t, &c);
-        let mut nonzero = 0;
-        for (k, &gk) in g.iter().enumerate() {
-            let h = 1e-3;
-            let (mut a, mut b) = (m.clone(), m.clone());
-            a.log_albedo[k] += h;
-            b.log_albedo[k] -= h;
-            let fd = (e(&a) - e(&b)) / (2.0 * h);
-            // The factors are f32: the difference quotient carries ~1e-4 relative rounding.
-            assert!((fd - gk).abs() < 1e-3 * fd.abs().max(1e-3), "cell {k}: fd {fd} chain {gk}");
-            nonzero += usize::from(gk != 0.0);
-        }
-        assert!(nonzero >= 2);
-    }
-
-    #[test]
-    fn recentre_sets_the_area_weighted_mean_to_zero_and_add_clamps() {
-        let (p, t) = quad();
-        let mut m = AlbedoMap::covering(&p, 0.02, 0.0).expect("valid");
-        m.add(&vec![0.5; m.log_albedo.len()], 3.0);
-        m.log_albedo[0] = 1.0;
-        m.recentre(&p, &t);
-        let w = m.face_weights(&p, &t);
-        let mean_log = (f64::from(w[0]).ln() + f64::from(w[1]).ln()) / 2.0; // equal areas
-        assert!(mean_log.abs() < 1e-6, "{mean_log}");
-        m.add(&vec![10.0; m.log_albedo.len()], 3.0);
-        assert!(m.log_albedo.iter().all(|x| *x <= 3.0));
-    }
-
-    #[test]
-    fn bad_parameters_are_typed_errors() {
-        let (p, _) = quad();
-        for cell in [0.0, -1.0, f64::NAN, 2.0] {
-            assert!(matches!(AlbedoMap::covering(&p, cell, 0.0), Err(OptimError::InvalidParameter { .. })));
-        }
-        assert!(AlbedoMap::covering(&[], 0.01, 0.0).is_err());
-        assert!(AlbedoMap::covering(&[Vec3::NAN], 0.01, 0.0).is_err());
-        assert!(AlbedoMap::covering(&p, 1e-5, 0.0).is_err(), "too many cells");
-        assert!(AlbedoMapParams { lr: -1.0, ..Default::default() }.validate().is_err());
-        assert!(AlbedoMapParams { max_log: 0.0, ..Default::default() }.validate().is_err());
-        // Maps read back from a file: empty, inconsistent or non-finite ones are refused.
-        let good = AlbedoMap::covering(&p, 0.05, 0.0).expect("valid");
-        assert!(good.validate().is_ok());
-        for broken in [
-            AlbedoMap { nx: 0, log_albedo: vec![], ..good.clone() },
-            AlbedoMap { log_albedo: vec![0.0; 1], ..good.clone() },
-            AlbedoMap { cell: 0.0, ..good.clone() },
-            AlbedoMap { origin: [f64::NAN, 0.0], ..good.clone() },
+    fn parameters_are_validated() {
+        assert!(AlbedoParams::default().validate().is_ok());
+        for bad in [
+            AlbedoParams { lr: -1.0, ..AlbedoParams::default() },
+            AlbedoParams { tv: f64::NAN, ..AlbedoParams::default() },
+            AlbedoParams { max: 1.0, ..AlbedoParams::default() },
         ] {
-            assert!(matches!(broken.validate(), Err(OptimError::InvalidParameter { .. })), "{broken:?}");
+            assert!(bad.validate().is_err(), "{bad:?}");
         }
     }
 }

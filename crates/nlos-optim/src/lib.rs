@@ -15,8 +15,9 @@
 //! - [`prune`]: loss-driven boundary pruning — boundary faces whose deletion lowers the data term go;
 //! - [`residual`]: residual back-projection — new surface patches where the LCT of the fit's residual
 //!   finds light away from the mesh, added where they lower the data term;
-//! - [`albedo`]: spatially varying albedo — a log-albedo map over the wall plane, fitted with the shape, for
-//!   scenes whose reflectance varies (printed patterns), which a uniform albedo turns into relief;
+//! - [`albedo`]: reflectance on the surface — an albedo per vertex, fitted with the shape under a
+//!   total-variation prior, so that dark print is darker surface, not relief;
+//! - [`regions`]: region tests — dark regions whose light the data do not detect are deleted (holes);
 //! - [`pipeline`]: the reconstruction as users run it — settings ([`pipeline::Config`], TOML), capture
 //!   preparation, every `auto` decision and the initial surface;
 //! - [`surface`]: the loop's surface — positions, triangles and named per-vertex and per-face fields (the
@@ -49,13 +50,14 @@ pub mod pipeline;
 pub mod prune;
 pub mod reconstruct;
 pub mod reflectance;
+pub mod regions;
 pub mod regularizer;
 pub mod residual;
 pub mod schedule;
 pub mod surface;
 
-pub use adam::{AdamParams, Moments, VectorAdam, VertexAdam};
-pub use albedo::{AlbedoMap, AlbedoMapParams};
+pub use adam::{AdamParams, Moments, ScalarMoments, VectorAdam, VertexAdam};
+pub use albedo::{ALBEDO, ALBEDO_MOMENTS, AlbedoParams};
 pub use boundary_smoothing::BoundarySmoothing;
 pub use data_term::{
     DataEval, DataTerm, RowLoss, RowTerm, SensorBackground, SensorFit, SensorModel, SensorRows, expected_half_deviance,
@@ -71,6 +73,7 @@ pub use reconstruct::{
     describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
+pub use regions::{RegionNoise, RegionParams, RegionRecord, Regions, dark_regions};
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{
     LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchFit, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,

@@ -7,12 +7,13 @@ use nlos_mesh::remeshing::{BoundaryMode, RemeshParams};
 use nlos_render::{DeterministicRule, Device, Kernel, RenderParams, Sampling, SplatRule, Visibility};
 
 use crate::adam::AdamParams;
-use crate::albedo::AlbedoMapParams;
+use crate::albedo::AlbedoParams;
 use crate::data_term::counts::SensorFit;
 use crate::data_term::intensities::DataTerm;
 use crate::error::{OptimError, Result};
 use crate::prune::PruneParams;
 use crate::reflectance::Reflectance;
+use crate::regions::RegionParams;
 use crate::residual::ResidualParams;
 use crate::schedule::Schedule;
 
@@ -109,11 +110,14 @@ pub struct ReconstructParams {
     /// `λ (R + w R_∂)` ([`crate::boundary_smoothing`]; λ is still set against `R` alone; on a patch that is mostly
     /// rim its step holds the boundary loop's enclosed area). 0 turns it off; default 1.
     pub boundary_smoothing: f64,
-    /// Spatially varying albedo ([`crate::albedo`]): a map of log-albedo over the wall plane, fitted in the
-    /// reflectance blocks alongside θ (default `None`: one albedo for the whole surface, as in Tsai et al. 2019).
-    /// For scenes whose reflectance varies (printed patterns, labels), which a uniform albedo turns into
-    /// relief. With a Lambertian BRDF the reflectance blocks then run for the map alone.
-    pub albedo_map: Option<AlbedoMapParams>,
+    /// Reflectance on the surface ([`crate::albedo`]): a relative albedo per vertex, fitted in every shape
+    /// step with the vertices and in the reflectance blocks, with a total-variation prior (default `Some`;
+    /// `None`: one albedo for the whole surface, as in Tsai et al. 2019).
+    pub albedo: Option<AlbedoParams>,
+    /// Region tests after every block ([`crate::regions`]; needs [`ReconstructParams::albedo`]): dark regions
+    /// whose light the data do not detect are deleted — holes — and the others kept darker — print (default
+    /// `Some(RegionParams::default())`).
+    pub regions: Option<RegionParams>,
     /// Renderer settings besides the sampling rule, which [`ReconstructParams::sampling`] gives stage by stage
     /// (default: [`RenderParams`]'s — tent kernel, needed for the time-shift gradient; live visibility;
     /// one-sided faces).
@@ -176,7 +180,8 @@ impl Default for ReconstructParams {
             lr_reflectance: 0.05,
             regulariser_ratio: 0.1,
             boundary_smoothing: 1.0,
-            albedo_map: None,
+            albedo: Some(AlbedoParams::default()),
+            regions: Some(RegionParams::default()),
             regulariser_weight: None,
             render: RenderSettings::default(),
             device: Device::Auto,
@@ -206,8 +211,11 @@ impl ReconstructParams {
         if let Some(p) = &self.prune {
             p.validate()?;
         }
-        if let Some(a) = &self.albedo_map {
+        if let Some(a) = &self.albedo {
             a.validate()?;
+        }
+        if let Some(r) = &self.regions {
+            r.validate()?;
         }
         let s = &self.schedule;
         if !pos(s.initial_resolution) {

@@ -289,34 +289,41 @@ pub(crate) fn delta(
 
 /// Whether deleting face `f` leaves one of its vertices with two separate fans of faces (a vertex where
 /// two boundary loops touch: not a manifold mesh).
-fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_faces: &[Vec<usize>]) -> bool {
-    triangles[f].iter().any(|&v| {
-        let fan: Vec<usize> = vertex_faces[v as usize].iter().copied().filter(|&g| g != f && keep[g]).collect();
-        if fan.len() < 2 {
-            return false;
+pub(crate) fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_faces: &[Vec<usize>]) -> bool {
+    triangles[f].iter().any(|&v| fans(v, triangles, vertex_faces, |g| g != f && keep[g]).len() > 1)
+}
+
+/// The fans of the faces around vertex `v` for which `present` holds: groups of faces joined by an edge at
+/// `v`. One fan (or none) is a manifold vertex; two or more, a pinch.
+pub(crate) fn fans(
+    v: u32,
+    triangles: &[[u32; 3]],
+    vertex_faces: &[Vec<usize>],
+    present: impl Fn(usize) -> bool,
+) -> Vec<Vec<usize>> {
+    let fan: Vec<usize> = vertex_faces[v as usize].iter().copied().filter(|&g| present(g)).collect();
+    // Two faces are adjacent when they share an edge at v.
+    let others = |g: usize| triangles[g].into_iter().filter(move |&w| w != v);
+    let mut component = vec![usize::MAX; fan.len()];
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for start in 0..fan.len() {
+        if component[start] != usize::MAX {
+            continue;
         }
-        // Connected components of the fan: two faces are adjacent when they share an edge at v.
-        let others = |g: usize| triangles[g].into_iter().filter(move |&w| w != v);
-        let mut component = vec![usize::MAX; fan.len()];
-        let mut count = 0;
-        for start in 0..fan.len() {
-            if component[start] != usize::MAX {
-                continue;
-            }
-            component[start] = count;
-            let mut stack = vec![start];
-            while let Some(i) = stack.pop() {
-                for j in 0..fan.len() {
-                    if component[j] == usize::MAX && others(fan[i]).any(|w| others(fan[j]).any(|u| u == w)) {
-                        component[j] = count;
-                        stack.push(j);
-                    }
+        component[start] = out.len();
+        let (mut members, mut stack) = (vec![fan[start]], vec![start]);
+        while let Some(i) = stack.pop() {
+            for j in 0..fan.len() {
+                if component[j] == usize::MAX && others(fan[i]).any(|w| others(fan[j]).any(|u| u == w)) {
+                    component[j] = out.len();
+                    members.push(fan[j]);
+                    stack.push(j);
                 }
             }
-            count += 1;
         }
-        count > 1
-    })
+        out.push(members);
+    }
+    out
 }
 
 #[cfg(test)]

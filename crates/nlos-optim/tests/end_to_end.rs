@@ -183,18 +183,22 @@ fn small_params(dir: PathBuf) -> ReconstructParams {
 
 #[test]
 fn resume_after_interruption_is_bit_identical() {
+    check_resume(Some(nlos_optim::AlbedoParams::default()));
+}
+
+/// Without the per-vertex albedo (one albedo for the surface) a resumed run is bit-identical too.
+#[test]
+fn resume_with_one_albedo_is_bit_identical() {
     check_resume(None);
 }
 
-/// The albedo map and its Adam state are part of the checkpoint: a resumed run fits the same map.
-#[test]
-fn resume_with_an_albedo_map_is_bit_identical() {
-    check_resume(Some(nlos_optim::AlbedoMapParams { cell: 0.03, ..Default::default() }));
-}
-
-fn check_resume(albedo_map: Option<nlos_optim::AlbedoMapParams>) {
-    let tag = if albedo_map.is_some() { "-albedo" } else { "" };
-    let small_params = |dir: PathBuf| ReconstructParams { albedo_map, ..small_params(dir) };
+fn check_resume(albedo: Option<nlos_optim::AlbedoParams>) {
+    let tag = if albedo.is_none() { "-one-albedo" } else { "" };
+    let small_params = |dir: PathBuf| ReconstructParams {
+        albedo,
+        regions: albedo.and(Some(nlos_optim::RegionParams::default())),
+        ..small_params(dir)
+    };
     // One rayon thread, as a user might run it (the result does not depend on the thread count).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     pool.install(|| {
@@ -227,7 +231,7 @@ fn check_resume(albedo_map: Option<nlos_optim::AlbedoMapParams>) {
         assert!(pa.iter().zip(&pb).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
         assert_eq!(full.reflectance, resumed.reflectance);
         assert_eq!(full.albedo, resumed.albedo);
-        assert_eq!(full.albedo.is_some(), albedo_map.is_some());
+        assert_eq!(full.albedo.is_some(), albedo.is_some());
         assert_eq!(full.scale.to_bits(), resumed.scale.to_bits());
         let strip = |l: &nlos_optim::RunLog| {
             l.iterations.iter().map(|r| nlos_optim::IterationRecord { time_s: 0.0, ..r.clone() }).collect::<Vec<_>>()

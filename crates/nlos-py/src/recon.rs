@@ -158,6 +158,7 @@ pub(crate) fn reconstruct<'py>(
     result.set_item("log", to_json(&outcome.log)?)?;
     result.set_item("stop", to_json(&outcome.stop)?)?;
     result.set_item("scale", outcome.scale)?;
+    result.set_item("albedo", outcome.albedo.clone().map(|a| numpy::PyArray1::from_vec(py, a)))?;
     result.set_item("notes", prepared.notes.clone())?;
     // The run directory holds everything by now; a run that kept almost no surface raises, saying why, with
     // what it made as the exception's `result` (the Python side turns it into a `Reconstruction`).
@@ -186,6 +187,8 @@ pub(crate) fn read_run(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyDic
     result.set_item("log", to_json(record.log())?)?;
     result.set_item("stop", to_json(&record.finished())?)?;
     result.set_item("scale", record.scale())?;
+    let albedo: Option<Vec<f32>> = record.albedo().map(|a| a.iter().map(|&x| x as f32).collect());
+    result.set_item("albedo", albedo.map(|a| numpy::PyArray1::from_vec(py, a)))?;
     result.set_item("notes", Vec::<String>::new())?;
     Ok(result)
 }

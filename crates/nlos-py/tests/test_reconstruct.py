@@ -91,6 +91,9 @@ def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_p
     first = nlos.reconstruct(builtin_capture, tmp_path, **FAST)
     record = nlos.read_run(tmp_path)
     assert np.array_equal(record.vertices, first.vertices) and np.array_equal(record.faces, first.faces)
+    # The albedo per vertex (on by default), one per vertex, the same from the run and from its record.
+    assert first.albedo is not None and first.albedo.shape == (len(first.vertices),)
+    assert np.array_equal(record.albedo, first.albedo)
     assert (record.reflectance, record.scale, record.stop, record.log) == (
         first.reflectance,
         first.scale,

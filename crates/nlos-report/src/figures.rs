@@ -302,27 +302,35 @@ pub fn depth_figure(depth: &[f32], view: &DepthView, range: (f64, f64), title: &
     Ok(fig.render()?)
 }
 
-/// The fitted albedo map (`nlos_optim::AlbedoMap`) where the final mesh is seen: at each pixel of `view`
-/// whose ray hits the mesh (`depth` finite), the map's albedo at the pixel centre; grey elsewhere. x right and
-/// y up as seen from the wall, like the depth maps; colours from 0 to the 98th percentile.
+/// The fitted per-vertex albedo (`nlos_optim::albedo`) where the final mesh is seen: at each pixel of `view`
+/// the albedo of the first hit of its +z ray, interpolated between the hit face's corners; grey where the ray
+/// misses. x right and y up as seen from the wall, like the depth maps; colours from 0 to the 98th
+/// percentile.
 ///
 /// # Errors
-/// [`ReportError::InvalidOption`] when `depth` does not hold `grid²` values; drawing errors.
-pub fn albedo_figure(map: &nlos_optim::AlbedoMap, depth: &[f32], view: &DepthView) -> Result<RgbImage> {
-    let n = view.grid;
-    if depth.len() != n * n {
+/// [`ReportError::InvalidOption`] when `albedo` does not hold one value per vertex of `mesh`; mesh and
+/// drawing errors.
+pub fn albedo_figure(mesh: &SurfaceMesh, albedo: &[f32], view: &DepthView) -> Result<RgbImage> {
+    let (positions, triangles) = mesh.to_triangles();
+    if albedo.len() != positions.len() {
         return Err(ReportError::InvalidOption {
-            name: "depth",
-            reason: format!("{} values for a {n} x {n} grid", depth.len()),
+            name: "albedo",
+            reason: format!("{} values for a mesh of {} vertices", albedo.len(), positions.len()),
         });
     }
-    let at = |r: [f32; 2], i: usize| f64::from(r[0]) + (i as f64 + 0.5) * f64::from(r[1] - r[0]) / n as f64;
+    let bvh = nlos_mesh::TriangleBvh::from_triangles(&positions, &triangles)?;
+    let grid = view.eval_params();
+    let n = view.grid;
     let values: Vec<f32> = (0..n * n)
         .map(|k| {
-            if depth[k].is_finite() {
-                map.log_albedo_at(at(view.x_range, k % n), at(view.y_range, k / n)).exp() as f32
-            } else {
-                f32::NAN
+            let (x, y) = grid.pixel_center(k % n, k / n);
+            match bvh.ray_first_hit(glam::Vec3::new(x, y, 0.0), glam::Vec3::Z, f32::INFINITY) {
+                Some(h) => {
+                    let t = triangles[h.triangle as usize];
+                    let b = h.barycentric;
+                    albedo[t[0] as usize] * b.x + albedo[t[1] as usize] * b.y + albedo[t[2] as usize] * b.z
+                }
+                None => f32::NAN,
             }
         })
         .collect();
@@ -331,13 +339,8 @@ pub fn albedo_figure(map: &nlos_optim::AlbedoMap, depth: &[f32], view: &DepthVie
     let ey = Extent::new(f64::from(view.y_range[0]), f64::from(view.y_range[1]))?;
     let g = ScalarGrid::new(&values, n, n, ex, ey)?;
     let (w, h) = aspect_size(ex, ey, 360);
-    let mut fig = Figure::new("albedo map (relative: geometric mean 1 over the surface)");
-    fig.notes.push(format!(
-        "{} x {} cells of {:.1} mm, log-albedo bilinear between cell centres; shown where the final mesh is hit",
-        map.nx,
-        map.ny,
-        map.cell * 1e3
-    ));
+    let mut fig = Figure::new("albedo (relative: area mean 1 over the surface)");
+    fig.notes.push("one albedo per vertex, interpolated across faces; shown where the final mesh is hit".into());
     fig.notes.push("x to the right as in wall coordinates: text facing the wall reads mirrored".into());
     fig.panels = vec![
         Panel::image(g, Norm::linear(0.0, hi)?)

@@ -14,11 +14,11 @@
 //! | `depth_init.png`, `depth_final.png`, `depth_gt.png` | depth maps seen from the wall (+z rays) |
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
-//! | `albedo.png` | the fitted albedo map where the final mesh is seen (runs with an albedo map only) |
+//! | `albedo.png` | the fitted albedo per vertex where the final mesh is seen (runs that fit one) |
 //! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth or by distance to the ground truth, embedded so it works offline from the folder alone ([`view3d`]) |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
-//! with the run's reflectance and albedo map (from the checkpoint) and the renderer settings of the run
+//! with the run's reflectance and per-vertex albedo (from the checkpoint) and the renderer settings of the run
 //! ([`ReportOptions::render`]). The measured data's scale is arbitrary, so the rendering is shown as
 //! `s*·I` with the closed-form scale of the run's loss (`nlos_optim::DataTerm::optimal_scale`: for L2,
 //! `s* = ⟨I, Ĩ⟩/⟨I, I⟩`, eq. 7 of Tsai et al. 2019 minimised over s), computed on the bins after the
@@ -216,9 +216,15 @@ pub fn write_report(
     let gated = |t: &Transient| -> Result<Transient> { Ok(if gate > ax.t0 { t.gate(gate)? } else { t.clone() }) };
     let (positions, triangles) = final_mesh.to_triangles();
     let mut renderer = Renderer::new(&positions, &triangles, measured.scan(), &ax, opts.render)?;
-    let albedo = record.as_ref().and_then(RunRecord::albedo);
-    if let Some(map) = albedo {
-        renderer.set_face_weights(Some(&map.face_weights(&positions, &triangles)))?;
+    // The fitted albedo per vertex of the final mesh (the record's surface is the mesh written at the end).
+    let albedo: Option<Vec<f32>> = record
+        .as_ref()
+        .and_then(RunRecord::albedo)
+        .filter(|a| a.len() == positions.len())
+        .map(|a| a.iter().map(|&x| x as f32).collect());
+    if let Some(a) = &albedo {
+        let a64: Vec<f64> = a.iter().map(|&x| f64::from(x)).collect();
+        renderer.set_face_weights(Some(&nlos_optim::albedo::face_weights(&a64, &triangles)))?;
     }
     let rendered = renderer.forward_any(&reflectance.brdf()?);
     let measured_g = gated(measured)?;
@@ -290,8 +296,8 @@ pub fn write_report(
     if let Some(d) = &d_gt {
         save(&figures::depth_figure(d, &view, range, "depth: ground truth")?, dir, "depth_gt.png", &mut images)?;
     }
-    if let Some(map) = &albedo {
-        save(&figures::albedo_figure(map, &d_final, &view)?, dir, "albedo.png", &mut images)?;
+    if let Some(a) = &albedo {
+        save(&figures::albedo_figure(&final_mesh, a, &view)?, dir, "albedo.png", &mut images)?;
     }
     let pixel = f64::from(view.x_range[1] - view.x_range[0]) / view.grid as f64;
     let radius = ((opts.relief_box / pixel / 2.0).round() as usize).clamp(1, view.grid.max(2) / 2);

@@ -73,7 +73,7 @@ fn parameters(
         ("gate, max depth", format!("{}, {}", c.capture.gate, c.capture.max_depth)),
         ("visibility, splat max level", format!("{:?}, {}", c.render.visibility, c.render.max_level).to_lowercase()),
         ("sensor", format!("{} ({})", c.sensor.response, prepared.describe_sensor(c, params))),
-        ("albedo map (cell, m)", c.albedo_map.to_string()),
+        ("albedo", c.albedo.to_string()),
         ("resumed", resumed.to_string()),
     ];
     parameters.into_iter().map(|(k, v)| (k.to_string(), v)).collect()

@@ -182,6 +182,27 @@ impl fmt::Display for StartRim {
     }
 }
 
+/// Reflectance on the surface ([`crate::albedo`], [`crate::regions`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlbedoChoice {
+    /// An albedo per vertex, fitted with the shape; dark regions whose light the data do not detect are
+    /// deleted.
+    #[default]
+    Vertex,
+    /// One albedo for the whole surface (Tsai et al. 2019).
+    Off,
+}
+
+impl fmt::Display for AlbedoChoice {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Vertex => "vertex",
+            Self::Off => "off",
+        })
+    }
+}
+
 /// How the capture is prepared before anything else.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -365,9 +386,9 @@ pub struct Config {
     pub init: InitMethod,
     /// The depth of the start's rim ([`StartRim`]): `"auto"`, `"receding"`, `"measured"` or `"choose"`.
     pub init_rim: StartRim,
-    /// Spatially varying albedo ([`crate::albedo`]): cells of this size (metres) over the wall plane, or
-    /// `"off"` (one albedo). For objects with printed patterns.
-    pub albedo_map: Setting,
+    /// Reflectance on the surface ([`AlbedoChoice`]): `"vertex"` (an albedo per vertex, with the region
+    /// tests that make dark regions holes or print) or `"off"` (one albedo).
+    pub albedo: AlbedoChoice,
     /// Capture preparation.
     pub capture: CaptureConfig,
     /// Reflectance model.
@@ -390,7 +411,7 @@ impl Default for Config {
             seed: 0,
             init: InitMethod::Auto,
             init_rim: StartRim::Auto,
-            albedo_map: Setting::OFF,
+            albedo: AlbedoChoice::Vertex,
             capture: CaptureConfig::default(),
             reflectance: ReflectanceConfig::default(),
             sensor: SensorConfig::default(),
@@ -527,7 +548,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
         "depth of the start's dim rim: \"receding\" (convex), \"measured\" (its own), \"choose\" (both run a stage, \
          the data choose) or \"auto\" (choose for the phasor field on one laser's capture, else receding)",
     ),
-    ("albedo_map", "albedo map over the wall plane: cell size in metres, or \"off\" (one albedo)"),
+    (
+        "albedo",
+        "reflectance on the surface: \"vertex\" (an albedo per vertex; dark regions become holes or print) or \"off\" (one albedo)",
+    ),
     ("capture.rebin", "sum this many consecutive bins first (1: as captured)"),
     ("capture.subsample", "fit every k-th scan row and column (the initial surface sees them all)"),
     ("capture.gate", "zero the bins before this path length (m): \"auto\" (end of the direct light) or \"off\""),

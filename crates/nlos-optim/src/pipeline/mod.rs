@@ -30,8 +30,8 @@ mod run_dir;
 
 pub use choose::{Candidate, StartChoice, misfit_at_choice, saved_choice};
 pub use config::{
-    BoundaryConfig, CaptureConfig, Config, FIELD_DOCS, InitMethod, Method, Noise, OptimiserConfig, ReflectanceConfig,
-    RenderConfig, SensorChoice, SensorConfig, Setting, StartRim, VisibilityChoice, Word,
+    AlbedoChoice, BoundaryConfig, CaptureConfig, Config, FIELD_DOCS, InitMethod, Method, Noise, OptimiserConfig,
+    ReflectanceConfig, RenderConfig, SensorChoice, SensorConfig, Setting, StartRim, VisibilityChoice, Word,
 };
 pub use files::{CANDIDATES_DIR, CHOICE_FILE, INIT_FILE, SETTINGS_FILE};
 pub use prepared::{MAX_START_SLOPE, Prepared};

@@ -24,10 +24,11 @@ use nlos_transient::Transient;
 use nlos_transient::sensor::{BackgroundWindow, BinKernel, JitterResponse};
 
 use super::config::{
-    Config, InitMethod, Method, Noise, SensorChoice, Setting, StartRim, VisibilityChoice, Word, config_error,
+    AlbedoChoice, Config, InitMethod, Method, Noise, SensorChoice, Setting, StartRim, VisibilityChoice, Word,
+    config_error,
 };
 use crate::error::{OptimError, Result};
-use crate::{AlbedoMapParams, PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
+use crate::{PruneParams, ReconstructParams, Reflectance, ResidualParams, SamplingSchedule};
 use crate::{Schedule, SensorBackground, SensorFit};
 
 /// A capture prepared as the optimiser fits it ([`Prepared::new`]), with the intermediate forms the sensor
@@ -199,13 +200,10 @@ impl Prepared {
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
-        p.albedo_map = match config.albedo_map {
-            Setting::Word(Word::Off) => None,
-            Setting::Value(cell) => Some(AlbedoMapParams { cell, ..AlbedoMapParams::default() }),
-            Setting::Word(Word::Auto) => {
-                return Err(config_error("albedo_map", "\"auto\": give a cell size in metres or \"off\""));
-            }
-        };
+        if config.albedo == AlbedoChoice::Off {
+            p.albedo = None;
+            p.regions = None;
+        }
         p.validate()?;
         Ok(p)
     }

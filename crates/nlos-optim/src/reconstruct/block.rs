@@ -20,12 +20,14 @@ use super::{
     Evolve, EvolveRecord, Hooks, IntersectionCheck, IterationRecord, ProgressEvent, SHAPE_MOMENTS, StepKind, progress,
     report, set_albedo_weights,
 };
+use crate::albedo;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::data_term::RowLoss;
 use crate::data_term::counts::SensorRows;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
+use crate::regions::{RegionNoise, RegionRecord, dark_regions};
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_rounds};
 use crate::surface::Remap;
@@ -56,9 +58,8 @@ impl<'a> RunCtx<'a> {
         // where it is.
         let scale_only = st.reflectance.is_scale_only() && params.data.solve_scale;
         let fit_brdf = !scale_only && !st.reflectance.theta().is_empty();
-        // The albedo map (crate::albedo) is fitted in the reflectance blocks too, whatever the BRDF.
-        let fit_albedo = st.albedo.is_some();
-        let refl_iters = if fit_brdf || fit_albedo { sch.reflectance_iterations } else { 0 };
+        // The per-vertex albedo (crate::albedo) steps with the shape: it needs no reflectance block of its own.
+        let refl_iters = if fit_brdf { sch.reflectance_iterations } else { 0 };
         let planned = u64::from(sch.max_stages)
             * u64::from(sch.max_blocks_per_stage)
             * u64::from(sch.shape_iterations + refl_iters);
@@ -98,6 +99,8 @@ pub(super) struct Block<'a> {
     /// The loss at the block's first step and at its last.
     pub(super) first: f64,
     pub(super) last: f64,
+    /// Weight of the albedo's total variation (crate::albedo, "Prior"), set at the block's first step.
+    pub(super) tv_weight: f64,
 }
 
 /// Step 2: the shape block — `schedule.shape_iterations` Adam steps on the vertices, each through the
@@ -141,6 +144,7 @@ pub(super) fn shape_block<'e>(
             let excess = if ctx.counts { (ev.data - ev.floor).max(0.01 * ev.data) } else { ev.data };
             st.reg_weight =
                 params.regulariser_weight.unwrap_or_else(|| auto_weight(params.regulariser_ratio, excess, r_n, area));
+            b.tv_weight = params.albedo.map_or(0.0, |a| a.tv * excess);
         }
         let lam = st.reg_weight;
         let loss = ev.data + lam * r;
@@ -168,7 +172,7 @@ pub(super) fn shape_block<'e>(
         });
         let _ = report(hooks, &progress(st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed()));
         let grad: Vec<Vec3> = ev.grad_vertices.iter().zip(&rg).map(|(g, q)| *g + lam as f32 * *q).collect();
-        good = Some((st.surface.clone(), st.shape_adam));
+        good = Some((st.surface.clone(), st.shape_adam, st.albedo_steps));
         let (li, lb) = (params.lr_interior * b.target * st.lr_scale, params.lr_boundary * b.target * st.lr_scale);
         let boundary = &b.boundary;
         let moments = st.surface.vertex_mut(SHAPE_MOMENTS)?;
@@ -197,6 +201,22 @@ pub(super) fn shape_block<'e>(
             rollback(st, &mut good, &mut b.renderer, params, "positions")?;
             continue;
         }
+        // The albedo from the same rendering (crate::albedo, "Steps"), at the positions it was rendered at.
+        if let Some(ap) = &params.albedo {
+            let lr = ap.lr * st.lr_scale;
+            let tv = b.tv_weight;
+            albedo::step(
+                &mut st.surface,
+                &mut st.albedo_steps,
+                &params.reflectance_adam,
+                ap,
+                &ev.grad_faces,
+                tv,
+                lr,
+                params.data.solve_scale,
+            )?;
+            set_albedo_weights(st, &mut b.renderer)?;
+        }
         st.surface.set_positions(new)?;
         b.renderer.set_positions(st.surface.positions())?;
         st.iteration += 1;
@@ -208,8 +228,8 @@ pub(super) fn shape_block<'e>(
     Ok(())
 }
 
-/// Step 3: the reflectance block — Adam steps on θ (and on the albedo map's log-albedo) with the shape
-/// fixed, rolled back on a non-finite loss or gradient.
+/// Step 3: the reflectance block — Adam steps on θ (and on the per-vertex albedo) with the shape fixed,
+/// rolled back on a non-finite loss or gradient.
 pub(super) fn reflectance_block(
     st: &mut RunRecord,
     ctx: &RunCtx<'_>,
@@ -218,8 +238,6 @@ pub(super) fn reflectance_block(
 ) -> Result<()> {
     let params = ctx.params;
     let w_edge = params.boundary_smoothing;
-    // The map's factors at the faces' current centroids (the shape block moved them), so that the
-    // renderer's dE/dw_t and the map's chain rule see the same w_t.
     set_albedo_weights(st, &mut b.renderer)?;
     let (mut r, _) = b.reg.evaluate(st.surface.positions(), st.surface.triangles())?;
     if w_edge > 0.0 {
@@ -264,27 +282,33 @@ pub(super) fn reflectance_block(
             noise_floor: None,
         });
         let _ = report(hooks, &progress(st, ProgressEvent::Iteration, ctx.planned, loss, b.target, ctx.elapsed()));
-        good_refl =
-            Some((st.reflectance.clone(), st.reflectance_adam.clone(), st.albedo.clone(), st.albedo_adam.clone()));
+        good_refl = Some((st.reflectance.clone(), st.reflectance_adam.clone(), st.surface.clone(), st.albedo_steps));
         if ctx.fit_brdf {
             let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
             st.reflectance.add_theta(&delta);
         }
-        if let (Some(map), Some(ap)) = (st.albedo.as_mut(), params.albedo_map.as_ref()) {
-            let g = map.chain(st.surface.positions(), st.surface.triangles(), &ev.grad_faces);
-            let delta = st.albedo_adam.step(&params.reflectance_adam, &g, ap.lr * st.lr_scale);
-            map.add(&delta, ap.max_log);
-            map.recentre(st.surface.positions(), st.surface.triangles());
-            set_albedo_weights(st, &mut b.renderer)?;
+        if let Some(ap) = &params.albedo {
+            let (lr, tv) = (ap.lr * st.lr_scale, b.tv_weight);
+            albedo::step(
+                &mut st.surface,
+                &mut st.albedo_steps,
+                &params.reflectance_adam,
+                ap,
+                &ev.grad_faces,
+                tv,
+                lr,
+                params.data.solve_scale,
+            )?;
         }
+        set_albedo_weights(st, &mut b.renderer)?;
         st.iteration += 1;
         it += 1;
     }
     Ok(())
 }
 
-/// Step 4: boundary pruning ([`crate::prune`]) and, at the end of a stage but the last, the residual
-/// patches ([`crate::residual`], in rounds). Returns the stage's mesh as fitted when patches joined it.
+/// Step 4: boundary pruning ([`crate::prune`]), the region tests ([`crate::regions`]) and, at the end of a
+/// stage but the last, the residual patches ([`crate::residual`], in rounds). Returns the stage's mesh as fitted when patches joined it.
 pub(super) fn prune_and_patch(
     st: &mut RunRecord,
     ctx: &RunCtx<'_>,
@@ -295,7 +319,12 @@ pub(super) fn prune_and_patch(
     let residual =
         params.residual.as_ref().filter(|r| end.stage_ends && !end.last_block && r.stages.is_none_or(|n| st.stage < n));
     let mut stage_mesh: Option<SurfaceMesh> = None;
-    if params.prune.is_none() && residual.is_none() {
+    let last_stage = params.schedule.max_stages.saturating_sub(1);
+    let regions = params
+        .regions
+        .as_ref()
+        .filter(|r| b.renderer.face_weights().is_some() && st.stage >= r.first_stage.min(last_stage));
+    if params.prune.is_none() && regions.is_none() && residual.is_none() {
         return Ok(stage_mesh);
     }
     let (data, sensor, norm) = (b.fit.measured, b.fit.sensor, b.fit.norm);
@@ -322,11 +351,10 @@ pub(super) fn prune_and_patch(
         Some(rows) => rows,
         None => &data_rows,
     };
+    let mut keep = vec![true; st.surface.n_faces()];
     if let Some(pp) = &params.prune {
         let p = prune_boundary(st.surface.triangles(), &b.renderer, &brdf, &mut rendered, bins, row_loss, pp)?;
-        if p.removed > 0 {
-            drop_faces(st, &p.keep)?;
-        }
+        keep = p.keep;
         st.prune_log.push(PruneRecord {
             stage: st.stage,
             block: st.block_in_stage,
@@ -334,6 +362,29 @@ pub(super) fn prune_and_patch(
             removed: p.removed,
             data_change: p.data_change / norm,
         });
+    }
+    if let (Some(rp), Some(weights)) = (regions, b.renderer.face_weights()) {
+        let noise = match (sensor, ctx.counts) {
+            (Some(_), _) => RegionNoise::Poisson,
+            (None, true) => RegionNoise::Counts { scale },
+            (None, false) => RegionNoise::None,
+        };
+        let (triangles, renderer) = (st.surface.triangles(), &b.renderer);
+        let r = dark_regions(triangles, weights, &keep, renderer, &brdf, &mut rendered, bins, row_loss, noise, rp)?;
+        keep = r.keep;
+        let record = RegionRecord {
+            stage: st.stage,
+            block: st.block_in_stage,
+            tested: r.tested,
+            deleted: r.deleted,
+            removed: r.removed,
+            kept: r.tested - r.deleted,
+            data_change: r.data_change / norm,
+        };
+        st.region_log.push(record);
+    }
+    if keep.iter().any(|k| !k) {
+        drop_faces(st, &keep)?;
     }
     if let Some(rp) = residual {
         // The data minus the model of the data term, for the rendering as the rounds leave it.

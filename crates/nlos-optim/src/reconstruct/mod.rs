@@ -15,10 +15,12 @@
 //!    ([`crate::regularizer`]; λ set automatically at the first step of the block, against the data term
 //!    above its noise floor for photon counts, [`crate::data_term::counts`]), per-vertex isotropic
 //!    Adam step ([`crate::adam`]), and the displacement goes through the [`Evolve`] hook.
-//! 3. **Reflectance block.** Adam steps on θ with the shape fixed (and on the albedo map's log-albedo,
-//!    [`crate::albedo`], when there is one).
+//!    The same rendering steps the per-vertex albedo ([`crate::albedo`], on by default).
+//! 3. **Reflectance block.** Adam steps on θ (and the per-vertex albedo) with the shape fixed, where the
+//!    BRDF has parameters beyond the scale.
 //! 4. **Pruning** (optional, [`crate::ReconstructParams::prune`]): boundary faces whose deletion lowers the
-//!    data term are deleted ([`crate::prune`]). At the end of the first stages
+//!    data term are deleted ([`crate::prune`]); dark regions whose light the data do not detect are deleted
+//!    ([`crate::regions`]). At the end of the first stages
 //!    ([`crate::ReconstructParams::residual`]), patches from the LCT of the fit's residual join the mesh
 //!    where they lower it ([`crate::residual`]); the stage's saved mesh is the one before they join.
 //! 5. **Bookkeeping.** Relative-decrease test, stage advance, checkpoint and run log (atomic writes), the
@@ -53,7 +55,7 @@ use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 
 use crate::adam::{Moments, VectorAdam, VertexAdam};
-use crate::albedo::AlbedoMap;
+use crate::albedo::{ALBEDO, face_weights};
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
 use crate::params::{ReconstructParams, SamplingSchedule};
@@ -202,8 +204,10 @@ pub struct Outcome {
     /// One record per residual back-projection (per stage that proposes, [`crate::ResidualParams::stages`];
     /// empty when [`ReconstructParams::residual`] is `None`).
     pub residual: Vec<ResidualRecord>,
-    /// The fitted albedo map ([`ReconstructParams::albedo_map`]; None without one).
-    pub albedo: Option<AlbedoMap>,
+    /// The fitted relative albedo of each vertex of `mesh` ([`ReconstructParams::albedo`]; None without).
+    pub albedo: Option<Vec<f32>>,
+    /// One record per block's region tests ([`crate::regions`]; empty without them).
+    pub regions: Vec<crate::regions::RegionRecord>,
 }
 
 /// The least share of its start's area a finished run must keep ([`Outcome::check_surface_kept`]).
@@ -271,17 +275,16 @@ pub fn reconstruct_with(
             reason: "the initial mesh has a non-finite vertex (value = its index)",
         });
     }
-    // The map covers the initial surface with two cells to spare; points beyond take the edge's value.
-    let albedo = match &params.albedo_map {
-        Some(a) => Some(AlbedoMap::covering(&positions, a.cell, 2.0 * a.cell)?),
-        None => None,
-    };
-    let albedo_adam = VectorAdam::new(albedo.as_ref().map_or(0, |m| m.log_albedo.len()));
+    let mut surface = Surface::new(positions, triangles)?;
+    if params.albedo.is_some() {
+        // Created at its initial value, the mean (1), so that every later change of topology carries it.
+        surface.vertex_mut(ALBEDO)?;
+    }
     let mut state = RunRecord {
         version: RunRecord::VERSION,
         fingerprint: fingerprint(measured),
         settings: SettingsRecord::of(params)?,
-        surface: Surface::new(positions, triangles)?,
+        surface,
         reflectance: params.reflectance.clone(),
         shape_adam: VertexAdam::default(),
         reflectance_adam: VectorAdam::new(params.reflectance.theta().len()),
@@ -299,8 +302,8 @@ pub fn reconstruct_with(
         max_stages_hint: params.schedule.max_stages,
         prune_log: Vec::new(),
         residual_log: Vec::new(),
-        albedo,
-        albedo_adam,
+        region_log: Vec::new(),
+        albedo_steps: 0,
     };
     // A start that intersects itself would leave collision-aware evolution nothing to guarantee.
     untangle(&mut state, IntersectionCheck::Start)?;
@@ -357,12 +360,7 @@ pub fn resume(measured: &Transient, params: &ReconstructParams, hooks: Hooks<'_>
     }
     if state.surface.vertex(SHAPE_MOMENTS).is_err()
         || state.surface.n_faces() == 0
-        || state.albedo.is_some() != params.albedo_map.is_some()
-        || state.albedo.as_ref().is_some_and(|m| {
-            m.validate().is_err()
-                || state.albedo_adam.m.len() != m.log_albedo.len()
-                || state.albedo_adam.v.len() != m.log_albedo.len()
-        })
+        || state.surface.vertex(ALBEDO).is_ok() != params.albedo.is_some()
     {
         return Err(ck("inconsistent mesh and optimiser state".into()));
     }
@@ -426,7 +424,7 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
             render_params(params, st.stage, &mut st.rng),
         )?;
         renderer.set_device(params.device)?;
-        // The albedo map's factors, held fixed through the shape block (crate::albedo, "Gradient").
+        // The albedo's face factors (crate::albedo); every shape step updates them.
         set_albedo_weights(&st, &mut renderer)?;
         let mut b = Block {
             target,
@@ -449,6 +447,7 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
             },
             first: f64::NAN,
             last: f64::NAN,
+            tv_weight: 0.0,
         };
         let block_stage = st.stage;
         block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve.as_deref_mut())?;
@@ -468,18 +467,10 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
     let mesh = st.surface.mesh()?;
     if let Some(dir) = &params.out_dir {
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
-        match &st.albedo {
-            // The relative albedo (geometric mean 1 over the surface) at each vertex, for viewers and
-            // `nlos eval --front-view`.
-            Some(map) => {
-                let albedo: Vec<f32> = mesh
-                    .to_triangles()
-                    .0
-                    .iter()
-                    .map(|p| map.log_albedo_at(f64::from(p.x), f64::from(p.y)).exp() as f32)
-                    .collect();
-                nlos_mesh::io::save_ply_with_albedo(&mesh, &albedo, dir.join("mesh.ply"))?;
-            }
+        match vertex_albedo(&st) {
+            // The relative albedo (area mean 1 over the surface) at each vertex, for viewers, `nlos render`
+            // and `nlos eval --front-view`.
+            Some(albedo) => nlos_mesh::io::save_ply_with_albedo(&mesh, &albedo, dir.join("mesh.ply"))?,
             None => nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?,
         }
     }
@@ -499,8 +490,14 @@ fn outcome(st: &RunRecord, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
         evolve: st.log.collisions.clone(),
         prune: st.prune_log.clone(),
         residual: st.residual_log.clone(),
-        albedo: st.albedo.clone(),
+        albedo: vertex_albedo(st),
+        regions: st.region_log.clone(),
     }
+}
+
+/// The per-vertex albedo of `st`'s surface in f32 (None: the run fits none).
+fn vertex_albedo(st: &RunRecord) -> Option<Vec<f32>> {
+    st.surface.vertex(ALBEDO).ok().map(|a| a.iter().map(|&x| x as f32).collect())
 }
 
 /// What the progress hook is told of `st` now.
@@ -524,11 +521,11 @@ fn report(hooks: &mut Hooks<'_>, p: &Progress) -> ControlFlow<()> {
     hooks.progress.as_mut().map_or(ControlFlow::Continue(()), |cb| cb(p))
 }
 
-/// Gives the renderer the albedo map's per-triangle factors at the current positions (nothing without a
-/// map).
+/// Gives the renderer the per-triangle factors of the surface's albedo ([`crate::albedo::face_weights`];
+/// nothing when the run fits none).
 fn set_albedo_weights(st: &RunRecord, renderer: &mut Renderer) -> Result<()> {
-    if let Some(map) = &st.albedo {
-        renderer.set_face_weights(Some(&map.face_weights(st.surface.positions(), st.surface.triangles())))?;
+    if let Ok(albedo) = st.surface.vertex(ALBEDO) {
+        renderer.set_face_weights(Some(&face_weights(albedo, st.surface.triangles())))?;
     }
     Ok(())
 }
@@ -557,6 +554,7 @@ mod tests {
             prune: vec![PruneRecord { stage: 0, block: 0, tested: 40, removed: 84, data_change: -0.1 }],
             residual: Vec::new(),
             albedo: None,
+            regions: Vec::new(),
         };
         let e = outcome(area / 0.01, StopReason::MaxStages).check_surface_kept().expect_err("1 % kept");
         let text = e.to_string();

@@ -4,7 +4,8 @@
 //! compares and atomic writes.
 //!
 //! **Versions.** [`RunRecord::VERSION`] changes whenever the record's fields change (4: the surface with its
-//! named fields, [`crate::surface::Surface`], replaced bare positions, triangles and Adam moments). A record
+//! named fields, [`crate::surface::Surface`], replaced bare positions, triangles and Adam moments; 5: the
+//! albedo per vertex, a field of the surface, replaced the albedo map over the wall plane). A record
 //! of another version is refused with its version and this build's, before the rest is parsed, so that a
 //! checkpoint of an older build says why it cannot be resumed rather than which JSON field it lacks.
 
@@ -14,11 +15,12 @@ use serde::{Deserialize, Serialize};
 
 use super::{CHECKPOINT_FILE, RUN_LOG_FILE, RunLog, StopReason, checkpoint_unreadable};
 use crate::adam::{VectorAdam, VertexAdam};
-use crate::albedo::AlbedoMap;
+use crate::albedo::ALBEDO;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
+use crate::regions::RegionRecord;
 use crate::residual::ResidualRecord;
 use crate::surface::Surface;
 use nlos_transient::Transient;
@@ -53,10 +55,11 @@ pub struct RunRecord {
     pub(crate) prune_log: Vec<PruneRecord>,
     /// Residual back-projection per stage.
     pub(crate) residual_log: Vec<ResidualRecord>,
-    /// The albedo map ([`crate::albedo`]; None without one).
-    pub(crate) albedo: Option<AlbedoMap>,
-    /// Adam state of the albedo map's θ.
-    pub(crate) albedo_adam: VectorAdam,
+    /// Region tests per block ([`crate::regions`]).
+    pub(crate) region_log: Vec<RegionRecord>,
+    /// Adam steps the per-vertex albedo has taken (its value and moments are fields of the surface,
+    /// [`crate::albedo::ALBEDO`], [`crate::albedo::ALBEDO_MOMENTS`]).
+    pub(crate) albedo_steps: u64,
 }
 
 /// The part of a record read first: its version.
@@ -67,7 +70,7 @@ struct Header {
 
 impl RunRecord {
     /// The version of the record this build writes and reads (module docs).
-    pub const VERSION: u32 = 4;
+    pub const VERSION: u32 = 5;
 
     /// The record of run directory `dir` ([`CHECKPOINT_FILE`]), checked: its version first, then its
     /// surface.
@@ -104,9 +107,15 @@ impl RunRecord {
         &self.reflectance
     }
 
-    /// The albedo map as fitted so far (None: the run has none).
-    pub fn albedo(&self) -> Option<&AlbedoMap> {
-        self.albedo.as_ref()
+    /// The relative albedo of each vertex of [`RunRecord::surface`] as fitted so far (None: the run fits
+    /// none, [`crate::ReconstructParams::albedo`]).
+    pub fn albedo(&self) -> Option<&[f64]> {
+        self.surface.vertex(ALBEDO).ok()
+    }
+
+    /// The region tests of every block ([`crate::regions`]).
+    pub fn regions(&self) -> &[RegionRecord] {
+        &self.region_log
     }
 
     /// The run log (also written as [`RUN_LOG_FILE`]).
@@ -302,8 +311,8 @@ mod tests {
             max_stages_hint: 3,
             prune_log: Vec::new(),
             residual_log: Vec::new(),
-            albedo: None,
-            albedo_adam: VectorAdam::default(),
+            region_log: Vec::new(),
+            albedo_steps: 0,
         };
         record.write(&dir).expect("write");
         assert_eq!(RunRecord::read(&dir).expect("read"), record);

@@ -6,7 +6,6 @@ use nlos_render::Renderer;
 use super::record::RunRecord;
 use super::set_albedo_weights;
 use crate::adam::{VectorAdam, VertexAdam};
-use crate::albedo::AlbedoMap;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::reflectance::Reflectance;
@@ -32,10 +31,12 @@ pub(super) fn rollback(
     what: &'static str,
 ) -> Result<()> {
     count_rollback(st, params, what)?;
-    if let Some((surface, adam)) = good.take() {
+    if let Some((surface, adam, albedo_steps)) = good.take() {
         st.surface = surface;
         st.shape_adam = adam;
+        st.albedo_steps = albedo_steps;
         renderer.set_positions(st.surface.positions())?;
+        set_albedo_weights(st, renderer)?;
     }
     Ok(())
 }
@@ -49,19 +50,20 @@ pub(super) fn rollback_refl(
     what: &'static str,
 ) -> Result<()> {
     count_rollback(st, params, what)?;
-    if let Some((r, a, map, map_adam)) = good.take() {
+    if let Some((r, a, surface, steps)) = good.take() {
         st.reflectance = r;
         st.reflectance_adam = a;
-        st.albedo = map;
-        st.albedo_adam = map_adam;
+        st.surface = surface;
+        st.albedo_steps = steps;
         set_albedo_weights(st, renderer)?;
     }
     Ok(())
 }
 
-/// The shape state a shape rollback restores: the surface (its positions and fields) and the Adam step count.
-pub(super) type GoodShape = (Surface, VertexAdam);
+/// The shape state a shape rollback restores: the surface (its positions and fields, the albedo among them)
+/// and the Adam step counts of the shape and of the albedo.
+pub(super) type GoodShape = (Surface, VertexAdam, u64);
 
-/// The reflectance state a reflectance rollback restores: θ, its Adam state, the albedo map and its Adam
-/// state.
-pub(super) type GoodReflectance = (Reflectance, VectorAdam, Option<AlbedoMap>, VectorAdam);
+/// The reflectance state a reflectance rollback restores: θ, its Adam state, the surface (its albedo and
+/// the albedo's moments) and the albedo's step count.
+pub(super) type GoodReflectance = (Reflectance, VectorAdam, Surface, u64);

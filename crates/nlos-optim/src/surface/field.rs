@@ -4,7 +4,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use crate::adam::Moments;
+use crate::adam::{Moments, ScalarMoments};
 
 /// A value a field can hold: stored in a [`Column`] and carried through topology changes by
 /// [`FieldValue::blend`].
@@ -73,6 +73,19 @@ impl FieldValue for Moments {
     }
 }
 
+impl FieldValue for ScalarMoments {
+    stored_as!("ScalarMoments", ScalarMoments);
+    /// Both moments interpolated; the second kept ≥ 0 against rounding.
+    fn blend(parts: &[(Self, f32)]) -> Self {
+        let (mut m, mut v) = (0.0f64, 0.0f64);
+        for &(x, w) in parts {
+            m += f64::from(w) * x.m;
+            v += f64::from(w) * x.v;
+        }
+        ScalarMoments { m, v: v.max(0.0) }
+    }
+}
+
 /// The values of one field, one per element, and the value a new element starts with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ColumnOf<T> {
@@ -94,6 +107,8 @@ pub enum Column {
     Flag(ColumnOf<bool>),
     /// Adam moments ([`Moments`]).
     Moments(ColumnOf<Moments>),
+    /// A scalar's Adam moments ([`ScalarMoments`]).
+    ScalarMoments(ColumnOf<ScalarMoments>),
 }
 
 impl Column {
@@ -104,6 +119,7 @@ impl Column {
             Column::Vector(c) => c.values.len(),
             Column::Flag(c) => c.values.len(),
             Column::Moments(c) => c.values.len(),
+            Column::ScalarMoments(c) => c.values.len(),
         }
     }
 
@@ -122,6 +138,7 @@ impl Column {
             Column::Vector(c) => each(c, sources),
             Column::Flag(c) => each(c, sources),
             Column::Moments(c) => each(c, sources),
+            Column::ScalarMoments(c) => each(c, sources),
         }
     }
 
@@ -132,6 +149,7 @@ impl Column {
             Column::Vector(c) => c.values.iter().chain([&c.initial]).all(|x| x.is_finite()),
             Column::Flag(_) => true,
             Column::Moments(c) => c.values.iter().chain([&c.initial]).all(|x| x.m.is_finite() && x.v.is_finite()),
+            Column::ScalarMoments(c) => c.values.iter().chain([&c.initial]).all(|x| x.m.is_finite() && x.v.is_finite()),
         }
     }
 }

@@ -259,6 +259,7 @@ def _reconstruction(result: Dict[str, Any]) -> "Reconstruction":
         faces=result["faces"],
         reflectance=json.loads(result["reflectance"]),
         scale=float(result["scale"]),
+        albedo=result["albedo"],
         stop=json.loads(result["stop"]),
         notes=list(result["notes"]),
         log=json.loads(result["log"]),
@@ -278,6 +279,9 @@ class Reconstruction:
     reflectance: Dict[str, Any]
     #: The measurement's scale against the rendering (solved in closed form).
     scale: float
+    #: (n,) float32 relative albedo of each vertex (area mean 1; ``mesh.ply``'s ``albedo``), or ``None`` for a
+    #: run with one albedo (``albedo = "off"``).
+    albedo: Optional[np.ndarray]
     #: Why the run ended: ``"max_stages"``, ``"face_limit"``, ``"time_budget"`` or ``"interrupted"``
     #: (``None`` from :func:`read_run` while the run has blocks left).
     stop: Optional[str]

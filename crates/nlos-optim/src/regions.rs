@@ -1,0 +1,358 @@
+//! Region tests: a dark part of the surface is a hole or print, judged by the data.
+//!
+//! With an albedo per vertex ([`crate::albedo`]) the fit explains missing light by a darker surface instead
+//! of a dent. Where nothing is — a slot cut through a plate, the gap between two objects that the start
+//! bridged — the albedo falls toward 0, and where the object is printed dark it falls to the print's
+//! albedo. The test tells the two apart by asking the data whether the dark region's light is there at all.
+//!
+//! **Regions.** The faces whose factor `w_t` ([`crate::albedo::face_weights`]) is below
+//! [`RegionParams::dark`] (relative to the mean, 1), grouped by the edge-connected components of the faces
+//! below twice `dark` (hysteresis, as Canny's edges): the fitted albedo is noisy, and a printed bar cut into
+//! pieces by a few brighter faces would be tested piece by piece, each too small for its light to be
+//! detected — on the `holes` scenario's 10 mm bar the whole bar's light is 52 in the units of `Λ` below, a
+//! tenth of it 5. Only the dark faces are tested and deleted: the dimmer ones that join them straddle a
+//! hole's edge, half on the surface, and stay for pruning to judge on the hole's new rim. Every region is
+//! tested, interior ones as well as those on the rim (boundary pruning, [`crate::prune`], tests single rim
+//! faces).
+//!
+//! **Test.** A region R with rendered share `I_R = Σ_{f∈R} I_f` (`nlos_render::Renderer::forward_triangle`,
+//! so that `Σ_f I_f = I`) changes the data term by
+//! ```text
+//! ΔE_R = E(I − I_R) − E(I)                                       (scale s held at the block's value)
+//! ```
+//! if deleted. The albedo was fitted with the shape, so `I_R` is the light the data ask of R; `ΔE_R` is the
+//! log-likelihood ratio of "R as fitted" against "nothing at R". It is weighed in the noise's units:
+//! ```text
+//! Λ_R = 2 ΔE_R / σ²_R                    σ²_R = Σ_k μ_k (s I_R,k)² / Σ_k (s I_R,k)²
+//! ```
+//! with `μ_k = max(s I_k, 1)` the expected counts of bin k — the likelihood-ratio statistic of the L2 fit
+//! of photon counts (`½ Σ (s I − n)²`, Poisson variance μ). For the sensor fit (the Poisson half-deviance)
+//! `Λ_R = 2 ΔE_R` exactly. Under "nothing at R", `Λ_R` is χ² with one degree of freedom (Wilks 1938): the
+//! region is deleted when `Λ_R <` [`RegionParams::detection`] (default 9: its light is not detected at 3σ),
+//! and kept — darker, as fitted — otherwise. Data without a noise model (intensities) have no σ: there a
+//! region is deleted when the data explain it as darker than `dark²` of the mean
+//! (`ΔE_R < dark⁴ · ½ c_R / w̄_R²`, `c_R` the data term's second difference along `I_R`, `w̄_R` the region's
+//! mean factor: for L2 at the fitted albedo `ΔE_R = ½ c_R`, so the test is `w̄_R < dark²`).
+//!
+//! **Deletion.** A deleted region's faces go at once; a vertex the deletion leaves between two fans of faces
+//! (a non-manifold pinch) keeps its largest fan and loses the others — a few faces on the new hole's rim,
+//! which pruning would test next. (Skipping the faces that would pinch, as pruning does face by face, held
+//! back whole strips: each face of a strip one face wide pinches on its own.) Deleting faces cannot make the surface intersect
+//! itself: the region test is collision-safe by construction (it moves no vertex). The surface may fall into
+//! several components (the two objects a start bridged).
+
+use std::collections::HashMap;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::data_term::RowLoss;
+use crate::error::{OptimError, Result};
+use crate::prune::{apply_spans, delta};
+use nlos_render::{AnyBrdf, Renderer, RowSpan};
+
+/// Settings of the region tests ([`crate::ReconstructParams::regions`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionParams {
+    /// Faces darker than this relative albedo (the mean is 1) make the regions tested (default 0.25).
+    pub dark: f64,
+    /// χ²₁ threshold of the likelihood-ratio statistic: a region whose light is detected below it is deleted
+    /// (default 9: 3σ).
+    pub detection: f64,
+    /// Largest share of the faces deleted per call, in (0, 1] (default 0.5): a guard against a scale gone
+    /// wrong.
+    pub max_fraction: f64,
+    /// The first stage (0-based) whose blocks test regions (default 1; a run of fewer stages tests in its
+    /// last). In the first stage of the default schedule (10 mm edges) a 10 mm printed bar is one face wide:
+    /// its faces straddle the bar's edges, the few that fall below `dark` carry a fraction of its light, and
+    /// on the `holes` scenario's plate the 10 mm bar and pieces of the 20 mm one were deleted there (Λ 4 for
+    /// the 10 mm bar's 56 dark faces, against 52 for the whole bar at its true albedo); from the second stage
+    /// on every bar's Λ was 20–100.
+    pub first_stage: u32,
+}
+
+impl Default for RegionParams {
+    fn default() -> Self {
+        Self { dark: 0.25, detection: 9.0, max_fraction: 0.5, first_stage: 1 }
+    }
+}
+
+impl RegionParams {
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// [`OptimError::InvalidParameter`] for `dark` outside (0, 0.5) (regions grow to twice it), a detection threshold that is not finite
+    /// and ≥ 0, or `max_fraction` outside (0, 1].
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name, value, reason| Err(OptimError::InvalidParameter { name, value, reason });
+        if !(self.dark > 0.0 && self.dark < 0.5) {
+            return bad("regions.dark", self.dark, "the dark threshold is a relative albedo in (0, 0.5)");
+        }
+        if !(self.detection.is_finite() && self.detection >= 0.0) {
+            return bad("regions.detection", self.detection, "the detection threshold must be finite and >= 0");
+        }
+        if !(self.max_fraction > 0.0 && self.max_fraction <= 1.0) {
+            return bad("regions.max_fraction", self.max_fraction, "the share of faces deleted lies in (0, 1]");
+        }
+        Ok(())
+    }
+}
+
+/// The noise model the test weighs `ΔE_R` in (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RegionNoise {
+    /// The L2 fit of photon counts at scale `s`: `σ²` from the expected counts.
+    Counts {
+        /// The block's scale.
+        scale: f64,
+    },
+    /// The sensor fit's Poisson half-deviance: `Λ = 2ΔE`.
+    Poisson,
+    /// Intensities without a noise model: the relative test.
+    None,
+}
+
+/// What one call of [`dark_regions`] did (one per block in the run's checkpoint).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionRecord {
+    /// Stage.
+    pub stage: u32,
+    /// Block within the stage.
+    pub block: u32,
+    /// Dark regions tested.
+    pub tested: usize,
+    /// Regions deleted.
+    pub deleted: usize,
+    /// Faces deleted.
+    pub removed: usize,
+    /// Dark regions kept (their light detected: print).
+    pub kept: usize,
+    /// Change of the data term from the deletions, normalised as the run log's data term.
+    pub data_change: f64,
+}
+
+/// The result of [`dark_regions`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Regions {
+    /// Per input triangle: kept (`true`) or deleted.
+    pub keep: Vec<bool>,
+    /// Regions tested, deleted and kept.
+    pub tested: usize,
+    /// Regions deleted.
+    pub deleted: usize,
+    /// Faces deleted.
+    pub removed: usize,
+    /// `Σ ΔE_R` of the deletions (unnormalised data term).
+    pub data_change: f64,
+}
+
+/// The edge-connected components of the faces for which `member` holds, each a list of face indices.
+pub fn components(triangles: &[[u32; 3]], member: &[bool]) -> Vec<Vec<usize>> {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut by_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (f, t) in triangles.iter().enumerate().filter(|(f, _)| member[*f]) {
+        for k in 0..3 {
+            by_edge.entry(key(t[k], t[(k + 1) % 3])).or_default().push(f);
+        }
+    }
+    let mut seen = vec![false; triangles.len()];
+    let mut out = Vec::new();
+    for start in 0..triangles.len() {
+        if !member[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let (mut region, mut stack) = (Vec::new(), vec![start]);
+        while let Some(f) = stack.pop() {
+            region.push(f);
+            let t = triangles[f];
+            for k in 0..3 {
+                for &g in &by_edge[&key(t[k], t[(k + 1) % 3])] {
+                    if !seen[g] {
+                        seen[g] = true;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+        region.sort_unstable();
+        out.push(region);
+    }
+    out
+}
+
+/// The sum of several faces' shares, one span per measurement.
+fn merge(spans: impl IntoIterator<Item = RowSpan>) -> Vec<RowSpan> {
+    let mut rows: std::collections::BTreeMap<usize, RowSpan> = std::collections::BTreeMap::new();
+    for s in spans {
+        match rows.get_mut(&s.measurement) {
+            None => {
+                rows.insert(s.measurement, s);
+            }
+            Some(r) => {
+                let first = r.first_bin.min(s.first_bin);
+                let end = (r.first_bin + r.values.len()).max(s.first_bin + s.values.len());
+                let mut values = vec![0.0f32; end - first];
+                for part in [&*r, &s] {
+                    for (x, v) in values[part.first_bin - first..].iter_mut().zip(&part.values) {
+                        *x += v;
+                    }
+                }
+                *r = RowSpan { measurement: s.measurement, first_bin: first, values };
+            }
+        }
+    }
+    rows.into_values().collect()
+}
+
+/// The rendered share of `faces` (their shares summed, [`merge`]).
+fn share(renderer: &Renderer, brdf: &AnyBrdf, faces: &[usize]) -> Result<Vec<RowSpan>> {
+    let mut all = Vec::new();
+    for &f in faces {
+        all.extend(renderer.forward_triangle_any(brdf, f)?);
+    }
+    Ok(merge(all))
+}
+
+/// The likelihood-ratio statistic `Λ_R` of deleting a region of share `spans` (module docs) and `ΔE_R`.
+fn statistic(
+    spans: &[RowSpan],
+    rendered: &[f32],
+    bins: usize,
+    row_loss: &RowLoss<'_>,
+    noise: RegionNoise,
+    mean_weight: f64,
+    dark: f64,
+) -> Result<(f64, f64)> {
+    let (test, change) = delta(spans, rendered, bins, row_loss, 1.0, false)?;
+    let lambda = match noise {
+        RegionNoise::Poisson => 2.0 * change,
+        RegionNoise::Counts { scale } => {
+            let (mut num, mut den) = (0.0, 0.0);
+            for s in spans {
+                let row = &rendered[s.measurement * bins..(s.measurement + 1) * bins];
+                for (r, v) in row[s.first_bin..].iter().zip(&s.values) {
+                    let share = (scale * f64::from(*v)).powi(2);
+                    num += (scale * f64::from(*r)).max(1.0) * share;
+                    den += share;
+                }
+            }
+            if den > 0.0 { 2.0 * change * den / num } else { 0.0 }
+        }
+        // `test − change = ½ c_R` (margin 1): the region's light relative to its light at the mean albedo,
+        // squared, over `dark⁴`; the caller's threshold is 1.
+        RegionNoise::None => {
+            let half_c = test - change;
+            if half_c > 0.0 { change / (half_c / mean_weight.max(1e-12).powi(2)) / dark.powi(4) } else { 0.0 }
+        }
+    };
+    Ok((lambda, change))
+}
+
+/// Deletes the dark regions whose light the data do not detect (module docs).
+///
+/// `renderer` holds `triangles` at the current positions with the face factors `weights`, `rendered` its
+/// forward pass with `brdf` (updated in place: the deleted regions' shares are subtracted), `keep` the faces
+/// still present (faces already deleted, by pruning, are not tested), `row_loss` the data term per histogram
+/// at the block's scale.
+///
+/// # Errors
+/// [`OptimError::InvalidParameter`] for invalid `params`, [`OptimError::LengthMismatch`] for `weights`,
+/// `keep` or `rendered` of the wrong length, and the errors of `row_loss` and of the renderer.
+#[allow(clippy::too_many_arguments)]
+pub fn dark_regions(
+    triangles: &[[u32; 3]],
+    weights: &[f32],
+    keep: &[bool],
+    renderer: &Renderer,
+    brdf: &AnyBrdf,
+    rendered: &mut [f32],
+    bins: usize,
+    row_loss: &RowLoss<'_>,
+    noise: RegionNoise,
+    params: &RegionParams,
+) -> Result<Regions> {
+    params.validate()?;
+    let nt = triangles.len();
+    for (what, got) in [("face weights", weights.len()), ("kept faces", keep.len())] {
+        if got != nt {
+            return Err(OptimError::LengthMismatch { what, expected: nt, got });
+        }
+    }
+    let rows = renderer.scan().measurements();
+    if bins == 0 || rendered.len() != rows * bins {
+        return Err(OptimError::LengthMismatch { what: "rendered", expected: rows * bins, got: rendered.len() });
+    }
+    let dim: Vec<bool> = (0..nt).map(|f| keep[f] && f64::from(weights[f]) < 2.0 * params.dark).collect();
+    let regions: Vec<Vec<usize>> = components(triangles, &dim)
+        .into_iter()
+        .map(|r| r.into_iter().filter(|&f| f64::from(weights[f]) < params.dark).collect::<Vec<_>>())
+        .filter(|r| !r.is_empty())
+        .collect();
+    let threshold = if matches!(noise, RegionNoise::None) { 1.0 } else { params.detection };
+    let snapshot: &[f32] = rendered;
+    let mut scored: Vec<(f64, f64, Vec<usize>, Vec<RowSpan>)> = regions
+        .into_par_iter()
+        .map(|region| {
+            let spans = share(renderer, brdf, &region)?;
+            let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
+            let (lambda, change) = statistic(&spans, snapshot, bins, row_loss, noise, w, params.dark)?;
+            if std::env::var_os("NLOS_DEBUG_REGIONS").is_some() {
+                eprintln!("region {} faces w̄ {w:.3} Λ {lambda:.2} ΔE {change:.3e}", region.len());
+            }
+            Ok((lambda, change, region, spans))
+        })
+        .collect::<Result<_>>()?;
+    let tested = scored.len();
+    scored.retain(|s| s.0 < threshold);
+    // The least supported first: each is re-tested against the rendering the deletions before it left.
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.2[0].cmp(&b.2[0])));
+    let budget = ((nt as f64 * params.max_fraction).floor() as usize).min(nt.saturating_sub(1));
+    let mut keep = keep.to_vec();
+    let n_vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
+    let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    for (f, t) in triangles.iter().enumerate() {
+        for &v in t {
+            vertex_faces[v as usize].push(f);
+        }
+    }
+    let (mut deleted, mut removed, mut total) = (0, 0, 0.0);
+    for (_, _, region, spans) in scored {
+        if removed + region.len() > budget {
+            break;
+        }
+        let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
+        let (lambda, change) = statistic(&spans, rendered, bins, row_loss, noise, w, params.dark)?;
+        if !(lambda < threshold) {
+            if std::env::var_os("NLOS_DEBUG_REGIONS").is_some() {
+                eprintln!("  re-test: Λ {lambda:.2}, kept");
+            }
+            continue;
+        }
+        // The whole region at once; a vertex it leaves pinched between two fans keeps its largest fan and
+        // loses the others (a few faces on the new hole's rim), until no vertex is pinched.
+        let mut gone = region.clone();
+        gone.iter().for_each(|&f| keep[f] = false);
+        let mut check: Vec<u32> = region.iter().flat_map(|&f| triangles[f]).collect();
+        while let Some(v) = check.pop() {
+            let mut fans = crate::prune::fans(v, triangles, &vertex_faces, |g| keep[g]);
+            if fans.len() < 2 {
+                continue;
+            }
+            fans.sort_by_key(|f| std::cmp::Reverse(f.len()));
+            for f in fans.into_iter().skip(1).flatten() {
+                keep[f] = false;
+                gone.push(f);
+                check.extend(triangles[f]);
+            }
+        }
+        // Faces a pinch took with the region are rendered too: subtract the share of every deleted face.
+        let spans = if gone.len() == region.len() { spans } else { share(renderer, brdf, &gone)? };
+        apply_spans(&spans, rendered, bins, false);
+        row_loss.applied(&spans, false)?;
+        deleted += 1;
+        removed += gone.len();
+        total += change;
+    }
+    Ok(Regions { keep, tested, deleted, removed, data_change: total })
+}
