@@ -297,9 +297,6 @@ pub fn dark_regions(
             let spans = share(renderer, brdf, &region)?;
             let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
             let (lambda, change) = statistic(&spans, snapshot, bins, row_loss, noise, w, params.dark)?;
-            if std::env::var_os("NLOS_DEBUG_REGIONS").is_some() {
-                eprintln!("region {} faces w̄ {w:.3} Λ {lambda:.2} ΔE {change:.3e}", region.len());
-            }
             Ok((lambda, change, region, spans))
         })
         .collect::<Result<_>>()?;
@@ -322,11 +319,8 @@ pub fn dark_regions(
             break;
         }
         let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
-        let (lambda, change) = statistic(&spans, rendered, bins, row_loss, noise, w, params.dark)?;
+        let (lambda, _) = statistic(&spans, rendered, bins, row_loss, noise, w, params.dark)?;
         if !(lambda < threshold) {
-            if std::env::var_os("NLOS_DEBUG_REGIONS").is_some() {
-                eprintln!("  re-test: Λ {lambda:.2}, kept");
-            }
             continue;
         }
         // The whole region at once; a vertex it leaves pinched between two fans keeps its largest fan and
@@ -348,6 +342,7 @@ pub fn dark_regions(
         }
         // Faces a pinch took with the region are rendered too: subtract the share of every deleted face.
         let spans = if gone.len() == region.len() { spans } else { share(renderer, brdf, &gone)? };
+        let (_, change) = delta(&spans, rendered, bins, row_loss, 0.0, false)?;
         apply_spans(&spans, rendered, bins, false);
         row_loss.applied(&spans, false)?;
         deleted += 1;
