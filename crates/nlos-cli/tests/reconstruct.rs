@@ -108,9 +108,9 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     assert!(resumed.status.success(), "{}", text(&resumed));
 }
 
-/// The per-vertex albedo, on by default: the run fits it, keeps it in the checkpoint (so `--resume` and
+/// The per-vertex albedo (`albedo = "vertex"`): the run fits it, keeps it in the checkpoint (so `--resume` and
 /// `nlos report` find it), writes it into `mesh.ply` (one value per vertex), and the report renders with it
-/// and shows it. `albedo = "off"` fits one albedo, and resuming with it is refused, naming the setting.
+/// and shows it. Resuming without it is refused, naming the setting; the default (`"off"`) fits one albedo.
 #[test]
 fn the_albedo_is_fitted_kept_and_shown() {
     let dir = scratch("albedo");
@@ -119,7 +119,7 @@ fn the_albedo_is_fitted_kept_and_shown() {
     let (d, o) = (data.to_string_lossy().into_owned(), out.to_string_lossy().into_owned());
     let mut args = vec!["reconstruct", d.as_str(), "--out", &o, "--set", "schedule.max_stages=1"];
     args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
-    args.extend(["--set", "schedule.shape_iterations=2", "--quiet"]);
+    args.extend(["--set", "schedule.shape_iterations=2", "--quiet", "--set", "albedo=\"vertex\""]);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let ply = std::fs::read(out.join("mesh.ply")).expect("mesh.ply");
@@ -139,12 +139,12 @@ fn the_albedo_is_fitted_kept_and_shown() {
     assert!(text(&refused).contains("albedo"), "{}", text(&refused));
     let resumed = nlos(&["reconstruct", &d, "--out", &o, "--quiet", "--resume"]);
     assert!(resumed.status.success(), "{}", text(&resumed));
-    // One albedo: mesh.ply without the property, no albedo figure.
+    // The default, one albedo: mesh.ply without the property, no albedo figure.
     let one = dir.join("one");
     let o1 = one.to_string_lossy().into_owned();
     let mut args = vec!["reconstruct", d.as_str(), "--out", &o1, "--set", "schedule.max_stages=1"];
     args.extend(["--set", "schedule.initial_resolution=10", "--set", "schedule.max_blocks_per_stage=1"]);
-    args.extend(["--set", "schedule.shape_iterations=2", "--quiet", "--set", "albedo=\"off\""]);
+    args.extend(["--set", "schedule.shape_iterations=2", "--quiet"]);
     let run = nlos(&args);
     assert!(run.status.success(), "{}", text(&run));
     let soup = nlos_mesh::io::read_ply(&std::fs::read(one.join("mesh.ply")).expect("ply"), "mesh.ply").expect("ply");

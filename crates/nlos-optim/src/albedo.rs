@@ -1,4 +1,5 @@
-//! Reflectance on the surface: an albedo per vertex, fitted with the shape (on by default).
+//! Reflectance on the surface: an albedo per vertex, fitted with the shape (`albedo = "vertex"`,
+//! [`crate::ReconstructParams::albedo`]; not the default yet: docs/accuracy.md, "Dark strips").
 //!
 //! Tsai et al. 2019's reflectance is one BRDF for the whole surface. A hidden object whose reflectance varies —
 //! the printed bars of a chart, a label — then has only the shape to explain its dark parts, and the fit

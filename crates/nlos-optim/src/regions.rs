@@ -351,3 +351,39 @@ pub fn dark_regions(
     }
     Ok(Regions { keep, tested, deleted, removed, data_change: total })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two squares of two faces each, sharing only vertex 2: members join across edges, not vertices.
+    #[test]
+    fn components_join_faces_across_edges_only() {
+        let t = [[0, 1, 2], [0, 2, 3], [2, 4, 5], [2, 5, 6]];
+        assert_eq!(components(&t, &[true; 4]), vec![vec![0, 1], vec![2, 3]]);
+        assert_eq!(components(&t, &[true, false, true, true]), vec![vec![0], vec![2, 3]]);
+        assert!(components(&t, &[false; 4]).is_empty());
+    }
+
+    /// Shares of one measurement are summed over the union of their bins; other measurements stay apart.
+    #[test]
+    fn merged_shares_sum_bin_by_bin() {
+        let a = RowSpan { measurement: 3, first_bin: 2, values: vec![1.0, 2.0] };
+        let b = RowSpan { measurement: 3, first_bin: 3, values: vec![0.5, 0.5, 0.5] };
+        let c = RowSpan { measurement: 1, first_bin: 0, values: vec![4.0] };
+        let m = merge([a, b, c.clone()]);
+        assert_eq!(m, vec![c, RowSpan { measurement: 3, first_bin: 2, values: vec![1.0, 2.5, 0.5, 0.5] }]);
+    }
+
+    #[test]
+    fn parameters_are_validated() {
+        assert!(RegionParams::default().validate().is_ok());
+        for bad in [
+            RegionParams { dark: 0.5, ..RegionParams::default() },
+            RegionParams { detection: -1.0, ..RegionParams::default() },
+            RegionParams { max_fraction: 0.0, ..RegionParams::default() },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+}

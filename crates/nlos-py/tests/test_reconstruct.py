@@ -91,9 +91,7 @@ def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_p
     first = nlos.reconstruct(builtin_capture, tmp_path, **FAST)
     record = nlos.read_run(tmp_path)
     assert np.array_equal(record.vertices, first.vertices) and np.array_equal(record.faces, first.faces)
-    # The albedo per vertex (on by default), one per vertex, the same from the run and from its record.
-    assert first.albedo is not None and first.albedo.shape == (len(first.vertices),)
-    assert np.array_equal(record.albedo, first.albedo)
+    assert first.albedo is None  # one albedo: the default
     assert (record.reflectance, record.scale, record.stop, record.log) == (
         first.reflectance,
         first.scale,
@@ -281,3 +279,11 @@ def test_a_run_never_succeeds_with_almost_no_surface(tmp_path):
     start = nlos.read_mesh(tmp_path / "run" / "init.obj")
     kept = _area(made.vertices, made.faces) / _area(*start)
     assert failed == (kept < 0.05), f"kept {kept:.3g} of the start's area, raised: {failed}"
+
+
+def test_the_albedo_per_vertex_comes_back_from_the_run_and_its_record(builtin_capture, tmp_path):
+    # albedo = "vertex": one relative albedo per vertex, the same from the run and from its record.
+    first = nlos.reconstruct(builtin_capture, tmp_path, albedo="vertex", **FAST)
+    assert first.albedo is not None and first.albedo.shape == (len(first.vertices),)
+    assert np.all(first.albedo >= 0)
+    assert np.array_equal(nlos.read_run(tmp_path).albedo, first.albedo)

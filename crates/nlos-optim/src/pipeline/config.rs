@@ -187,10 +187,10 @@ impl fmt::Display for StartRim {
 #[serde(rename_all = "lowercase")]
 pub enum AlbedoChoice {
     /// An albedo per vertex, fitted with the shape; dark regions whose light the data do not detect are
-    /// deleted.
-    #[default]
+    /// deleted. For objects with print or holes.
     Vertex,
     /// One albedo for the whole surface (Tsai et al. 2019).
+    #[default]
     Off,
 }
 
@@ -411,7 +411,7 @@ impl Default for Config {
             seed: 0,
             init: InitMethod::Auto,
             init_rim: StartRim::Auto,
-            albedo: AlbedoChoice::Vertex,
+            albedo: AlbedoChoice::Off,
             capture: CaptureConfig::default(),
             reflectance: ReflectanceConfig::default(),
             sensor: SensorConfig::default(),

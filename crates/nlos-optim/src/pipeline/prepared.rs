@@ -200,10 +200,7 @@ impl Prepared {
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
-        if config.albedo == AlbedoChoice::Off {
-            p.albedo = None;
-            p.regions = None;
-        }
+        p.albedo = (config.albedo == AlbedoChoice::Vertex).then(crate::AlbedoParams::default);
         p.validate()?;
         Ok(p)
     }
