@@ -149,25 +149,31 @@ pub fn recentre(albedo: &mut [f64], positions: &[Vec3], triangles: &[[u32; 3]]) 
     }
 }
 
+/// The settings of one albedo step ([`step`]).
+#[derive(Debug, Clone, Copy)]
+pub struct StepSettings<'a> {
+    /// Adam's hyper-parameters.
+    pub adam: &'a AdamParams,
+    /// The albedo's parameters (its largest value).
+    pub params: &'a AlbedoParams,
+    /// Weight of the total variation's gradient.
+    pub tv_weight: f64,
+    /// Learning rate of the step.
+    pub lr: f64,
+    /// Recentre to an area mean of 1 after the step (the scale is solved, module docs "Gauge").
+    pub recentre: bool,
+}
+
 /// One Adam step of the surface's albedo ([`ALBEDO`], moments [`ALBEDO_MOMENTS`]) from the renderer's
-/// per-face gradient `grad_faces` (of the normalised data term) plus `tv_weight` times the total variation's;
-/// `steps` is the albedo's step count, `lr` the step's learning rate. The albedos are clamped to
-/// `[0, params.max]` and, with `recentre_mean` (the scale is solved), recentred ([`recentre`]).
+/// per-face gradient `grad_faces` (of the normalised data term) plus `settings.tv_weight` times the total
+/// variation's; `steps` is the albedo's step count. The albedos are clamped to `[0, params.max]` and, with
+/// `settings.recentre`, recentred ([`recentre`]).
 ///
 /// # Errors
 /// [`OptimError::Field`] when the surface has no albedo, [`OptimError::LengthMismatch`] for a gradient
 /// that is not one per face.
-#[allow(clippy::too_many_arguments)]
-pub fn step(
-    surface: &mut Surface,
-    steps: &mut u64,
-    adam: &AdamParams,
-    params: &AlbedoParams,
-    grad_faces: &[f32],
-    tv_weight: f64,
-    lr: f64,
-    recentre_mean: bool,
-) -> Result<()> {
+pub fn step(surface: &mut Surface, steps: &mut u64, grad_faces: &[f32], settings: &StepSettings<'_>) -> Result<()> {
+    let StepSettings { adam, params, tv_weight, lr, recentre: recentre_mean } = *settings;
     if grad_faces.len() != surface.n_faces() {
         return Err(OptimError::LengthMismatch {
             what: "albedo face gradient",

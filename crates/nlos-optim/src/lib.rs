@@ -73,7 +73,7 @@ pub use reconstruct::{
     describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
-pub use regions::{RegionNoise, RegionParams, RegionRecord, Regions, dark_regions};
+pub use regions::{RegionFit, RegionNoise, RegionParams, RegionRecord, Regions, dark_regions};
 pub use regularizer::{NormalSmoothing, auto_weight};
 pub use residual::{
     LOCALISATION_SHIFT, LOCALISED_CONTRAST, PatchFit, PatchNote, Patches, ResidualParams, ResidualRecord, localisation,

@@ -249,29 +249,49 @@ fn statistic(
     Ok((lambda, change))
 }
 
+/// What the region tests render and measure: the block's renderer with its BRDF, its forward pass (updated in
+/// place: the deleted regions' shares are subtracted), `bins` per histogram, and the data term per histogram
+/// at the block's scale.
+pub struct RegionFit<'a> {
+    /// The block's renderer (the mesh at the current positions, with its face factors).
+    pub renderer: &'a Renderer,
+    /// The BRDF it renders with.
+    pub brdf: &'a AnyBrdf,
+    /// Its forward pass, measurement-major.
+    pub rendered: &'a mut [f32],
+    /// Bins per histogram.
+    pub bins: usize,
+    /// The data term per histogram ([`RowLoss`]).
+    pub row_loss: &'a RowLoss<'a>,
+}
+
+impl std::fmt::Debug for RegionFit<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RegionFit")
+            .field("brdf", self.brdf)
+            .field("rendered", &self.rendered.len())
+            .field("bins", &self.bins)
+            .finish_non_exhaustive()
+    }
+}
+
 /// Deletes the dark regions whose light the data do not detect (module docs).
 ///
-/// `renderer` holds `triangles` at the current positions with the face factors `weights`, `rendered` its
-/// forward pass with `brdf` (updated in place: the deleted regions' shares are subtracted), `keep` the faces
-/// still present (faces already deleted, by pruning, are not tested), `row_loss` the data term per histogram
-/// at the block's scale.
+/// `fit.renderer` holds `triangles` at the current positions with the face factors `weights`; `keep` marks
+/// the faces still present (faces already deleted, by pruning, are not tested).
 ///
 /// # Errors
 /// [`OptimError::InvalidParameter`] for invalid `params`, [`OptimError::LengthMismatch`] for `weights`,
 /// `keep` or `rendered` of the wrong length, and the errors of `row_loss` and of the renderer.
-#[allow(clippy::too_many_arguments)]
 pub fn dark_regions(
     triangles: &[[u32; 3]],
     weights: &[f32],
     keep: &[bool],
-    renderer: &Renderer,
-    brdf: &AnyBrdf,
-    rendered: &mut [f32],
-    bins: usize,
-    row_loss: &RowLoss<'_>,
+    fit: RegionFit<'_>,
     noise: RegionNoise,
     params: &RegionParams,
 ) -> Result<Regions> {
+    let RegionFit { renderer, brdf, rendered, bins, row_loss } = fit;
     params.validate()?;
     let nt = triangles.len();
     for (what, got) in [("face weights", weights.len()), ("kept faces", keep.len())] {

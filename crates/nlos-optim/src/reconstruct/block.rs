@@ -27,7 +27,7 @@ use crate::data_term::counts::SensorRows;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
-use crate::regions::{RegionNoise, RegionRecord, dark_regions};
+use crate::regions::{RegionFit, RegionNoise, RegionRecord, dark_regions};
 use crate::regularizer::{NormalSmoothing, auto_weight};
 use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_rounds};
 use crate::surface::Remap;
@@ -205,16 +205,14 @@ pub(super) fn shape_block<'e>(
         if let Some(ap) = &params.albedo {
             let lr = ap.lr * st.lr_scale;
             let tv = b.tv_weight;
-            albedo::step(
-                &mut st.surface,
-                &mut st.albedo_steps,
-                &params.reflectance_adam,
-                ap,
-                &ev.grad_faces,
-                tv,
+            let settings = albedo::StepSettings {
+                adam: &params.reflectance_adam,
+                params: ap,
+                tv_weight: tv,
                 lr,
-                params.data.solve_scale,
-            )?;
+                recentre: params.data.solve_scale,
+            };
+            albedo::step(&mut st.surface, &mut st.albedo_steps, &ev.grad_faces, &settings)?;
             set_albedo_weights(st, &mut b.renderer)?;
         }
         st.surface.set_positions(new)?;
@@ -289,16 +287,14 @@ pub(super) fn reflectance_block(
         }
         if let Some(ap) = &params.albedo {
             let (lr, tv) = (ap.lr * st.lr_scale, b.tv_weight);
-            albedo::step(
-                &mut st.surface,
-                &mut st.albedo_steps,
-                &params.reflectance_adam,
-                ap,
-                &ev.grad_faces,
-                tv,
+            let settings = albedo::StepSettings {
+                adam: &params.reflectance_adam,
+                params: ap,
+                tv_weight: tv,
                 lr,
-                params.data.solve_scale,
-            )?;
+                recentre: params.data.solve_scale,
+            };
+            albedo::step(&mut st.surface, &mut st.albedo_steps, &ev.grad_faces, &settings)?;
         }
         set_albedo_weights(st, &mut b.renderer)?;
         st.iteration += 1;
@@ -370,7 +366,8 @@ pub(super) fn prune_and_patch(
             (None, false) => RegionNoise::None,
         };
         let (triangles, renderer) = (st.surface.triangles(), &b.renderer);
-        let r = dark_regions(triangles, weights, &keep, renderer, &brdf, &mut rendered, bins, row_loss, noise, rp)?;
+        let fit = RegionFit { renderer, brdf: &brdf, rendered: &mut rendered, bins, row_loss };
+        let r = dark_regions(triangles, weights, &keep, fit, noise, rp)?;
         keep = r.keep;
         let record = RegionRecord {
             stage: st.stage,
