@@ -104,7 +104,7 @@ def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_p
     old = json.loads(checkpoint.read_text())
     old["version"] = 3
     checkpoint.write_text(json.dumps(old))
-    with pytest.raises(nlos.ReconstructError, match="record version 3, this build reads 4"):
+    with pytest.raises(nlos.ReconstructError, match=r"record version 3, this build reads \d+"):
         nlos.read_run(tmp_path)
 
 
