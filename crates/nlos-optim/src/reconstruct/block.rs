@@ -202,17 +202,8 @@ pub(super) fn shape_block<'e>(
             continue;
         }
         // The albedo from the same rendering (crate::albedo, "Steps"), at the positions it was rendered at.
-        if let Some(ap) = &params.albedo {
-            let lr = ap.lr * st.lr_scale;
-            let tv = b.tv_weight;
-            let settings = albedo::StepSettings {
-                adam: &params.reflectance_adam,
-                params: ap,
-                tv_weight: tv,
-                lr,
-                recentre: params.data.solve_scale,
-            };
-            albedo::step(&mut st.surface, &mut st.albedo_steps, &ev.grad_faces, &settings)?;
+        if params.albedo.is_some() {
+            albedo_step(st, params, b.tv_weight, &ev.grad_faces)?;
             set_albedo_weights(st, &mut b.renderer)?;
         }
         st.surface.set_positions(new)?;
@@ -224,6 +215,20 @@ pub(super) fn shape_block<'e>(
         st.log.collisions.push(b.collisions);
     }
     Ok(())
+}
+
+/// One step of the per-vertex albedo (crate::albedo) from the per-face gradient of a step's rendering, with
+/// the block's total-variation weight (nothing when the run fits no albedo).
+fn albedo_step(st: &mut RunRecord, params: &ReconstructParams, tv_weight: f64, grad_faces: &[f32]) -> Result<()> {
+    let Some(ap) = &params.albedo else { return Ok(()) };
+    let settings = albedo::StepSettings {
+        adam: &params.reflectance_adam,
+        params: ap,
+        tv_weight,
+        lr: ap.lr * st.lr_scale,
+        recentre: params.data.solve_scale,
+    };
+    albedo::step(&mut st.surface, &mut st.albedo_steps, grad_faces, &settings)
 }
 
 /// Step 3: the reflectance block — Adam steps on θ (and on the per-vertex albedo) with the shape fixed,
@@ -285,17 +290,7 @@ pub(super) fn reflectance_block(
             let delta = st.reflectance_adam.step(&params.reflectance_adam, &ev.grad_theta, lr);
             st.reflectance.add_theta(&delta);
         }
-        if let Some(ap) = &params.albedo {
-            let (lr, tv) = (ap.lr * st.lr_scale, b.tv_weight);
-            let settings = albedo::StepSettings {
-                adam: &params.reflectance_adam,
-                params: ap,
-                tv_weight: tv,
-                lr,
-                recentre: params.data.solve_scale,
-            };
-            albedo::step(&mut st.surface, &mut st.albedo_steps, &ev.grad_faces, &settings)?;
-        }
+        albedo_step(st, params, b.tv_weight, &ev.grad_faces)?;
         set_albedo_weights(st, &mut b.renderer)?;
         st.iteration += 1;
         it += 1;
