@@ -214,7 +214,7 @@ fn share(renderer: &Renderer, brdf: &AnyBrdf, faces: &[usize]) -> Result<Vec<Row
     Ok(merge(all))
 }
 
-/// The likelihood-ratio statistic `Λ_R` of deleting a region of share `spans` (module docs) and `ΔE_R`.
+/// The likelihood-ratio statistic `Λ_R` of deleting a region of share `spans` (module docs).
 fn statistic(
     spans: &[RowSpan],
     rendered: &[f32],
@@ -223,7 +223,7 @@ fn statistic(
     noise: RegionNoise,
     mean_weight: f64,
     dark: f64,
-) -> Result<(f64, f64)> {
+) -> Result<f64> {
     let (test, change) = delta(spans, rendered, bins, row_loss, 1.0, false)?;
     let lambda = match noise {
         RegionNoise::Poisson => 2.0 * change,
@@ -246,7 +246,7 @@ fn statistic(
             if half_c > 0.0 { change / (half_c / mean_weight.max(1e-12).powi(2)) / dark.powi(4) } else { 0.0 }
         }
     };
-    Ok((lambda, change))
+    Ok(lambda)
 }
 
 /// What the region tests render and measure: the block's renderer with its BRDF, its forward pass (updated in
@@ -311,19 +311,19 @@ pub fn dark_regions(
         .collect();
     let threshold = if matches!(noise, RegionNoise::None) { 1.0 } else { params.detection };
     let snapshot: &[f32] = rendered;
-    let mut scored: Vec<(f64, f64, Vec<usize>, Vec<RowSpan>)> = regions
+    let mut scored: Vec<(f64, Vec<usize>, Vec<RowSpan>)> = regions
         .into_par_iter()
         .map(|region| {
             let spans = share(renderer, brdf, &region)?;
             let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
-            let (lambda, change) = statistic(&spans, snapshot, bins, row_loss, noise, w, params.dark)?;
-            Ok((lambda, change, region, spans))
+            let lambda = statistic(&spans, snapshot, bins, row_loss, noise, w, params.dark)?;
+            Ok((lambda, region, spans))
         })
         .collect::<Result<_>>()?;
     let tested = scored.len();
     scored.retain(|s| s.0 < threshold);
     // The least supported first: each is re-tested against the rendering the deletions before it left.
-    scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.2[0].cmp(&b.2[0])));
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1[0].cmp(&b.1[0])));
     let budget = ((nt as f64 * params.max_fraction).floor() as usize).min(nt.saturating_sub(1));
     let mut keep = keep.to_vec();
     let n_vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
@@ -334,12 +334,12 @@ pub fn dark_regions(
         }
     }
     let (mut deleted, mut removed, mut total) = (0, 0, 0.0);
-    for (_, _, region, spans) in scored {
+    for (_, region, spans) in scored {
         if removed + region.len() > budget {
             break;
         }
         let w = region.iter().map(|&f| f64::from(weights[f])).sum::<f64>() / region.len() as f64;
-        let (lambda, _) = statistic(&spans, rendered, bins, row_loss, noise, w, params.dark)?;
+        let lambda = statistic(&spans, rendered, bins, row_loss, noise, w, params.dark)?;
         if !(lambda < threshold) {
             continue;
         }

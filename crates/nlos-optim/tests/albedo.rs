@@ -184,13 +184,6 @@ fn a_slot_becomes_a_hole_not_a_dent() {
     let fitted = reconstruct(&measured, &init, &with(Some(AlbedoParams::default()))).unwrap();
     let (du, df) = (in_slot_area(&uniform.mesh) / slot, in_slot_area(&fitted.mesh) / slot);
     let deleted: usize = fitted.regions.iter().map(|r| r.removed).sum();
-    println!("regions: {:?}", fitted.regions);
-    if let Some(a) = &fitted.albedo {
-        let (p, _) = fitted.mesh.to_triangles();
-        let v: Vec<String> =
-            p.iter().zip(a).filter(|(q, _)| in_slot(q.x, q.y)).map(|(_, a)| format!("{a:.2}")).collect();
-        println!("slot albedo: {}", v.join(" "));
-    }
     println!(
         "slot covered: one albedo {:.0} %, per-vertex albedo {:.0} % ({deleted} faces deleted by region tests)",
         100.0 * du,
