@@ -15,6 +15,7 @@ use crate::loss::Loss;
 use soa::Isa;
 
 mod backend;
+mod cache;
 pub(crate) mod cpu;
 #[cfg(feature = "gpu")]
 pub(crate) mod gpu;

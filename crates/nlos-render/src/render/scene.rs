@@ -8,7 +8,6 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{DVec3, Vec3};
 use nlos_brdf::FittedBrdf;
 use nlos_transient::{Scan, TimeAxis};
-use rayon::prelude::*;
 
 use super::{Gradient, RenderParams, Sampling, Visibility, check_params};
 use crate::error::{RenderError, Result};
@@ -251,26 +250,7 @@ impl Scene {
         let t = &self.tris;
         self.tris.soa = Soa::new(&t.v0, &t.e1, &t.e2, &t.n, &t.valid, None);
         self.update_levels();
-        let nt = self.tris.v0.len();
-        let mut cache = vec![0u8; nt * self.wall.l.len()];
-        let this = &*self;
-        cache.par_chunks_mut(nt.max(1)).enumerate().for_each(|(m, row)| {
-            let fr = this.frame(m);
-            for (slot, out) in row.iter_mut().enumerate() {
-                let t = this.mesh_triangle(slot);
-                if this.orientation(t, &fr).is_none() {
-                    continue;
-                }
-                let mut visible = 0u32;
-                this.centroids(level, |u, v, _| {
-                    let x = this.point(t, u, v);
-                    visible += u32::from(this.visible_live(x, t, &fr));
-                });
-                let total = level * level;
-                *out = ((visible * 255 + total / 2) / total) as u8;
-            }
-            this.count_done(1);
-        });
+        let cache = self.visibility_cache(level);
         self.cache = Some(cache);
         // Unique across renderers: a renderer made after another one was dropped may sit at its address.
         static REFRESHES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);

@@ -248,3 +248,71 @@ fn gpu_half(r: &Renderer, params: &RenderParams, live: &RenderParams) {
     let worst = a.vertices.iter().zip(&b.vertices).map(|(x, y)| (*x - *y).length()).fold(0.0f32, f32::max);
     assert!(scale > 0.0 && worst <= 1e-3 * scale, "adjoint: {worst} against {scale}");
 }
+
+/// A height field over [−0.2, 0.2]² at depth ≈ 0.35 m with hills tall enough to shadow their neighbours from
+/// the wall's far spots, and a small plate in front of it (z = 0.2 m) that shadows a patch of it from every
+/// spot: `n × n` quads of the field, two triangles each, facing the wall (−z).
+fn shadowed_scene(n: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut p = Vec::new();
+    let mut f = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (-0.2 + 0.4 * i as f32 / n as f32, -0.2 + 0.4 * j as f32 / n as f32);
+            let z = 0.35 - 0.04 * (14.0 * x).sin().max(0.0) * (11.0 * y).cos().max(0.0) + 0.002 * (97.0 * x * y).sin();
+            p.push(Vec3::new(x, y, z));
+        }
+    }
+    let id = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j)]);
+            f.push([id(i + 1, j), id(i, j + 1), id(i + 1, j + 1)]);
+        }
+    }
+    let base = p.len() as u32;
+    p.extend([
+        Vec3::new(-0.03, -0.05, 0.2),
+        Vec3::new(0.05, -0.05, 0.2),
+        Vec3::new(-0.03, 0.04, 0.21),
+        Vec3::new(0.05, 0.04, 0.21),
+    ]);
+    f.extend([[base, base + 2, base + 1], [base + 1, base + 2, base + 3]]);
+    (p, f)
+}
+
+/// The cache from one bundle query per centroid ([`Scene::visibility_cache`]) is the cache of one shadow ray
+/// per centroid and spot, entry by entry: confocal and non-confocal scans (a laser shared by many sensor spots),
+/// one- and two-sided faces, levels 1 and 2, on a scene with self-shadowing and a separate occluder.
+#[test]
+fn bundled_cache_is_the_cache_of_rays() {
+    let (p, f) = shadowed_scene(40);
+    let time = TimeAxis::new(0.0, 0.01, 200).expect("axis");
+    let scans = [
+        Scan::confocal(PointSet::wall_grid(24, 24, 0.4, 0.4).expect("grid")),
+        Scan::exhaustive(
+            PointSet::wall_grid(2, 1, 0.3, 0.1).expect("grid"),
+            PointSet::wall_grid(16, 16, 0.45, 0.45).expect("grid"),
+        ),
+    ];
+    for scan in scans {
+        for (level, two_sided) in [(1, false), (2, false), (1, true)] {
+            let params = RenderParams {
+                kernel: Kernel::Tent,
+                sampling: Sampling::Splat(SplatRule::default()),
+                visibility: Visibility::Cached { level },
+                two_sided,
+            };
+            let r = Renderer::new(&p, &f, &scan, &time, params).expect("valid");
+            let fast = r.scene.visibility_cache(level);
+            let rays = r.scene.visibility_cache_by_rays(level);
+            let lit = rays.iter().filter(|&&v| v > 0).count();
+            let shadowed = rays.iter().filter(|&&v| v < 255).count() - rays.iter().filter(|&&v| v == 0).count();
+            let differ = fast.iter().zip(&rays).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{} of {} entries differ (level {level}, two-sided {two_sided})", differ, rays.len());
+            // The scene must shadow: partly and wholly occluded pairs both occur.
+            let dark = fast.iter().zip(&r.scene.visibility_cache_unshadowed(level)).filter(|(a, b)| a < b).count();
+            assert!(lit > rays.len() / 4 && dark > rays.len() / 100, "lit {lit}, shadowed {dark} of {}", rays.len());
+            assert!(level == 1 || shadowed > 0, "level 2 gives partial shares");
+        }
+    }
+}
