@@ -120,7 +120,10 @@ pub enum Visibility {
     /// [`Renderer::refresh_visibility`](crate::Renderer::refresh_visibility) only; [`Renderer::set_positions`](crate::Renderer::set_positions) keeps it (refresh after remeshing or
     /// large moves), and with it the grouping of the triangles into blocks (made from the normals at the last
     /// refresh), so results depend on the positions at the last refresh as well as on the current ones.
-    /// Memory: one byte per (triangle, measurement).
+    /// Memory: one byte per (triangle, measurement). Each centroid's view of the whole wall is one query (the
+    /// wall's spots in a k-d tree walked with the BVH, a group of spots settled where no triangle reaches the
+    /// cone of its segments), which gives what a shadow ray per centroid and spot gives, entry by entry, at
+    /// 5–13× less cost (docs/performance.md, "The visibility cache").
     Cached {
         /// Sub-triangle level of the visibility rays (≥ 1; 1 = one ray at the centroid).
         level: u32,
