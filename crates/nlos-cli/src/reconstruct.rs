@@ -246,6 +246,9 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             StopReason::Interrupted => "interrupted (resume with --resume)",
         }
     );
+    if let Some(fit) = &outcome.log.fit {
+        outln!("fit: the surface {}", fit.describe());
+    }
     if let Some(choice) = pipeline::saved_choice(out).map_err(optim_error)? {
         outln!("start: {choice}; the other's run: {}", out.join(pipeline::CANDIDATES_DIR).display());
     }

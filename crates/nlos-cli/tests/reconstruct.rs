@@ -602,6 +602,11 @@ fn a_batch_log_has_a_line_per_block_and_no_driver_errors() {
         .unwrap_or_else(|| panic!("no block count in {stdout}"));
     let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("progress: ")).collect();
     assert!(blocks >= 2, "{stdout}");
+    // The last lines say how much of the capture the surface explains.
+    assert!(
+        stdout.lines().any(|l| l.starts_with("fit: the surface explains ") && l.contains("% of the light")),
+        "{stdout}"
+    );
     assert_eq!(lines.len(), blocks, "{stderr}");
     for (i, l) in lines.iter().enumerate() {
         assert!(l.contains(&format!(" block {} ", i + 1)) && l.contains(" faces ") && l.contains(" left"), "{l}");

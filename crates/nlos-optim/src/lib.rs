@@ -67,7 +67,7 @@ pub use nlos_render::Loss;
 pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
 pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
-    BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, Hooks,
+    BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, FitQuality, Hooks,
     IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,
     ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, SHAPE_MOMENTS, StageRecord, StartRecord, StepKind, StopReason,
     describe_device, reconstruct, reconstruct_with, resume,

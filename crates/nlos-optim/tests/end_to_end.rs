@@ -149,6 +149,15 @@ fn flat_start_converges_to_the_bumpy_truth() {
     assert_eq!(out.evolve.len() as u64, out.blocks_done);
     assert!(out.evolve.iter().all(|r| !r.input_intersected && r.motion_fraction > 0.99), "{:?}", out.evolve);
     assert!(l1 < 0.2 * l0);
+    // The fit-quality record: L2 on an exact rendering, so an empty scene's data term is 1 (the normaliser's
+    // definition), the final surface's the last step's up to its pruning, and nearly all the light explained.
+    let fit = out.log.fit.expect("a finished run records its fit");
+    assert!((fit.empty - 1.0).abs() < 1e-9 && fit.noise_floor.is_none(), "{fit:?}");
+    assert!(fit.data < 0.2 * l0 && fit.explained().is_some_and(|e| e > 0.9), "{fit:?}");
+    assert!(fit.describe().starts_with("explains 100 % of the light ("), "{}", fit.describe());
+    let written: nlos_optim::RunLog =
+        serde_json::from_slice(&std::fs::read(dir.join("run_log.json")).unwrap()).expect("run log");
+    assert_eq!(written.fit, Some(fit), "run_log.json holds the record");
     assert!(dir.join("mesh.obj").exists() && dir.join("run_log.json").exists());
     assert!(dir.join("checkpoint.json").exists() && dir.join("stage_00.obj").exists());
     let _ = std::fs::remove_dir_all(&dir);
@@ -409,6 +418,10 @@ fn sensor_fit_recovers_shape_from_jittered_counts_with_background() {
         }
     }
     assert!(log[0].noise_floor.is_some_and(|f| f < log[0].data), "the misfit of the flat start is above the floor");
+    // The fit-quality record under a sensor fit: an empty scene is the background alone, worse than the fit.
+    let fit = out.log.fit.expect("a finished run records its fit");
+    assert!(fit.noise_floor.is_some() && fit.data < fit.empty, "{fit:?}");
+    assert!(fit.explained().is_some_and(|e| e > 0.5), "{fit:?}: {}", fit.describe());
     // Weights are refused with the sensor fit.
     params.data.weights = Some(vec![1.0; measured.data().len()]);
     assert!(matches!(

@@ -160,6 +160,7 @@ pub(crate) fn reconstruct<'py>(
     result.set_item("scale", outcome.scale)?;
     result.set_item("albedo", outcome.albedo.clone().map(|a| numpy::PyArray1::from_vec(py, a)))?;
     result.set_item("notes", prepared.notes.clone())?;
+    set_fit(&result, outcome.log.fit.as_ref())?;
     // The run directory holds everything by now; a run that kept almost no surface raises, saying why, with
     // what it made as the exception's `result` (the Python side turns it into a `Reconstruction`).
     if let Err(e) = outcome.check_surface_kept() {
@@ -190,7 +191,15 @@ pub(crate) fn read_run(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyDic
     let albedo: Option<Vec<f32>> = record.albedo().map(|a| a.iter().map(|&x| x as f32).collect());
     result.set_item("albedo", albedo.map(|a| numpy::PyArray1::from_vec(py, a)))?;
     result.set_item("notes", Vec::<String>::new())?;
+    set_fit(&result, record.log().fit.as_ref())?;
     Ok(result)
+}
+
+/// The fit-quality verdict in words (`fit`) and the share of the light it explains (`explained`), None for a
+/// run not finished ([`nlos_optim::FitQuality`]).
+fn set_fit(result: &Bound<'_, PyDict>, fit: Option<&nlos_optim::FitQuality>) -> PyResult<()> {
+    result.set_item("fit", fit.map(nlos_optim::FitQuality::describe))?;
+    result.set_item("explained", fit.and_then(nlos_optim::FitQuality::explained))
 }
 
 /// JSON text of a serialisable part of the outcome (the Python side parses it).

@@ -92,6 +92,9 @@ def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_p
     record = nlos.read_run(tmp_path)
     assert np.array_equal(record.vertices, first.vertices) and np.array_equal(record.faces, first.faces)
     assert first.albedo is None  # one albedo: the default
+    # How much of the capture the surface explains, in words and as a share, from the run and its record.
+    assert first.fit.startswith("explains ") and 0.0 <= first.explained <= 1.0
+    assert (record.fit, record.explained) == (first.fit, first.explained)
     assert (record.reflectance, record.scale, record.stop, record.log) == (
         first.reflectance,
         first.scale,

@@ -149,6 +149,9 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         p.final_mesh.n_vertices(),
         esc(p.gate_note)
     );
+    if let Some(fit) = &log.fit {
+        let _ = writeln!(o, "<p class=\"verdict\"><b>Fit:</b> the surface {}.</p>", esc(&fit.describe()));
+    }
 
     o.push_str("<h2>Run</h2>\n<table>\n");
     row(&mut o, &["parameter".into(), "value".into()], true);

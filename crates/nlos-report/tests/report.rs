@@ -90,6 +90,7 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         residual: Vec::new(),
         collisions: Vec::new(),
         start: None,
+        fit: Some(nlos_optim::FitQuality { data: 0.1, empty: 1.0, noise_floor: Some(0.08) }),
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
     let measured = measure(&truth);
@@ -140,6 +141,9 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
     }
     assert!(html.contains("tilted &lt;plane&gt;"));
     assert!(html.contains("stage_00.obj"));
+    // The verdict of the run's fit-quality record, in words, above the settings.
+    let verdict = html.find("<b>Fit:</b> the surface explains 98 % of the light above the noise").expect("verdict");
+    assert!(verdict < html.find("<h2>Run</h2>").expect("settings"), "the verdict comes first");
     // The depth error split at the ground truth's silhouette (nlos_mesh::metrics::SILHOUETTE_BAND = 2).
     assert!(html.contains("depth error, mean inside (≥ 3 pixels from the silhouette)"));
     assert!(html.contains("depth error, mean on the silhouette band"));

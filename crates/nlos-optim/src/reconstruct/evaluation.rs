@@ -5,6 +5,7 @@ use glam::Vec3;
 use nlos_render::Renderer;
 use nlos_transient::Transient;
 
+use super::log::FitQuality;
 use super::record::RunRecord;
 use crate::data_term::counts::SensorModel;
 use crate::error::{OptimError, Result};
@@ -66,6 +67,39 @@ pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: 
         grad_theta: st.reflectance.chain(&g.brdf),
         grad_vertices: g.vertices,
         grad_faces: g.faces,
+    })
+}
+
+/// How much of the capture `fit` holds the surface that `r` renders explains ([`FitQuality`]): the data term
+/// at the fitted scale, an empty scene's (a rendering of zeros: the background alone under a sensor fit) and
+/// the noise floor where the data are photon counts.
+///
+/// # Errors
+/// As [`evaluate`].
+pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result<FitQuality> {
+    let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
+    let rendered = r.forward_any(&st.reflectance.brdf()?);
+    let zeros = vec![0.0f32; rendered.len()];
+    Ok(match fit.sensor {
+        Some(sensor) => {
+            let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
+            let (empty, _) = sensor.evaluate(&zeros, measured, false, 1.0)?;
+            FitQuality {
+                data: ev.value / norm,
+                empty: empty.value / norm,
+                noise_floor: Some(sensor.noise_floor(&a, ev.scale) / norm),
+            }
+        }
+        None => {
+            let ev = params.data.evaluate(&rendered, measured, st.scale)?;
+            let empty = params.data.evaluate(&zeros, measured, 1.0)?;
+            let floor = if params.data.counts {
+                Some(params.data.noise_floor(&rendered, measured, ev.scale)? / norm)
+            } else {
+                None
+            };
+            FitQuality { data: ev.value / norm, empty: empty.value / norm, noise_floor: floor }
+        }
     })
 }
 

@@ -76,6 +76,58 @@ pub struct RunLog {
     /// before it was recorded.
     #[serde(default)]
     pub start: Option<StartRecord>,
+    /// How much of its capture the finished surface explains; None while the run is under way, for an
+    /// interrupted run and in logs written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitQuality>,
+}
+
+/// How much of its capture a result explains, from the data term of its last stage (normalised as
+/// [`IterationRecord::data`]): the final surface's, an empty scene's (nothing rendered: the background alone
+/// under a sensor fit; 1 for L2 by the normaliser's definition) and, for photon counts, the noise floor (what
+/// the data term would be were the final surface's expected counts exact, [`IterationRecord::noise_floor`]).
+///
+/// The share of the light above the noise that the surface explains is
+/// `(empty − data) / (empty − floor)`: 0 for a result no better than an empty scene, 1 for one whose misfit is
+/// down to the noise ([`FitQuality::explained`], [`FitQuality::describe`] in words).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitQuality {
+    /// The final surface's normalised data term.
+    pub data: f64,
+    /// An empty scene's normalised data term.
+    pub empty: f64,
+    /// The normalised noise floor (photon counts only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_floor: Option<f64>,
+}
+
+impl FitQuality {
+    /// The share of the light above the noise floor that the surface explains, in [0, 1]: `(empty − data) /
+    /// (empty − floor)`, clamped. None when the capture holds nothing above its floor (or a value is not
+    /// finite).
+    pub fn explained(&self) -> Option<f64> {
+        let floor = self.noise_floor.unwrap_or(0.0);
+        let room = self.empty - floor;
+        let share = (self.empty - self.data) / room;
+        (room > 0.0 && share.is_finite()).then(|| share.clamp(0.0, 1.0))
+    }
+
+    /// The verdict in words, with the figures it rests on: "explains 93 % of the light above the noise", or
+    /// "explains no more than an empty scene would".
+    pub fn describe(&self) -> String {
+        let figures = match self.noise_floor {
+            Some(f) => {
+                format!("data term {:.4} against an empty scene's {:.4}; noise floor {f:.4}", self.data, self.empty)
+            }
+            None => format!("data term {:.4} against an empty scene's {:.4}", self.data, self.empty),
+        };
+        let above = if self.noise_floor.is_some() { "the light above the noise" } else { "the light" };
+        match self.explained() {
+            None => format!("the capture holds no light above its noise floor ({figures})"),
+            Some(_) if self.data >= self.empty => format!("explains no more than an empty scene would ({figures})"),
+            Some(e) => format!("explains {:.0} % of {above} ({figures})", 100.0 * e),
+        }
+    }
 }
 
 /// The surface a run started from: what [`crate::Outcome::check_surface_kept`] compares the result with.
@@ -176,4 +228,31 @@ pub struct EvolveRecord {
     /// (`nlos_mesh::remeshing::RemeshReport::refused_intersections`).
     #[serde(default)]
     pub remesh_refused: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FitQuality;
+
+    /// The share explained runs from 0 (no better than an empty scene) to 1 (down to the noise floor), and the
+    /// words say which.
+    #[test]
+    fn the_verdict_follows_the_share_above_the_noise() {
+        let fit = |data, floor| FitQuality { data, empty: 1.0, noise_floor: floor };
+        assert!((fit(0.0763, Some(0.0756)).explained().expect("a share") - 0.99924).abs() < 1e-4);
+        assert!(fit(0.0763, Some(0.0756)).describe().starts_with("explains 100 % of the light above the noise"));
+        assert!((fit(0.55, None).explained().expect("a share") - 0.45).abs() < 1e-12);
+        assert_eq!(
+            fit(0.55, None).describe(),
+            "explains 45 % of the light (data term 0.5500 against an empty scene's 1.0000)"
+        );
+        assert_eq!(fit(1.01, Some(0.3)).explained(), Some(0.0));
+        assert!(fit(1.01, Some(0.3)).describe().starts_with("explains no more than an empty scene would"));
+        // Below the floor (an over-fit, or a floor estimated high): all of it, not more.
+        assert_eq!(fit(0.2, Some(0.3)).explained(), Some(1.0));
+        // Nothing above the floor, or no finite figures: no share.
+        assert_eq!(fit(0.9, Some(1.2)).explained(), None);
+        assert!(fit(0.9, Some(1.2)).describe().starts_with("the capture holds no light above its noise floor"));
+        assert_eq!(fit(f64::NAN, None).explained(), None);
+    }
 }

@@ -76,8 +76,8 @@ mod topology;
 use block::{Block, RunCtx};
 use evaluation::{Fit, StageData, data_normaliser};
 pub use log::{
-    EvolveRecord, IntersectionCheck, IntersectionRecord, IterationRecord, RunLog, StageRecord, StartRecord, StepKind,
-    StopReason,
+    EvolveRecord, FitQuality, IntersectionCheck, IntersectionRecord, IterationRecord, RunLog, StageRecord, StartRecord,
+    StepKind, StopReason,
 };
 pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Plan};
 pub use record::RunRecord;
@@ -457,6 +457,24 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
         let end = ctx.plan.block_end(&st, target, b.first, b.last);
         let stage_mesh = block::prune_and_patch(&mut st, &ctx, &b, &end)?;
         block::bookkeeping(&mut st, &ctx, &b, &end, stage_mesh)?;
+        if st.finished.is_some() {
+            // What the final surface explains of its last stage's capture, in the record before its last write.
+            let mut rng = st.rng;
+            let render = render_params(params, st.stage.saturating_sub(1), &mut rng);
+            let mut surface = Renderer::new(
+                st.surface.positions(),
+                st.surface.triangles(),
+                b.measured.scan(),
+                b.measured.time(),
+                render,
+            )?;
+            surface.set_device(params.device)?;
+            set_albedo_weights(&st, &mut surface)?;
+            st.log.fit = Some(evaluation::fit_quality(&st, &surface, &b.fit)?);
+            if let Some(dir) = &params.out_dir {
+                st.write(dir)?;
+            }
+        }
         // The block's stage: `bookkeeping` has moved `st` to the next stage when this block ended one.
         let end = progress(&st, ProgressEvent::BlockEnd, ctx.planned, b.last, target, st.elapsed_s);
         let flow = report(&mut hooks, &Progress { stage: block_stage, ..end });

@@ -263,6 +263,8 @@ def _reconstruction(result: Dict[str, Any]) -> "Reconstruction":
         stop=json.loads(result["stop"]),
         notes=list(result["notes"]),
         log=json.loads(result["log"]),
+        fit=result["fit"],
+        explained=result["explained"],
     )
 
 
@@ -289,6 +291,12 @@ class Reconstruction:
     notes: List[str]
     #: The run log (every iteration's loss, the stages' edge lengths, pruning and residual records).
     log: Dict[str, Any]
+    #: How much of its capture the surface explains, in words ("explains 93 % of the light above the
+    #: noise (…)"); ``None`` while the run has blocks left.
+    fit: Optional[str] = None
+    #: The share of the light above the noise floor the surface explains, in [0, 1] (``None`` while the
+    #: run has blocks left, or for a capture with nothing above its floor).
+    explained: Optional[float] = None
 
     @property
     def mesh(self) -> Mesh:
