@@ -149,39 +149,41 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         p.final_mesh.n_vertices(),
         esc(p.gate_note)
     );
+    // What a user looks for first: the surface (3-D view, depth seen from the wall), then the verdict.
+    let imgs = &p.report.images;
+    let section = |o: &mut String, heading: &str, names: &[&str]| {
+        let present: Vec<&&str> = names.iter().filter(|n| imgs.iter().any(|i| i == *n)).collect();
+        if present.is_empty() {
+            return;
+        }
+        let _ = writeln!(o, "<h2>{}</h2>\n<div class=\"row\">", esc(heading));
+        for n in present {
+            let _ = writeln!(o, "<img src=\"{0}\" alt=\"{0}\">", esc(n));
+        }
+        o.push_str("</div>\n");
+    };
+    o.push_str(p.view3d);
+    section(
+        &mut o,
+        "Depth maps seen from the wall",
+        &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png"],
+    );
     if let Some(fit) = &log.fit {
         let _ = writeln!(o, "<p class=\"verdict\"><b>Fit:</b> the surface {}.</p>", esc(&fit.describe()));
     }
 
-    o.push_str("<h2>Run</h2>\n<table>\n");
-    row(&mut o, &["parameter".into(), "value".into()], true);
-    for (k, v) in &p.opts.parameters {
-        row(&mut o, &[k.clone(), v.clone()], false);
-    }
+    o.push_str("<h2>Result</h2>\n<table>\n");
+    row(&mut o, &["".into(), "value".into()], true);
     let mut add = |k: &str, v: String| row(&mut o, &[k.to_string(), v], false);
-    add("reflectance", format!("{} ({})", describe(p.reflectance), p.reflectance_note));
-    add(
-        "data term",
-        match &p.opts.sensor {
-            Some(s) => format!(
-                "sensor fit: Poisson NLL of scale x J(I) + b, jitter kernel of {} bins, background {:?}",
-                s.kernel.weights().len(),
-                s.background
-            ),
-            None => format!("{:?}, closed-form scale", p.opts.loss),
-        },
-    );
-    add("renderer kernel", format!("{:?}", p.opts.render.kernel));
-    add("visibility", format!("{:?}", p.opts.render.visibility));
-    add("iterations", log.iterations.len().to_string());
-    add("rollbacks", log.rollbacks.to_string());
+    add("final mesh", format!("{} faces, {} vertices", p.final_mesh.n_faces(), p.final_mesh.n_vertices()));
+    add("fitted reflectance", format!("{} ({})", describe(p.reflectance), p.reflectance_note));
     if let Some(l) = last {
         add("final loss", format!("{:.5e}", l.loss));
         add("final data term (normalised)", format!("{:.5e}", l.data));
         add("final regulariser (unweighted), weight", format!("{:.5e}, {:.3e}", l.regulariser, l.reg_weight));
         add("run time", format!("{:.1} s", l.time_s));
     }
-    add("final mesh", format!("{} faces, {} vertices", p.final_mesh.n_faces(), p.final_mesh.n_vertices()));
+    add("iterations, rollbacks", format!("{}, {}", log.iterations.len(), log.rollbacks));
     add("scale s* of the final rendering", format!("{:.5e}", p.report.scale));
     add("relative residual |s*I - m| / |m|", format!("{:.4}", p.report.relative_residual));
     o.push_str("</table>\n");
@@ -202,26 +204,8 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         o.push_str("</table>\n");
     }
 
-    let imgs = &p.report.images;
-    let section = |o: &mut String, heading: &str, names: &[&str]| {
-        let present: Vec<&&str> = names.iter().filter(|n| imgs.iter().any(|i| i == *n)).collect();
-        if present.is_empty() {
-            return;
-        }
-        let _ = writeln!(o, "<h2>{}</h2>\n<div class=\"row\">", esc(heading));
-        for n in present {
-            let _ = writeln!(o, "<img src=\"{0}\" alt=\"{0}\">", esc(n));
-        }
-        o.push_str("</div>\n");
-    };
-    o.push_str(p.view3d);
     section(&mut o, "Measured vs rendered", &["summed.png", "xt_slice.png"]);
     section(&mut o, "Loss", &["loss.png"]);
-    section(
-        &mut o,
-        "Depth maps seen from the wall",
-        &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png"],
-    );
     section(&mut o, "Relief", &["relief.png"]);
     section(&mut o, "Coverage against the ground truth", &["coverage.png"]);
     // Any image not placed above still gets shown.
@@ -269,6 +253,29 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
             "<td>–</td>".into()
         };
         let _ = writeln!(o, "<tr>{cells}{link}</tr>");
+    }
+    o.push_str("</table>\n");
+    // The settings last, each once (the run's own record of them, then what the renderer and data term ran).
+    o.push_str("<h2>Settings</h2>\n<table>\n");
+    row(&mut o, &["setting".into(), "value".into()], true);
+    for (k, v) in &p.opts.parameters {
+        row(&mut o, &[k.clone(), v.clone()], false);
+    }
+    let mut add = |k: &str, v: String| row(&mut o, &[k.to_string(), v], false);
+    add(
+        "data term",
+        match &p.opts.sensor {
+            Some(s) => format!(
+                "sensor fit: Poisson NLL of scale x J(I) + b, jitter kernel of {} bins, background {:?}",
+                s.kernel.weights().len(),
+                s.background
+            ),
+            None => format!("{:?}, closed-form scale", p.opts.loss),
+        },
+    );
+    add("renderer kernel", format!("{:?}", p.opts.render.kernel));
+    if !p.opts.parameters.iter().any(|(k, _)| k.starts_with("visibility")) {
+        add("visibility", format!("{:?}", p.opts.render.visibility));
     }
     o.push_str("</table>\n");
     o.push_str("<p>Files: <a href=\"mesh.obj\">mesh.obj</a>, <a href=\"run_log.json\">run_log.json</a>.</p>\n");

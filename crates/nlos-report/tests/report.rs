@@ -143,7 +143,16 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
     assert!(html.contains("stage_00.obj"));
     // The verdict of the run's fit-quality record, in words, above the settings.
     let verdict = html.find("<b>Fit:</b> the surface explains 98 % of the light above the noise").expect("verdict");
-    assert!(verdict < html.find("<h2>Run</h2>").expect("settings"), "the verdict comes first");
+    assert!(verdict < html.find("<h2>Settings</h2>").expect("settings"), "the verdict comes before the settings");
+    let depth = html.find("<h2>Depth maps seen from the wall</h2>").expect("depth maps");
+    assert!(
+        depth < verdict && verdict < html.find("<h2>Result</h2>").expect("result"),
+        "the surface, then the verdict"
+    );
+    assert!(
+        html.find("<h2>Stages</h2>").expect("stages") < html.find("<h2>Settings</h2>").expect("settings"),
+        "the settings last"
+    );
     // The depth error split at the ground truth's silhouette (nlos_mesh::metrics::SILHOUETTE_BAND = 2).
     assert!(html.contains("depth error, mean inside (≥ 3 pixels from the silhouette)"));
     assert!(html.contains("depth error, mean on the silhouette band"));
