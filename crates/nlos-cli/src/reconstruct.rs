@@ -298,8 +298,10 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             CliError::Closed => CliError::Closed,
         })?;
     }
-    // Everything is written; a run that kept almost no surface still ends as a failure, saying why.
-    outcome.check_surface_kept().map_err(|e| CliError::Failure(e.to_string()))
+    // Everything is written; a run that kept almost no surface, or whose surface explains no more of the
+    // capture than an empty scene, still ends as a failure, saying why.
+    outcome.check_surface_kept().map_err(|e| CliError::Failure(e.to_string()))?;
+    outcome.check_explains().map_err(|e| CliError::Failure(e.to_string()))
 }
 
 /// Writes `command.json` (the run's command line and ground truth) in the output directory; the library

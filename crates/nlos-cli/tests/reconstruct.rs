@@ -649,3 +649,41 @@ fn a_run_never_succeeds_with_almost_no_surface() {
         assert!(out.join("report.html").exists(), "the report is written before the failure");
     }
 }
+
+/// A capture of noise alone (confocal 24 × 24, Poisson counts of mean 0.3 in every bin, no scene) never ends
+/// as a result: the default command writes its mesh and report, then exits 1 saying that the surface explains
+/// no more than an empty scene would (the capture's background alone), with the figures, and where to look.
+#[test]
+fn a_capture_of_noise_alone_fails_after_writing_everything() {
+    let dir = scratch("noise");
+    let (scan, time) = (
+        Scan::confocal(PointSet::wall_grid(24, 24, 0.25, 0.25).expect("grid")),
+        TimeAxis::new(0.0, 0.0048, 300).expect("axis"),
+    );
+    let mut rng = nlos_transient::rng::SplitMix64::new(7);
+    // Poisson(0.3) by inversion of its distribution function.
+    let mut poisson = || {
+        let (u, mut k, mut p) = (rng.next_f32(), 0u32, (-0.3f32).exp());
+        let mut cdf = p;
+        while u > cdf && k < 20 {
+            k += 1;
+            p *= 0.3 / k as f32;
+            cdf += p;
+        }
+        k as f32
+    };
+    let data: Vec<f32> = (0..24 * 24 * 300).map(|_| poisson()).collect();
+    let file = dir.join("noise.npy");
+    let capture = nlos_transient::Transient::new(scan, time, data).expect("capture");
+    nlos_transient::write(&capture, &file, Format::NpyJson).expect("write");
+    let out = dir.join("run");
+    let o = nlos(&["reconstruct", file.to_str().expect("utf-8"), "--out", out.to_str().expect("utf-8"), "--quiet"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let said = text(&o);
+    assert!(said.contains("explains no more than an empty scene would") && said.contains("init.obj"), "{said}");
+    assert!(out.join("mesh.obj").exists() && out.join("report.html").exists(), "everything is written first");
+    let log: nlos_optim::RunLog =
+        serde_json::from_slice(&std::fs::read(out.join("run_log.json")).expect("run log")).expect("json");
+    let fit = log.fit.expect("the record");
+    assert!(fit.data >= fit.empty && fit.explained() == Some(0.0), "{fit:?}");
+}

@@ -58,6 +58,16 @@ pub enum OptimError {
         /// The value.
         value: f32,
     },
+    /// A finished run explains no more of its capture than an empty scene would ([`crate::Outcome::check_explains`]).
+    #[error(
+        "the surface {verdict}: it is no evidence of a scene. The capture may hold no return from the hidden \
+         volume (look at its time-summed image and at `nlos init --volume`), or the start missed it (look at \
+         `init.obj` beside the mesh, or give your own with `nlos reconstruct --init MESH`)"
+    )]
+    ExplainsNothing {
+        /// The verdict in words ([`crate::FitQuality::describe`]).
+        verdict: String,
+    },
     /// A finished run kept almost no surface ([`crate::Outcome::check_surface_kept`]).
     #[error(
         "the run kept almost no surface: {faces} faces, {:.3} cm², {:.1} % of the {start_faces} faces and {:.0} cm² \

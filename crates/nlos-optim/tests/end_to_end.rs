@@ -149,10 +149,10 @@ fn flat_start_converges_to_the_bumpy_truth() {
     assert_eq!(out.evolve.len() as u64, out.blocks_done);
     assert!(out.evolve.iter().all(|r| !r.input_intersected && r.motion_fraction > 0.99), "{:?}", out.evolve);
     assert!(l1 < 0.2 * l0);
-    // The fit-quality record: L2 on an exact rendering, so an empty scene's data term is 1 (the normaliser's
-    // definition), the final surface's the last step's up to its pruning, and nearly all the light explained.
+    // The fit-quality record: L2 on an exact rendering, so an empty scene (the best constant level) leaves
+    // most of the data term (1 without it, by the normaliser's definition), the final surface almost none.
     let fit = out.log.fit.expect("a finished run records its fit");
-    assert!((fit.empty - 1.0).abs() < 1e-9 && fit.noise_floor.is_none(), "{fit:?}");
+    assert!(fit.empty < 1.0 && fit.empty > 0.5 && fit.noise_floor.is_none(), "{fit:?}");
     assert!(fit.data < 0.2 * l0 && fit.explained().is_some_and(|e| e > 0.9), "{fit:?}");
     assert!(fit.describe().starts_with("explains 100 % of the light ("), "{}", fit.describe());
     let written: nlos_optim::RunLog =

@@ -161,9 +161,10 @@ pub(crate) fn reconstruct<'py>(
     result.set_item("albedo", outcome.albedo.clone().map(|a| numpy::PyArray1::from_vec(py, a)))?;
     result.set_item("notes", prepared.notes.clone())?;
     set_fit(&result, outcome.log.fit.as_ref())?;
-    // The run directory holds everything by now; a run that kept almost no surface raises, saying why, with
+    // The run directory holds everything by now; a run that kept almost no surface, or whose surface explains
+    // no more than an empty scene, raises, saying why, with
     // what it made as the exception's `result` (the Python side turns it into a `Reconstruction`).
-    if let Err(e) = outcome.check_surface_kept() {
+    if let Err(e) = outcome.check_surface_kept().and_then(|()| outcome.check_explains()) {
         let err = errors::optim(e);
         err.value(py).setattr("result", &result)?;
         return Err(err);

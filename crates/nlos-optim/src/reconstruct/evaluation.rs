@@ -71,8 +71,8 @@ pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: 
 }
 
 /// How much of the capture `fit` holds the surface that `r` renders explains ([`FitQuality`]): the data term
-/// at the fitted scale, an empty scene's (a rendering of zeros: the background alone under a sensor fit) and
-/// the noise floor where the data are photon counts.
+/// at the fitted scale, an empty scene's (no surface, the background alone: under a sensor fit its resolved
+/// background, else the best constant level) and the noise floor where the data are photon counts.
 ///
 /// # Errors
 /// As [`evaluate`].
@@ -92,7 +92,10 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
         }
         None => {
             let ev = params.data.evaluate(&rendered, measured, st.scale)?;
-            let empty = params.data.evaluate(&zeros, measured, 1.0)?;
+            // No surface, the capture's background alone: with the scale solved, a constant rendering fits the
+            // best constant level (the mean, for L2 and Poisson alike); with a fixed scale, nothing.
+            let level = if params.data.solve_scale { 1.0f32 } else { 0.0 };
+            let empty = params.data.evaluate(&vec![level; rendered.len()], measured, 0.0)?;
             let floor = if params.data.counts {
                 Some(params.data.noise_floor(&rendered, measured, ev.scale)? / norm)
             } else {

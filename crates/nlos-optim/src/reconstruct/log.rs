@@ -83,9 +83,10 @@ pub struct RunLog {
 }
 
 /// How much of its capture a result explains, from the data term of its last stage (normalised as
-/// [`IterationRecord::data`]): the final surface's, an empty scene's (nothing rendered: the background alone
-/// under a sensor fit; 1 for L2 by the normaliser's definition) and, for photon counts, the noise floor (what
-/// the data term would be were the final surface's expected counts exact, [`IterationRecord::noise_floor`]).
+/// [`IterationRecord::data`]): the final surface's, an empty scene's (no surface, the background alone: a
+/// sensor fit's resolved background, or else the capture's best constant level, so that a surface that only
+/// spreads light over the background explains nothing) and, for photon counts, the noise floor (what the data
+/// term would be were the final surface's expected counts exact, [`IterationRecord::noise_floor`]).
 ///
 /// The share of the light above the noise that the surface explains is
 /// `(empty − data) / (empty − floor)`: 0 for a result no better than an empty scene, 1 for one whose misfit is

@@ -242,6 +242,22 @@ impl Outcome {
             why,
         })
     }
+
+    /// Whether the finished surface explains more of its capture than an empty scene would
+    /// ([`RunLog::fit`]): its data term below the empty scene's (no surface, the background alone). A run whose
+    /// surface only spreads light over the background — what a capture of noise alone gives — has not found a
+    /// scene, whatever its mesh looks like. An interrupted run, or one without the record, is not judged.
+    ///
+    /// # Errors
+    /// [`OptimError::ExplainsNothing`], with the verdict's figures.
+    pub fn check_explains(&self) -> Result<()> {
+        match &self.log.fit {
+            Some(fit) if self.stop != StopReason::Interrupted && !(fit.data < fit.empty) => {
+                Err(OptimError::ExplainsNothing { verdict: fit.describe() })
+            }
+            _ => Ok(()),
+        }
+    }
 }
 
 /// Reconstructs a surface from `measured`, starting from `init` (faces must face the wall, see
@@ -556,7 +572,7 @@ mod tests {
     /// was kept and what deleted the rest; one that kept more, an interrupted one and one whose log predates
     /// the start record are not. What it catches: a run ending in a sliver reported as a result.
     #[test]
-    fn a_run_that_kept_almost_no_surface_is_an_error() {
+    fn a_run_that_kept_almost_no_surface_or_explains_nothing_is_an_error() {
         let p = [Vec3::new(0.0, 0.0, 0.5), Vec3::new(0.01, 0.0, 0.5), Vec3::new(0.0, 0.01, 0.5)];
         let mesh = SurfaceMesh::from_triangles(&p, &[[0, 2, 1]]).expect("one face");
         let area = mesh.surface_area();
@@ -585,5 +601,23 @@ mod tests {
         let mut old = outcome(area / 0.01, StopReason::TimeBudget);
         old.log.start = None;
         assert!(old.check_surface_kept().is_ok());
+        // A surface no better than an empty scene is an error with the verdict's figures; a better one, an
+        // interrupted run and a log without the record are not.
+        let mut noise = outcome(area, StopReason::MaxStages);
+        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: Some(0.07) });
+        let e = noise.check_explains().expect_err("no better than empty");
+        assert!(matches!(e, OptimError::ExplainsNothing { .. }), "{e:?}");
+        let text = e.to_string();
+        for part in ["explains no more than an empty scene would", "0.9800", "0.7700", "init.obj"] {
+            assert!(text.contains(part), "{part:?} missing: {text}");
+        }
+        noise.log.fit = Some(FitQuality { data: 0.5, empty: 0.77, noise_floor: Some(0.07) });
+        assert!(noise.check_explains().is_ok());
+        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: None });
+        noise.stop = StopReason::Interrupted;
+        assert!(noise.check_explains().is_ok());
+        noise.log.fit = None;
+        noise.stop = StopReason::MaxStages;
+        assert!(noise.check_explains().is_ok());
     }
 }
