@@ -155,6 +155,9 @@ fn flat_start_converges_to_the_bumpy_truth() {
     assert!(fit.empty < 1.0 && fit.empty > 0.5 && fit.noise_floor.is_none(), "{fit:?}");
     assert!(fit.data < 0.2 * l0 && fit.explained().is_some_and(|e| e > 0.9), "{fit:?}");
     assert!(fit.describe().starts_with("explains 100 % of the light ("), "{}", fit.describe());
+    // Each stage records what its last surface explains; the last stage's is the run's.
+    assert!(out.log.stages.len() == 2 && out.log.stages.iter().all(|r| r.fit.is_some()), "{:?}", out.log.stages);
+    assert_eq!(out.log.stages.last().and_then(|r| r.fit), Some(fit));
     let written: nlos_optim::RunLog =
         serde_json::from_slice(&std::fs::read(dir.join("run_log.json")).unwrap()).expect("run log");
     assert_eq!(written.fit, Some(fit), "run_log.json holds the record");

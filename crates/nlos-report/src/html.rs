@@ -91,7 +91,8 @@ fn metric_rows(out: &mut String, init: Option<&Metrics>, fin: &Metrics) {
 }
 
 /// Per-stage summary of the run log: (stage, iterations, shape, reflectance, first loss, last loss, last
-/// data term, faces at the end, vertices at the end, λ, seconds at the end).
+/// data term, the share of the light its last surface explains, faces at the end, vertices at the end, λ,
+/// seconds at the end).
 fn stage_rows(log: &RunLog) -> Vec<Vec<String>> {
     let mut rows = Vec::new();
     let mut start = 0;
@@ -110,6 +111,12 @@ fn stage_rows(log: &RunLog) -> Vec<Vec<String>> {
             format!("{:.4e}", first.loss),
             format!("{:.4e}", last.loss),
             format!("{:.4e}", last.data),
+            log.stages
+                .iter()
+                .find(|r| r.stage == stage)
+                .and_then(|r| r.fit)
+                .and_then(|f| f.explained())
+                .map_or_else(|| "–".to_string(), |e| format!("{:.0} %", 100.0 * e)),
             last.faces.to_string(),
             last.vertices.to_string(),
             format!("{:.3e}", last.reg_weight),
@@ -234,6 +241,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
             "first loss",
             "last loss",
             "last data",
+            "explained",
             "faces",
             "vertices",
             "lambda",

@@ -152,6 +152,9 @@ pub struct StageRecord {
     pub schedule_edge_length: f64,
     /// Bins of the capture summed in it ([`crate::Schedule::rebin_at`]).
     pub bins_summed: usize,
+    /// How much of its capture the stage's last surface explains (None while it runs, and in older logs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitQuality>,
 }
 
 /// When the surface is checked for self-intersections ([`IntersectionRecord`]).

@@ -473,10 +473,11 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
         let end = ctx.plan.block_end(&st, target, b.first, b.last);
         let stage_mesh = block::prune_and_patch(&mut st, &ctx, &b, &end)?;
         block::bookkeeping(&mut st, &ctx, &b, &end, stage_mesh)?;
-        if st.finished.is_some() {
-            // What the final surface explains of its last stage's capture, in the record before its last write.
+        if end.stage_ends {
+            // What the stage's last surface explains of its capture (the final surface's, after the last stage),
+            // in the record before its next write.
             let mut rng = st.rng;
-            let render = render_params(params, st.stage.saturating_sub(1), &mut rng);
+            let render = render_params(params, block_stage, &mut rng);
             let mut surface = Renderer::new(
                 st.surface.positions(),
                 st.surface.triangles(),
@@ -486,7 +487,13 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
             )?;
             surface.set_device(params.device)?;
             set_albedo_weights(&st, &mut surface)?;
-            st.log.fit = Some(evaluation::fit_quality(&st, &surface, &b.fit)?);
+            let fit = evaluation::fit_quality(&st, &surface, &b.fit)?;
+            if let Some(r) = st.log.stages.iter_mut().rev().find(|r| r.stage == block_stage) {
+                r.fit = Some(fit);
+            }
+            if st.finished.is_some() {
+                st.log.fit = Some(fit);
+            }
             if let Some(dir) = &params.out_dir {
                 st.write(dir)?;
             }

@@ -146,6 +146,7 @@ impl Plan {
             edge_length: edge,
             schedule_edge_length: s.target_edge_length(st.stage),
             bins_summed: bins_summed(edge),
+            fit: None,
         });
         edge
     }
