@@ -290,3 +290,21 @@ def test_the_albedo_per_vertex_comes_back_from_the_run_and_its_record(builtin_ca
     assert first.albedo is not None and first.albedo.shape == (len(first.vertices),)
     assert np.all(first.albedo >= 0)
     assert np.array_equal(nlos.read_run(tmp_path).albedo, first.albedo)
+
+
+def test_a_capture_of_noise_alone_raises_with_what_it_made(tmp_path):
+    # Poisson counts of mean 0.3 in every bin, no scene (as the command-line test): the surface explains no
+    # more than an empty scene would (the capture's background alone), so the run raises ReconstructError
+    # saying so, with its result attached, after writing everything.
+    rng = np.random.default_rng(7)
+    xs = np.linspace(-0.25, 0.25, 24, dtype=np.float32)
+    spots = np.stack(np.meshgrid(xs, xs), -1).reshape(-1, 2)
+    spots = np.c_[spots, np.zeros(len(spots))].astype(np.float32)
+    data = rng.poisson(0.3, size=(len(spots), 300)).astype(np.float32)
+    noise = nlos.Capture.from_arrays(data, spots, dt=0.0048, grid=(24, 24))
+    with pytest.raises(nlos.ReconstructError, match="explains no more than an empty scene would") as caught:
+        nlos.reconstruct(noise, out=tmp_path / "run")
+    made = caught.value.reconstruction
+    assert isinstance(made, nlos.Reconstruction) and made.explained == 0.0
+    assert made.fit.startswith("explains no more than an empty scene would")
+    assert (tmp_path / "run" / "mesh.obj").exists()
