@@ -16,8 +16,13 @@ use super::scene::{Scene, Wall};
 use crate::visibility::bundle::{Bundle, Scratch};
 use crate::visibility::wall::WallTree;
 
-/// Triangles computed per round (their columns are then written into the measurement-major cache).
-const CHUNK: usize = 4096;
+/// Bytes of columns computed per round (then written into the measurement-major cache): 4,096 triangles at
+/// 4,096 measurements, fewer triangles for larger scans, so the round's buffer stays at 16 MiB. The unit
+/// tests' scenes are small: they use rounds of 64 KiB, so that theirs have many (and ragged last tiles).
+#[cfg(not(test))]
+const ROUND_BYTES: usize = 1 << 24;
+#[cfg(test)]
+const ROUND_BYTES: usize = 1 << 16;
 /// The transpose from columns to rows works on this many rows at a time (one memory page each, at a few
 /// thousand triangles: more would miss the TLB on every byte).
 const TILE: usize = 16;
@@ -72,10 +77,12 @@ impl Scene {
         let confocal =
             points.len() == m && laser.iter().zip(&sensor).enumerate().all(|(i, (&l, &s))| l as usize == i && s == l);
         let spots = Spots { points: &points, laser: &laser, sensor: &sensor, confocal };
-        let mut columns = vec![0u8; CHUNK.min(nt) * m];
+        // At least one tile of triangles per round, whatever the scan's size.
+        let round = (ROUND_BYTES / m).max(TILE);
+        let mut columns = vec![0u8; round.min(nt) * m];
         let mut reported = 0;
-        for s0 in (0..nt).step_by(CHUNK) {
-            let s1 = (s0 + CHUNK).min(nt);
+        for s0 in (0..nt).step_by(round) {
+            let s1 = (s0 + round).min(nt);
             let init = || Buffers {
                 scratch: Scratch::default(),
                 visible: vec![true; points.len()],
