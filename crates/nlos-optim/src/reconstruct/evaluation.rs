@@ -79,11 +79,11 @@ pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: 
 pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result<FitQuality> {
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let rendered = r.forward_any(&st.reflectance.brdf()?);
-    let zeros = vec![0.0f32; rendered.len()];
     Ok(match fit.sensor {
         Some(sensor) => {
             let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
-            let (empty, _) = sensor.evaluate(&zeros, measured, false, 1.0)?;
+            // Nothing rendered: the sensor fit's background alone.
+            let (empty, _) = sensor.evaluate(&vec![0.0; rendered.len()], measured, false, 1.0)?;
             FitQuality {
                 data: ev.value / norm,
                 empty: empty.value / norm,

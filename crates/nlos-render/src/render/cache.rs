@@ -213,10 +213,9 @@ impl Scene {
     /// The cache without occlusion (255 wherever the measurement lights the face): what the tests compare
     /// with to see that a scene shadows.
     #[cfg(test)]
-    pub(in crate::render) fn visibility_cache_unshadowed(&self, level: u32) -> Vec<u8> {
+    pub(in crate::render) fn visibility_cache_unshadowed(&self) -> Vec<u8> {
         let nt = self.tris.v0.len();
         let mut cache = vec![0u8; nt * self.wall.l.len()];
-        let _ = level;
         for (m, row) in cache.chunks_mut(nt.max(1)).enumerate() {
             let fr = self.frame(m);
             for (slot, out) in row.iter_mut().enumerate() {

@@ -310,7 +310,7 @@ fn bundled_cache_is_the_cache_of_rays() {
             let differ = fast.iter().zip(&rays).filter(|(a, b)| a != b).count();
             assert_eq!(differ, 0, "{} of {} entries differ (level {level}, two-sided {two_sided})", differ, rays.len());
             // The scene must shadow: partly and wholly occluded pairs both occur.
-            let dark = fast.iter().zip(&r.scene.visibility_cache_unshadowed(level)).filter(|(a, b)| a < b).count();
+            let dark = fast.iter().zip(&r.scene.visibility_cache_unshadowed()).filter(|(a, b)| a < b).count();
             assert!(lit > rays.len() / 4 && dark > rays.len() / 100, "lit {lit}, shadowed {dark} of {}", rays.len());
             assert!(level == 1 || shadowed > 0, "level 2 gives partial shares");
         }

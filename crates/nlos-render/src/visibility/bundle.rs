@@ -27,7 +27,7 @@ use super::wall::WallTree;
 use super::{Bvh, segment};
 
 /// Sine of the elevation (above the face's plane) below which a point is always given its own ray: the plane
-/// cull's margin [`PLANE_MARGIN`] is then within `PLANE_MARGIN / GRAZING` (40 µm) of `x`.
+/// cull's margin [`PLANE_MARGIN`] is then within `PLANE_MARGIN / GRAZING` (0.13 mm) of `x`.
 const GRAZING: f32 = 0.003;
 /// Height above the face's plane (metres) up to which a triangle counts as behind it: f32 rounding of the
 /// heights of the face's own neighbours, which share its edges, is about 1e-7 m within a metre of the origin.
