@@ -293,6 +293,45 @@ pub(crate) fn pinches(f: usize, triangles: &[[u32; 3]], keep: &[bool], vertex_fa
     triangles[f].iter().any(|&v| fans(v, triangles, vertex_faces, |g| g != f && keep[g]).len() > 1)
 }
 
+/// Clears `keep` for the faces that leave a vertex pinched between two or more fans once the faces already
+/// cleared are gone: each pinched vertex keeps its largest fan and loses the others, and the vertices of the
+/// faces lost are checked in turn, until no vertex of `seeds` (or of a face lost since) is pinched. Returns
+/// the faces it cleared. Deleting faces from a manifold mesh pinches vertices but never an edge, so what is
+/// kept afterwards is a manifold mesh again.
+pub(crate) fn unpinch(
+    seeds: impl IntoIterator<Item = u32>,
+    triangles: &[[u32; 3]],
+    vertex_faces: &[Vec<usize>],
+    keep: &mut [bool],
+) -> Vec<usize> {
+    let mut check: Vec<u32> = seeds.into_iter().collect();
+    let mut lost = Vec::new();
+    while let Some(v) = check.pop() {
+        let mut fans = fans(v, triangles, vertex_faces, |g| keep[g]);
+        if fans.len() < 2 {
+            continue;
+        }
+        fans.sort_by_key(|f| std::cmp::Reverse(f.len()));
+        for f in fans.into_iter().skip(1).flatten() {
+            keep[f] = false;
+            lost.push(f);
+            check.extend(triangles[f]);
+        }
+    }
+    lost
+}
+
+/// The faces around each vertex (indices into `triangles`), for [`fans`] and [`unpinch`].
+pub(crate) fn vertex_faces(n_vertices: usize, triangles: &[[u32; 3]]) -> Vec<Vec<usize>> {
+    let mut out: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    for (f, t) in triangles.iter().enumerate() {
+        for &v in t {
+            out[v as usize].push(f);
+        }
+    }
+    out
+}
+
 /// The fans of the faces around vertex `v` for which `present` holds: groups of faces joined by an edge at
 /// `v`. One fan (or none) is a manifold vertex; two or more, a pinch.
 pub(crate) fn fans(
@@ -412,6 +451,24 @@ mod tests {
         let keep = [false, true, true, true];
         assert!(pinches(2, &t, &keep, &vf));
         assert!(!pinches(1, &t, &keep, &vf) && !pinches(3, &t, &keep, &vf));
+    }
+
+    #[test]
+    fn unpinching_keeps_the_largest_fan() {
+        // Square fan of four faces around vertex 0, plus a fifth face hanging off face 1's outer edge.
+        let mut t = square();
+        t.push([t[1][1], t[1][2], 5]);
+        let vf = vertex_faces(6, &t);
+        assert_eq!(vf[0], vec![0, 1, 2, 3]);
+        // Faces 0 and 2 (opposite) gone: 1 and 3 touch only at vertex 0, two fans of one face each there; one
+        // is kept, the other lost, and no vertex is pinched after.
+        let mut keep = vec![false, true, false, true, true];
+        let lost = unpinch(t[0].iter().chain(&t[2]).copied(), &t, &vf, &mut keep);
+        assert_eq!(lost.len(), 1);
+        assert!((0..6).all(|v| fans(v, &t, &vf, |g| keep[g]).len() < 2), "{keep:?}");
+        // Nothing pinched: nothing lost.
+        let mut all = vec![true; 5];
+        assert!(unpinch(0..6, &t, &vf, &mut all).is_empty() && all.iter().all(|&k| k));
     }
 
     #[test]

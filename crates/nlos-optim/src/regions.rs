@@ -327,12 +327,7 @@ pub fn dark_regions(
     let budget = ((nt as f64 * params.max_fraction).floor() as usize).min(nt.saturating_sub(1));
     let mut keep = keep.to_vec();
     let n_vertices = triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
-    let mut vertex_faces: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
-    for (f, t) in triangles.iter().enumerate() {
-        for &v in t {
-            vertex_faces[v as usize].push(f);
-        }
-    }
+    let vertex_faces = crate::prune::vertex_faces(n_vertices, triangles);
     let (mut deleted, mut removed, mut total) = (0, 0, 0.0);
     for (_, region, spans) in scored {
         if removed + region.len() > budget {
@@ -347,19 +342,8 @@ pub fn dark_regions(
         // loses the others (a few faces on the new hole's rim), until no vertex is pinched.
         let mut gone = region.clone();
         gone.iter().for_each(|&f| keep[f] = false);
-        let mut check: Vec<u32> = region.iter().flat_map(|&f| triangles[f]).collect();
-        while let Some(v) = check.pop() {
-            let mut fans = crate::prune::fans(v, triangles, &vertex_faces, |g| keep[g]);
-            if fans.len() < 2 {
-                continue;
-            }
-            fans.sort_by_key(|f| std::cmp::Reverse(f.len()));
-            for f in fans.into_iter().skip(1).flatten() {
-                keep[f] = false;
-                gone.push(f);
-                check.extend(triangles[f]);
-            }
-        }
+        let seeds = region.iter().flat_map(|&f| triangles[f]);
+        gone.extend(crate::prune::unpinch(seeds, triangles, &vertex_faces, &mut keep));
         // Faces a pinch took with the region are rendered too: subtract the share of every deleted face.
         let spans = if gone.len() == region.len() { spans } else { share(renderer, brdf, &gone)? };
         let (_, change) = delta(&spans, rendered, bins, row_loss, 0.0, false)?;

@@ -89,7 +89,8 @@ pub(super) fn drop_faces(st: &mut RunRecord, keep: &[bool]) -> Result<()> {
 }
 
 /// Checks the surface for self-intersections and deletes the faces that cause them ([`IntersectionRecord`]),
-/// with their vertices' fields; the check is logged. After the start, where collision handling should
+/// with their vertices' fields: the smaller face of each pair (else both), and the smaller fans of a vertex
+/// the deletions pinch, so the rest stays a manifold mesh; the check is logged. After the start, where collision handling should
 /// leave nothing to find, pairs found are an error under `NLOS_REQUIRE_NO_INTERSECTIONS=1`
 /// ([`OptimError::SelfIntersecting`]).
 pub(super) fn untangle(st: &mut RunRecord, check: IntersectionCheck) -> Result<()> {
@@ -122,13 +123,17 @@ pub(super) fn untangle(st: &mut RunRecord, check: IntersectionCheck) -> Result<(
         };
         let smaller: Vec<u32> = pairs.iter().map(|&(f, g)| if area(f) <= area(g) { f } else { g }).collect();
         let both: Vec<u32> = pairs.iter().flat_map(|&(f, g)| [f, g]).collect();
+        let vertex_faces = crate::prune::vertex_faces(positions.len(), triangles);
         for doomed in [smaller, both] {
             let mut keep = vec![true; st.surface.n_faces()];
-            for f in doomed {
+            for &f in &doomed {
                 keep[f as usize] = false;
             }
+            // A vertex the deletions pinch between two fans keeps its largest fan (a few more faces go).
+            let seeds = doomed.iter().flat_map(|&f| triangles[f as usize]);
+            crate::prune::unpinch(seeds, triangles, &vertex_faces, &mut keep);
             let remap = Remap::keep_faces(&st.surface, &keep);
-            // Guard: deleting faces can pinch a vertex into a bow tie, or delete everything.
+            // Guard: never delete everything, nor keep what does not rebuild.
             if remap.triangles.is_empty() || SurfaceMesh::from_triangles(&remap.positions, &remap.triangles).is_err() {
                 continue;
             }
