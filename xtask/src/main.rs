@@ -14,7 +14,8 @@
 //! - `cargo xtask fuzz [--minutes N] [TARGET…]`: a fuzzing campaign, N minutes (default 60) per target of
 //!   `fuzz/` (cargo-fuzz on nightly, installed when missing); its table replaces the `fuzz` section of
 //!   `docs/results.md` (see `fuzz.rs`).
-//! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`.
+//! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`, marking stale each
+//!   scenario whose section ran on code that has changed since (see `accept/results.rs`).
 //! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
 //! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
 //!   the shared data.
@@ -56,7 +57,8 @@ fn main() -> ExitCode {
             println!(
                 "                                           N minutes (60) per fuzz target; writes docs/results.md"
             );
-            println!("       cargo xtask status                  the README's status table from docs/results.md");
+            println!("       cargo xtask status                  the README's status table from docs/results.md,");
+            println!("                                           stale rows marked");
             println!(
                 "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"
             );

@@ -2,9 +2,10 @@
 //! from it.
 
 use std::fmt::Write as _;
+use std::path::Path;
+use std::process::Command;
 
 use crate::accept::SCENARIOS;
-use std::path::Path;
 
 const RESULTS: &str = "docs/results.md";
 const RESULTS_HEAD: &str = "# Results\n\n\
@@ -13,11 +14,74 @@ product end to end (`nlos render` → `nlos reconstruct` → `nlos eval`) with t
 resolution — its figures, its checks and its commands. A new run replaces its section; history is in git. \
 The README's status table is made from this page.\n";
 
+/// The code a scenario's figures depend on, as git pathspecs: a section run before a commit that changed any
+/// of it is stale ([`staleness`]). The readers for the fuzz campaigns; the crates' sources, the lock file and
+/// the scenario definitions for the rest (tests, benchmarks and documentation excluded).
+fn code_paths(name: &str) -> &'static [&'static str] {
+    match name {
+        "fuzz" => &["fuzz", "crates/nlos-transient/src", "crates/nlos-mesh/src/io"],
+        _ => &[
+            "crates",
+            "Cargo.lock",
+            "xtask/src/accept.rs",
+            "xtask/src/accept",
+            ":(exclude)xtask/src/accept/results.rs",
+            ":(exclude)crates/*/tests",
+            ":(exclude)crates/*/benches",
+            ":(exclude)*.md",
+        ],
+    }
+}
+
+/// `git ARGS` in `root`: its exit code and stdout, None when git cannot run.
+fn git(root: &Path, args: &[&str]) -> Option<(i32, String)> {
+    let out = Command::new("git").arg("-C").arg(root).args(args).output().ok()?;
+    Some((out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).trim().to_string()))
+}
+
+const CODE_LINE: &str = "code: commit `";
+const UNCOMMITTED: &str = " with uncommitted changes";
+
+/// The section's line naming the code it ran on: the commit, and whether that code had uncommitted changes.
+fn code_line(root: &Path, name: &str) -> String {
+    let Some((0, head)) = git(root, &["rev-parse", "--short=10", "HEAD"]) else {
+        return "code: unknown (not a git checkout)".into();
+    };
+    let mut status = vec!["status", "--porcelain", "--"];
+    status.extend(code_paths(name));
+    let dirty = git(root, &status).is_none_or(|(code, out)| code != 0 || !out.is_empty());
+    format!("{CODE_LINE}{head}`{}", if dirty { UNCOMMITTED } else { "" })
+}
+
+/// Why a scenario's section (`body`) no longer describes the committed code, or None when it does: the
+/// section names no commit, ran on uncommitted changes, or its code ([`code_paths`]) changed since.
+pub fn staleness(root: &Path, name: &str, body: &str) -> Option<String> {
+    let Some(line) = body.lines().find_map(|l| l.strip_prefix(CODE_LINE)) else {
+        return Some("no commit recorded".into());
+    };
+    let (commit, rest) = line.split_once('`').unwrap_or((line, ""));
+    if rest.starts_with(UNCOMMITTED) {
+        return Some(format!("ran on uncommitted changes to {commit}"));
+    }
+    let mut diff = vec!["diff", "--quiet", commit, "HEAD", "--"];
+    diff.extend(code_paths(name));
+    match git(root, &diff) {
+        Some((0, _)) => None,
+        Some((1, _)) => Some(format!("code changed since {commit}")),
+        _ => Some(format!("commit {commit} not found")),
+    }
+}
+
 /// Writes `md` (a section starting `## NAME — PASS|FAIL — DATE`) as the section of scenario `name` of
-/// `docs/results.md`, replacing the previous one, and regenerates the README's status table.
+/// `docs/results.md`, replacing the previous one, with the commit it ran on after its title, and regenerates
+/// the README's status table.
 pub(crate) fn record(root: &Path, name: &str, md: &str) -> Result<(), String> {
     let f = root.join(RESULTS);
     let doc = std::fs::read_to_string(&f).unwrap_or_else(|_| RESULTS_HEAD.to_string());
+    let md = match md.split_once('\n') {
+        Some((title, rest)) => format!("{title}\n\n{}\n{rest}", code_line(root, name)),
+        None => format!("{md}\n\n{}\n", code_line(root, name)),
+    };
     // No machine paths in a tracked file: the workspace and the shared data are named relative to the root.
     let shared = root.join("../shared/data");
     let md = md
@@ -54,8 +118,9 @@ pub fn replace_section(doc: &str, name: &str, body: &str) -> String {
 }
 
 /// The README's status table, made from `docs/results.md`: one row per scenario with its latest status,
-/// date and the targets it missed.
-pub fn status_table(results: &str) -> String {
+/// date and the targets it missed; a section `stale` finds stale ([`staleness`], given the scenario and its
+/// section) says so beside its status.
+pub fn status_table(results: &str, stale: impl Fn(&str, &str) -> Option<String>) -> String {
     let mut t =
         String::from("| scenario | what it checks | latest run | status | targets missed |\n|---|---|---|---|---|\n");
     for (name, what) in SCENARIOS {
@@ -68,7 +133,8 @@ pub fn status_table(results: &str) -> String {
                 let (status, date) = (parts.get(1).copied().unwrap_or("?"), parts.get(2).copied().unwrap_or("?"));
                 let missed: Vec<&str> = body.lines().filter_map(|l| l.strip_prefix("- FAIL ")).collect();
                 let missed = if missed.is_empty() { "—".to_string() } else { missed.join("; ") };
-                format!("| [{name}](docs/results.md) | {what} | {date} | **{status}** | {missed} |")
+                let stale = stale(name, body).map_or_else(String::new, |why| format!("{STALE}{why})"));
+                format!("| [{name}](docs/results.md) | {what} | {date} | **{status}**{stale} | {missed} |")
             }
             _ => format!("| {name} | {what} | never | — | — |"),
         };
@@ -81,26 +147,59 @@ pub fn status_table(results: &str) -> String {
 const STATUS_BEGIN: &str = "<!-- status: generated by cargo xtask status from docs/results.md -->";
 const STATUS_END: &str = "<!-- end status -->";
 
-/// `readme` with its status table regenerated from `results`; `None` when the README has no table markers.
-pub fn readme_with_status(readme: &str, results: &str) -> Option<String> {
+const STALE: &str = " (stale: ";
+
+/// `readme` with its status table regenerated from `results`, stale rows marked by `stale`; `None` when the
+/// README has no table markers.
+pub fn readme_with_status(readme: &str, results: &str, stale: impl Fn(&str, &str) -> Option<String>) -> Option<String> {
     let i = readme.find(STATUS_BEGIN)? + STATUS_BEGIN.len();
     let j = readme.find(STATUS_END)?;
-    Some(format!("{}\n{}{}", &readme[..i], status_table(results), &readme[j..]))
+    Some(format!("{}\n{}{}", &readme[..i], status_table(results, stale), &readme[j..]))
 }
 
-/// `cargo xtask status`: rewrites the README's status table from `docs/results.md`.
+/// `text` without the stale marks of its status table (what the table says whatever the commits since).
+#[cfg(test)]
+fn without_stale_marks(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(i) = rest.find(STALE) {
+        out.push_str(&rest[..i]);
+        rest = rest[i..].find(')').map_or("", |j| &rest[i + j + 1..]);
+    }
+    out.push_str(rest);
+    out
+}
+
+/// `cargo xtask status`: rewrites the README's status table from `docs/results.md`, each scenario whose
+/// section is older than the code it describes marked stale ([`staleness`]), and lists those.
 pub fn update_readme(root: &Path) -> Result<(), String> {
     let (rf, sf) = (root.join("README.md"), root.join(RESULTS));
     let readme = std::fs::read_to_string(&rf).map_err(|e| format!("{}: {e}", rf.display()))?;
     let results = std::fs::read_to_string(&sf).map_err(|e| format!("{}: {e}", sf.display()))?;
-    let new = readme_with_status(&readme, &results)
+    let stale = |name: &str, body: &str| staleness(root, name, body);
+    let new = readme_with_status(&readme, &results, stale)
         .ok_or_else(|| format!("{}: no status table markers ({STATUS_BEGIN} … {STATUS_END})", rf.display()))?;
-    std::fs::write(&rf, new).map_err(|e| format!("{}: {e}", rf.display()))
+    std::fs::write(&rf, &new).map_err(|e| format!("{}: {e}", rf.display()))?;
+    let marked: Vec<&str> = new.lines().filter(|l| l.contains(STALE)).collect();
+    for l in &marked {
+        let name = l.split(['[', ']']).nth(1).unwrap_or("?");
+        let why = l.split(STALE).nth(1).and_then(|w| w.split(')').next()).unwrap_or("?");
+        let rerun = match name {
+            "znlos" => "cargo xtask benchmark znlos DIR".to_string(),
+            "fuzz" => "cargo xtask fuzz".to_string(),
+            _ => format!("cargo xtask accept {name}"),
+        };
+        println!("stale: {name} ({why}): re-run `{rerun}`");
+    }
+    if marked.is_empty() {
+        println!("every scenario of docs/results.md ran on the committed code");
+    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{readme_with_status, replace_section};
+    use super::{readme_with_status, replace_section, staleness, without_stale_marks};
 
     #[test]
     fn sections_are_replaced_in_place_and_inserted_in_order() {
@@ -114,10 +213,40 @@ mod tests {
 
     #[test]
     fn the_readme_status_table_is_the_one_generated_from_docs_results() {
+        // Whatever the commits since (the stale marks are `cargo xtask status`'s to refresh).
         let root = crate::workspace_root();
         let readme = std::fs::read_to_string(root.join("README.md")).expect("README");
         let results = std::fs::read_to_string(root.join("docs/results.md")).expect("docs/results.md");
-        let generated = readme_with_status(&readme, &results).expect("the README has the status markers");
-        assert!(generated == readme, "the README's status table is stale: run `cargo xtask status`");
+        let generated = readme_with_status(&readme, &results, |_, _| None).expect("the README has the status markers");
+        assert!(
+            generated == without_stale_marks(&readme),
+            "the README's status table is stale: run `cargo xtask status`"
+        );
+    }
+
+    #[test]
+    fn a_section_is_stale_unless_it_ran_on_the_committed_code_as_it_is() {
+        let root = crate::workspace_root();
+        let Some((0, head)) = super::git(&root, &["rev-parse", "--short=10", "HEAD"]) else {
+            println!("skipped: not a git checkout");
+            return;
+        };
+        let Some((0, first)) = super::git(&root, &["rev-list", "--max-parents=0", "HEAD"]) else {
+            panic!("git answers rev-parse but not rev-list");
+        };
+        let body = |line: &str| format!("## bunny — PASS — d\n\n{line}\n\n- PASS x\n");
+        assert_eq!(staleness(&root, "bunny", &body(&format!("code: commit `{head}`"))), None);
+        // A shallow checkout's only commit is its first.
+        if !head.starts_with(first.get(..10).unwrap_or(&first)) {
+            let why = staleness(&root, "bunny", &body(&format!("code: commit `{first}`"))).expect("stale");
+            assert!(why.starts_with("code changed since"), "{why}");
+        }
+        let why = staleness(&root, "bunny", &body(&format!("code: commit `{head}` with uncommitted changes")));
+        assert!(why.expect("stale").starts_with("ran on uncommitted changes"));
+        assert_eq!(staleness(&root, "bunny", &body("machine: 2 cores")).as_deref(), Some("no commit recorded"));
+        let why = staleness(&root, "bunny", &body("code: commit `0000000000`")).expect("stale");
+        assert!(why.contains("not found"), "{why}");
+        let marked = format!("| **PASS** (stale: code changed since {head}) | x |");
+        assert_eq!(without_stale_marks(&marked), "| **PASS** | x |");
     }
 }
