@@ -57,6 +57,9 @@ pub enum ReportError {
     /// The run's reflectance is invalid.
     #[error("the run's reflectance: {0}")]
     Optim(#[from] nlos_optim::OptimError),
+    /// The back-projection of the capture or of the rendering failed.
+    #[error("back-projecting the residual: {0}")]
+    Init(#[from] nlos_init::InitError),
     /// A figure could not be drawn or encoded.
     #[error("drawing a figure: {0}")]
     Viz(#[from] nlos_viz::VizError),

@@ -173,7 +173,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
     section(
         &mut o,
         "Depth maps seen from the wall",
-        &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png"],
+        &["depth_init.png", "depth_final.png", "depth_gt.png", "albedo.png", "residual.png"],
     );
     if let Some(fit) = &log.fit {
         let _ = writeln!(o, "<p class=\"verdict\"><b>Fit:</b> the surface {}.</p>", esc(&fit.describe()));
@@ -224,6 +224,7 @@ pub(crate) fn page(p: &PageInputs<'_>) -> String {
         "depth_final.png",
         "depth_gt.png",
         "albedo.png",
+        "residual.png",
         "relief.png",
         "coverage.png",
     ];

@@ -15,6 +15,7 @@
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo per vertex where the final mesh is seen (runs that fit one) |
+//! | `residual.png` | where the light is left unexplained: the capture's and the rendering's volumes by the start's method, their difference as a front view and an x–z slice ([`residual`]) |
 //! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth or by distance to the ground truth, embedded so it works offline from the folder alone ([`view3d`]) |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
@@ -36,11 +37,13 @@
 pub mod error;
 pub mod figures;
 mod html;
+pub mod residual;
 mod run;
 pub mod view3d;
 
 use std::path::{Path, PathBuf};
 
+use nlos_init::Method;
 use nlos_mesh::SurfaceMesh;
 use nlos_mesh::metrics::Metrics;
 use nlos_optim::{DataTerm, Loss, Reflectance, RunLog, RunRecord, SensorFit};
@@ -91,6 +94,9 @@ pub struct ReportOptions {
     pub eval_grid: usize,
     /// Side of the relief filter's box, metres (default 0.025).
     pub relief_box: f64,
+    /// The volumetric method that back-projects the residual (`residual.png`, [`residual`]): the run's start
+    /// method. `None` (default): the method the scan gets when none is named ([`Method::for_scan`]).
+    pub backprojection: Option<Method>,
 }
 
 impl Default for ReportOptions {
@@ -107,6 +113,7 @@ impl Default for ReportOptions {
             depth_grid: 256,
             eval_grid: 128,
             relief_box: 0.025,
+            backprojection: None,
         }
     }
 }
@@ -298,6 +305,12 @@ pub fn write_report(
     }
     if let Some(a) = &albedo {
         save(&figures::albedo_figure(&final_mesh, a, &view)?, dir, "albedo.png", &mut images)?;
+    }
+    let method = opts.backprojection.unwrap_or_else(|| Method::for_scan(measured.scan()).0);
+    // A method that cannot take the scan (or finds nothing in it) leaves the picture out, not the report.
+    if let Ok(b) = residual::backproject(method, reflectance.model(), &measured_g, &scaled) {
+        let note = format!("the final mesh rendered as the fit saw it ({gate_note})");
+        save(&residual::residual_figure(&b, &note)?, dir, "residual.png", &mut images)?;
     }
     let pixel = f64::from(view.x_range[1] - view.x_range[0]) / view.grid as f64;
     let radius = ((opts.relief_box / pixel / 2.0).round() as usize).clamp(1, view.grid.max(2) / 2);

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use nlos_init::{InitMethod, Method};
 use nlos_optim::pipeline::{Config, Prepared};
 use nlos_optim::{ReconstructParams, SamplingSchedule};
 use nlos_render::Sampling;
@@ -39,6 +40,11 @@ impl ReportOptions {
             loss: params.data.loss,
             sensor: params.sensor.clone(),
             area: DepthView::over_scan(&prepared.full, 1).ok().map(|v| (v.x_range, v.y_range)),
+            // The start's method, as `Prepared::start_candidates` resolves it (a mesh start: the scan's).
+            backprojection: Some(match &config.init {
+                InitMethod::Volume(method) => *method,
+                InitMethod::Auto | InitMethod::Mesh(_) => Method::for_scan(prepared.full.scan()).0,
+            }),
             ..ReportOptions::default()
         }
     }

@@ -125,6 +125,7 @@ fn writes_every_figure_and_an_html_page_that_shows_them() {
         "depth_gt.png",
         "relief.png",
         "coverage.png",
+        "residual.png",
     ] {
         assert!(report.images.iter().any(|i| i == name), "{name} not in {:?}", report.images);
     }
@@ -238,4 +239,37 @@ fn missing_files_and_bad_options_are_typed_errors() {
     std::fs::write(dir.join("run_log.json"), b"{ nope").expect("write");
     let e = write_report(&dir, &measured, None, &ReportOptions::default()).expect_err("bad log");
     assert!(matches!(e, ReportError::Json { .. }), "{e}");
+}
+
+/// The residual's back-projection shows where the mesh misses light: measured the whole plane, rendered
+/// only its left half (x < 0), the difference of the LCT volumes is the right half's light, positive, and
+/// next to nothing over the left half that both hold.
+#[test]
+fn the_residual_back_projection_lights_up_where_the_mesh_is_missing() {
+    let full = plane(0.35, 0.0);
+    let (p, t) = full.to_triangles();
+    let left: Vec<[u32; 3]> = t.iter().copied().filter(|f| f.iter().all(|&v| p[v as usize].x <= 0.0)).collect();
+    let half = SurfaceMesh::from_triangles(&p, &left).expect("left half");
+    let (measured, rendered) = (measure(&full), measure(&half));
+    let b = nlos_report::residual::backproject(nlos_init::Method::Lct, nlos_init::Model::Lambert, &measured, &rendered)
+        .expect("back-projection");
+    let (v, residual) = (&b.measured, b.residual());
+    // Columns well inside each half (the LCT blurs a few voxels across x = 0).
+    let (mut right, mut left) = (Vec::new(), Vec::new());
+    for iy in 0..v.ny {
+        for ix in 0..v.nx {
+            let (x, y) = (v.x.at(ix), v.y.at(iy));
+            let col = &residual[(ix + v.nx * iy) * v.nz..(ix + v.nx * iy + 1) * v.nz];
+            let top = col.iter().copied().fold(0.0f32, |a, x| if x.abs() > a.abs() { x } else { a });
+            if y.abs() < 0.1 && (0.04..0.12).contains(&x) {
+                right.push(top);
+            } else if y.abs() < 0.1 && (-0.12..-0.04).contains(&x) {
+                left.push(top);
+            }
+        }
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    assert!(!right.is_empty() && !left.is_empty());
+    assert!(mean(&right) > 0.3, "right half {:.3} of the capture's peak", mean(&right));
+    assert!(mean(&left).abs() < 0.3 * mean(&right), "left {:.3} against right {:.3}", mean(&left), mean(&right));
 }

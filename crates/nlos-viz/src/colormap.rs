@@ -15,6 +15,10 @@ pub enum Colormap {
     Magma,
     /// Grey ramp from black to white.
     Grey,
+    /// Diverging blue → light grey → red (Moreland's "cool to warm", 2009, end points and middle of
+    /// ParaView's table, blended linearly): signed values drawn with a [`crate::Norm`] symmetric about 0, the
+    /// middle grey at 0.
+    Diverging,
     /// Discrete colours for categories: `t` picks entry `round(t · (len − 1))`, so that category `k` of
     /// `len` drawn with `Norm::linear(0, len − 1)` gets colour `k`. An empty palette draws black.
     Palette(&'static [Rgb]),
@@ -33,6 +37,8 @@ impl Colormap {
     /// const THREE: [Rgb; 3] = [Rgb::RED, Rgb::GREY, Rgb::BLUE];
     /// assert_eq!(Colormap::Palette(&THREE).map(0.5), Rgb::GREY);
     /// assert_eq!(Colormap::Palette(&THREE).map(1.0), Rgb::BLUE);
+    /// assert_eq!(Colormap::Diverging.map(0.5), Rgb::new(221, 221, 221));
+    /// assert_eq!(Colormap::Diverging.map(1.0), Rgb::new(180, 4, 38));
     /// ```
     pub fn map(self, t: f32) -> Rgb {
         let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
@@ -41,6 +47,12 @@ impl Colormap {
             Colormap::Viridis => Rgb(tables::VIRIDIS[i]),
             Colormap::Magma => Rgb(tables::MAGMA[i]),
             Colormap::Grey => Rgb([i as u8; 3]),
+            Colormap::Diverging => {
+                const COOL: Rgb = Rgb([59, 76, 192]);
+                const MIDDLE: Rgb = Rgb([221, 221, 221]);
+                const WARM: Rgb = Rgb([180, 4, 38]);
+                if t < 0.5 { COOL.lerp(MIDDLE, 2.0 * t) } else { MIDDLE.lerp(WARM, 2.0 * t - 1.0) }
+            }
             Colormap::Palette(colours) => match colours.len() {
                 0 => Rgb::BLACK,
                 n => colours[(t * (n - 1) as f32).round() as usize],
@@ -48,12 +60,13 @@ impl Colormap {
         }
     }
 
-    /// The colormap's name (`viridis`, `magma`, `grey`, `palette`).
+    /// The colormap's name (`viridis`, `magma`, `grey`, `diverging`, `palette`).
     pub fn name(self) -> &'static str {
         match self {
             Colormap::Viridis => "viridis",
             Colormap::Magma => "magma",
             Colormap::Grey => "grey",
+            Colormap::Diverging => "diverging",
             Colormap::Palette(_) => "palette",
         }
     }
