@@ -1,7 +1,8 @@
 //! The report's 3-D view in a real browser: a run of the built-in capture writes `report.html`; the page
 //! alone (copied into an empty folder: no PNGs, no network) is opened in headless Chromium, which must
 //! run its script without a console message, draw the final mesh (`data-view3d="ok"`) and show it — the
-//! screenshot holds thousands of the viewer's colours, which nothing else on the page has without the PNGs.
+//! screenshot holds thousands of the viewer's colours, which nothing else on the page has without the PNGs —
+//! and, with the support colouring chosen, colour the mesh by it (`data-view3d-colour="support"`).
 //!
 //! Needs `chromium` (Debian's package; `$NLOS_CHROMIUM` names another binary); CI installs it.
 
@@ -54,6 +55,26 @@ fn report_html_shows_the_meshes_in_headless_chromium() {
     let console: Vec<&str> = stderr.lines().filter(|l| l.contains(":CONSOLE")).collect();
     assert!(console.is_empty(), "console messages: {console:#?}");
     assert!(stdout.contains("data-view3d=\"ok\""), "the viewer did not draw: {:?}", stdout.find("data-view3d"));
+    assert!(stdout.contains("data-view3d-colour=\"depth\""), "the page opens coloured by depth");
+
+    // The same page with "support" chosen: the final mesh is coloured by how much of its light the data
+    // confirm (the run wrote it, so the page must offer it).
+    let by_support = html.replacen("value=\"depth\" checked", "value=\"depth\"", 1).replacen(
+        "value=\"support\"",
+        "value=\"support\" checked",
+        1,
+    );
+    assert!(by_support.contains("value=\"support\" checked"), "the page offers no support colouring");
+    let support_page = alone.join("support.html");
+    std::fs::write(&support_page, &by_support).expect("copy");
+    let dom = chromium(&browser, &["--dump-dom"], &support_page);
+    let (stdout, stderr) = (String::from_utf8_lossy(&dom.stdout), String::from_utf8_lossy(&dom.stderr));
+    assert!(dom.status.success(), "chromium failed: {stderr}");
+    assert!(
+        stdout.contains("data-view3d-colour=\"support\""),
+        "the viewer did not colour by support: {:?}",
+        stdout.find("data-view3d-colour")
+    );
 
     let shot = alone.join("shot.png");
     let arg = format!("--screenshot={}", shot.display());

@@ -102,6 +102,14 @@ fn reconstructs_a_rendered_square_and_writes_every_output() {
     let log: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("run_log.json")).expect("log")).expect("json");
     assert!(log["iterations"].as_array().is_some_and(|a| !a.is_empty()), "empty run log");
+    // mesh.ply carries how much of their light the data confirm, per vertex; the square's capture holds
+    // the light of most of it, and the report's 3-D view offers the colouring.
+    let soup = nlos_mesh::io::read_ply(&std::fs::read(out.join("mesh.ply")).expect("ply"), "mesh.ply").expect("ply");
+    let support = soup.support.expect("mesh.ply has the support per vertex");
+    assert_eq!(support.len(), soup.positions.len());
+    let mean = support.iter().sum::<f32>() / support.len() as f32;
+    assert!(support.iter().all(|s| (-1.0..=1.0).contains(s)) && mean > 0.5, "mean support {mean}");
+    assert!(html.contains("value=\"support\""), "no support colouring in the 3-D view");
     // Resuming a finished run continues from its checkpoint without error.
     args.push("--resume");
     let resumed = nlos(&args);

@@ -1,7 +1,7 @@
 //! OBJ/PLY/GLB round trips and malformed-file errors.
 
 use glam::Vec3;
-use nlos_mesh::io::{self, PlyEncoding, TriangleSoup};
+use nlos_mesh::io::{self, PlyEncoding, PlyVertexFields, TriangleSoup};
 use nlos_mesh::{BuildOptions, MeshError, SurfaceMesh, shapes};
 
 /// A mesh with awkward floats (tiny, huge, negative zero, many digits) to test exactness.
@@ -43,6 +43,30 @@ fn ply_round_trips_are_exact() {
         assert_same(&m, &soup);
         assert_same(&m, &io::read_any(&bytes, "mem.ply").expect("detected"));
     }
+}
+
+#[test]
+fn ply_support_round_trips_beside_the_albedo_and_values_outside_its_range_are_errors() {
+    let m = awkward();
+    let n = m.to_triangles().0.len();
+    let albedo: Vec<f32> = (0..n).map(|i| (i % 5) as f32 * 0.5).collect();
+    let support: Vec<f32> = (0..n).map(|i| (i % 9) as f32 / 4.0 - 1.0).collect();
+    for enc in [PlyEncoding::Ascii, PlyEncoding::BinaryLittleEndian] {
+        for albedo in [None, Some(&albedo[..])] {
+            let fields = PlyVertexFields { albedo, support: Some(&support) };
+            let bytes = io::write_ply_with(&m, &fields, enc).expect("one value per vertex");
+            let soup = io::read_ply(&bytes, "mem.ply").expect("parses");
+            assert_same(&m, &soup);
+            assert_eq!(soup.support.as_deref(), Some(&support[..]));
+            assert_eq!(soup.albedo.as_deref(), albedo);
+        }
+    }
+    let mut bad = support.clone();
+    bad[1] = 1.5;
+    let e = io::write_ply_with(&m, &PlyVertexFields { albedo: None, support: Some(&bad) }, PlyEncoding::Ascii)
+        .expect_err("out of range");
+    assert!(e.to_string().contains("support"), "{e}");
+    assert_eq!(io::read_ply(&io::write_ply(&m, PlyEncoding::Ascii), "mem.ply").expect("parses").support, None);
 }
 
 #[test]

@@ -54,6 +54,7 @@ pub mod regions;
 pub mod regularizer;
 pub mod residual;
 pub mod schedule;
+pub mod support;
 pub mod surface;
 
 pub use adam::{AdamParams, Moments, ScalarMoments, VectorAdam, VertexAdam};
@@ -80,4 +81,5 @@ pub use residual::{
     residual_patches, residual_rounds,
 };
 pub use schedule::{PHASOR_START_BLOCKS, Schedule, faces_at};
+pub use support::{SUPPORT, face_support, vertex_support};
 pub use surface::{Remap, Source, Surface};

@@ -159,6 +159,7 @@ pub(crate) fn reconstruct<'py>(
     result.set_item("stop", to_json(&outcome.stop)?)?;
     result.set_item("scale", outcome.scale)?;
     result.set_item("albedo", outcome.albedo.clone().map(|a| numpy::PyArray1::from_vec(py, a)))?;
+    result.set_item("support", outcome.support.clone().map(|s| numpy::PyArray1::from_vec(py, s)))?;
     result.set_item("notes", prepared.notes.clone())?;
     set_fit(&result, outcome.log.fit.as_ref())?;
     // The run directory holds everything by now; a run that kept almost no surface, or whose surface explains
@@ -191,6 +192,7 @@ pub(crate) fn read_run(py: Python<'_>, dir: PathBuf) -> PyResult<Bound<'_, PyDic
     result.set_item("scale", record.scale())?;
     let albedo: Option<Vec<f32>> = record.albedo().map(|a| a.iter().map(|&x| x as f32).collect());
     result.set_item("albedo", albedo.map(|a| numpy::PyArray1::from_vec(py, a)))?;
+    result.set_item("support", record.vertex_support().map(|s| numpy::PyArray1::from_vec(py, s)))?;
     result.set_item("notes", Vec::<String>::new())?;
     set_fit(&result, record.log().fit.as_ref())?;
     Ok(result)

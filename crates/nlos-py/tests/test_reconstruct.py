@@ -95,6 +95,9 @@ def test_a_run_directory_reads_back_as_its_reconstruction(builtin_capture, tmp_p
     # How much of the capture the surface explains, in words and as a share, from the run and its record.
     assert first.fit.startswith("explains ") and 0.0 <= first.explained <= 1.0
     assert (record.fit, record.explained) == (first.fit, first.explained)
+    # How much of their light the data confirm, per vertex, the same from the run and its record.
+    assert first.support.shape == (len(first.vertices),) and np.all(np.abs(first.support) <= 1)
+    assert np.array_equal(record.support, first.support)
     assert (record.reflectance, record.scale, record.stop, record.log) == (
         first.reflectance,
         first.scale,

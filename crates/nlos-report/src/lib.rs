@@ -16,7 +16,7 @@
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo per vertex where the final mesh is seen (runs that fit one) |
 //! | `residual.png` | where the light is left unexplained: the capture's and the rendering's volumes by the start's method, their difference as a front view and an x–z slice ([`residual`]) |
-//! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth or by distance to the ground truth, embedded so it works offline from the folder alone ([`view3d`]) |
+//! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth, by distance to the ground truth or by the final mesh's support (`nlos_optim::support`), embedded so it works offline from the folder alone ([`view3d`]) |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
 //! with the run's reflectance and per-vertex albedo (from the checkpoint) and the renderer settings of the run
@@ -346,9 +346,11 @@ pub fn write_report(
         Report { html: dir.join(REPORT_FILE), images, scale, relative_residual, gate, metrics_init, metrics_final };
     let mut shown = Vec::new();
     if let Some(m) = &init_mesh {
-        shown.push(view3d::ViewMesh { name: "initial surface", mesh: m });
+        shown.push(view3d::ViewMesh { name: "initial surface", mesh: m, support: None });
     }
-    shown.push(view3d::ViewMesh { name: "final mesh", mesh: &final_mesh });
+    // How much of their light the data confirm, per vertex of the final mesh (the record's surface).
+    let support = record.as_ref().and_then(RunRecord::vertex_support).filter(|s| s.len() == positions.len());
+    shown.push(view3d::ViewMesh { name: "final mesh", mesh: &final_mesh, support: support.as_deref() });
     let view3d = view3d::section(&shown, ground_truth)?;
     let page = html::page(&html::PageInputs {
         opts,

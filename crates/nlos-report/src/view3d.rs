@@ -1,5 +1,6 @@
 //! The report's interactive 3-D view: the initial and final meshes (and the ground truth, when given) in a
-//! WebGL canvas the reader turns with the mouse, coloured by depth or by distance to the ground truth.
+//! WebGL canvas the reader turns with the mouse, coloured by depth, by distance to the ground truth, or by
+//! support (how much of their light the data confirm, `nlos_optim::support`, for the meshes that have it).
 //!
 //! The page must work from the run folder alone, offline, opened as a `file://` URL: browsers refuse
 //! `fetch` of local files there, so the meshes are embedded in the page (little-endian `f32` positions and
@@ -8,7 +9,8 @@
 //! curved parts shade as they are.
 //!
 //! The script reports its state on `<body>`: `data-view3d="ok"` once a mesh is drawn, else
-//! `data-view3d="error: …"` (for instance without WebGL), which the headless-browser test reads.
+//! `data-view3d="error: …"` (for instance without WebGL), and the colouring drawn as `data-view3d-colour`
+//! (`depth`, `dist` or `support`), which the headless-browser test reads.
 
 use std::fmt::Write as _;
 
@@ -24,6 +26,8 @@ pub struct ViewMesh<'a> {
     pub name: &'a str,
     /// The mesh.
     pub mesh: &'a SurfaceMesh,
+    /// Its support per vertex of `mesh.to_triangles()`, in [−1, 1] (`nlos_optim::support`), when known.
+    pub support: Option<&'a [f32]>,
 }
 
 /// Base64 (RFC 4648, with padding): a dozen lines, not worth a dependency.
@@ -56,33 +60,36 @@ fn f32_base64(values: impl Iterator<Item = f32>) -> String {
 /// `ReportError::Mesh` when the ground truth's BVH cannot be built (no faces).
 pub fn section(meshes: &[ViewMesh<'_>], ground_truth: Option<&SurfaceMesh>) -> Result<String> {
     let gt_bvh = ground_truth.map(TriangleBvh::from_mesh).transpose()?;
-    let mut all: Vec<(&str, &SurfaceMesh)> = meshes.iter().map(|m| (m.name, m.mesh)).collect();
+    let mut all: Vec<(&str, &SurfaceMesh, Option<&[f32]>)> =
+        meshes.iter().map(|m| (m.name, m.mesh, m.support)).collect();
     if let Some(gt) = ground_truth {
-        all.push(("ground truth", gt));
+        all.push(("ground truth", gt, None));
     }
     let mut js = String::from("[");
-    for (name, mesh) in &all {
+    for (name, mesh, support) in &all {
         let (positions, triangles) = mesh.to_triangles();
         if triangles.is_empty() {
             continue;
         }
         let distance: Option<Vec<f32>> =
             gt_bvh.as_ref().map(|bvh| positions.iter().map(|&p| bvh.closest_point(p).distance() * 1e3).collect());
+        let support = support.filter(|s| s.len() == positions.len());
         let _ = write!(
             js,
-            "{{name:{},faces:{},p:\"{}\",i:\"{}\",d:{}}},",
+            "{{name:{},faces:{},p:\"{}\",i:\"{}\",d:{},s:{}}},",
             serde_json::to_string(name).unwrap_or_else(|_| "\"mesh\"".into()),
             triangles.len(),
             f32_base64(positions.iter().flat_map(|p| p.to_array())),
             base64(&triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect::<Vec<u8>>()),
-            distance.map_or_else(|| "null".to_string(), |d| format!("\"{}\"", f32_base64(d.into_iter())))
+            distance.map_or_else(|| "null".to_string(), |d| format!("\"{}\"", f32_base64(d.into_iter()))),
+            support.map_or_else(|| "null".to_string(), |s| format!("\"{}\"", f32_base64(s.iter().copied())))
         );
     }
     js.push(']');
     let mut o = String::new();
     o.push_str("<h2>3-D view</h2>\n<div class=\"view3d\">\n");
     o.push_str("<p>Drag to turn, wheel to zoom, double-click to look from the wall again. Show: ");
-    for (k, (name, _)) in all.iter().enumerate() {
+    for (k, (name, _, _)) in all.iter().enumerate() {
         let checked = if k + 1 == meshes.len().max(1) { " checked" } else { "" };
         let _ = write!(
             o,
@@ -92,7 +99,12 @@ pub fn section(meshes: &[ViewMesh<'_>], ground_truth: Option<&SurfaceMesh>) -> R
     }
     o.push_str(" — colour: <label><input type=\"radio\" name=\"v3col\" value=\"depth\" checked> depth</label> ");
     if ground_truth.is_some() {
-        o.push_str("<label><input type=\"radio\" name=\"v3col\" value=\"dist\"> distance to the ground truth</label>");
+        o.push_str("<label><input type=\"radio\" name=\"v3col\" value=\"dist\"> distance to the ground truth</label> ");
+    }
+    if meshes.iter().any(|m| m.support.is_some()) {
+        o.push_str(
+            "<label><input type=\"radio\" name=\"v3col\" value=\"support\"> support (light the data confirm)</label>",
+        );
     }
     o.push_str("</p>\n<canvas id=\"v3canvas\" width=\"900\" height=\"600\"></canvas>\n");
     o.push_str("<p id=\"v3legend\" class=\"note\"></p>\n</div>\n<script>\n\"use strict\";\nconst V3_MESHES = ");
@@ -126,7 +138,7 @@ const SCRIPT: &str = r#"(function () {
     }
     const depth = new Float32Array(p.length / 3);
     for (let v = 0; v < depth.length; v++) depth[v] = p[3 * v + 2];
-    return { name: m.name, p: p, n: n, idx: idx, depth: depth, dist: m.d ? new Float32Array(bytes(m.d)) : null };
+    return { name: m.name, p: p, n: n, idx: idx, depth: depth, dist: m.d ? new Float32Array(bytes(m.d)) : null, support: m.s ? new Float32Array(bytes(m.s)) : null };
   });
   if (meshes.length === 0) { fail("no mesh to show"); return; }
   // Shared bounds: every mesh in the same frame.
@@ -161,12 +173,16 @@ const SCRIPT: &str = r#"(function () {
   function mul(a, b) { const o = new Array(16).fill(0); for (let i = 0; i < 4; i++) for (let j = 0; j < 4; j++) for (let k = 0; k < 4; k++) o[i + 4 * j] += a[i + 4 * k] * b[k + 4 * j]; return o; }
   function draw() {
     const m = meshes[Math.min(meshes.length - 1, Number(choice("v3mesh") || 0))];
-    const byDist = choice("v3col") === "dist" && m.dist;
+    const wanted = choice("v3col");
+    const mode = wanted === "dist" && m.dist ? "dist" : wanted === "support" && m.support ? "support" : "depth";
     const s = new Float32Array(m.depth.length);
-    for (let v = 0; v < s.length; v++) s[v] = byDist ? m.dist[v] / distMax : (m.depth[v] - m.zlo) / Math.max(1e-9, m.zhi - m.zlo);
+    for (let v = 0; v < s.length; v++) s[v] = mode === "dist" ? m.dist[v] / distMax : mode === "support" ? 0.5 * (m.support[v] + 1) : (m.depth[v] - m.zlo) / Math.max(1e-9, m.zhi - m.zlo);
     gl.bindBuffer(gl.ARRAY_BUFFER, m.bs); gl.bufferData(gl.ARRAY_BUFFER, s, gl.DYNAMIC_DRAW);
-    document.getElementById("v3legend").textContent = m.name + ": " + m.idx.length / 3 + " faces; colour " +
-      (byDist ? "distance to the ground truth, 0 (dark) to " + distMax.toFixed(1) + " mm (light) and beyond" : "depth, " + m.zlo.toFixed(3) + " m (dark) to " + m.zhi.toFixed(3) + " m (light)");
+    const legend = { dist: "distance to the ground truth, 0 (dark) to " + distMax.toFixed(1) + " mm (light) and beyond",
+      support: "support, -1 (dark: the capture holds none of the faces' light) to +1 (light: all of it)",
+      depth: "depth, " + m.zlo.toFixed(3) + " m (dark) to " + m.zhi.toFixed(3) + " m (light)" };
+    document.getElementById("v3legend").textContent = m.name + ": " + m.idx.length / 3 + " faces; colour " + legend[mode];
+    body.dataset.view3dColour = mode;
     const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
     // Rotation: yaw about y, then pitch about x (column-major).
     const R = [cy, sp * sy, -cp * sy, 0, 0, cp, sp, 0, sy, -sp * cy, cp * cy, 0, 0, 0, 0, 1];

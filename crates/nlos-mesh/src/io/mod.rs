@@ -15,7 +15,7 @@ use std::path::Path;
 
 pub use glb::{read_glb, write_glb};
 pub use obj::{read_obj, write_obj};
-pub use ply::{PlyEncoding, read_ply, write_ply, write_ply_with_albedo};
+pub use ply::{PlyEncoding, PlyVertexFields, read_ply, write_ply, write_ply_with, write_ply_with_albedo};
 
 use crate::build::BuildOptions;
 use crate::error::MeshError;
@@ -32,6 +32,9 @@ pub struct TriangleSoup {
     /// Per-vertex albedo, where the file has it (PLY's vertex property `albedo`, as
     /// [`write_ply_with_albedo`] writes it).
     pub albedo: Option<Vec<f32>>,
+    /// Per-vertex support (how much of their light the data confirm), where the file has it (PLY's vertex
+    /// property `support`, as [`write_ply_with`] writes it).
+    pub support: Option<Vec<f32>>,
 }
 
 impl TriangleSoup {
@@ -100,12 +103,30 @@ pub fn save(mesh: &SurfaceMesh, path: impl AsRef<Path>) -> Result<(), MeshError>
 /// [`MeshError::Format`] for a path not ending in `.ply`, [`MeshError::InvalidParameter`] for an `albedo` not
 /// one finite value ≥ 0 per vertex of `mesh.to_triangles()`, [`MeshError::Io`] when the file cannot be written.
 pub fn save_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], path: impl AsRef<Path>) -> Result<(), MeshError> {
+    save_ply_with(mesh, &PlyVertexFields { albedo: Some(albedo), support: None }, path)
+}
+
+/// Writes `mesh` with the per-vertex values of `fields` to the binary PLY file `path`, atomically
+/// ([`write_ply_with`]); without any, as [`save`] writes a `.ply`.
+///
+/// # Errors
+/// [`MeshError::Format`] for a path not ending in `.ply`, [`MeshError::InvalidParameter`] for a field not
+/// one valid value per vertex of `mesh.to_triangles()`, [`MeshError::Io`] when the file cannot be written.
+pub fn save_ply_with(
+    mesh: &SurfaceMesh,
+    fields: &PlyVertexFields<'_>,
+    path: impl AsRef<Path>,
+) -> Result<(), MeshError> {
     let path = path.as_ref();
     let ext = check_save_extension(path)?;
     if ext != "ply" {
-        return Err(MeshError::format(&path.display().to_string(), "extension", "an albedo is written to .ply only"));
+        return Err(MeshError::format(
+            &path.display().to_string(),
+            "extension",
+            "vertex fields are written to .ply only",
+        ));
     }
-    let bytes = write_ply_with_albedo(mesh, albedo, PlyEncoding::BinaryLittleEndian)?;
+    let bytes = write_ply_with(mesh, fields, PlyEncoding::BinaryLittleEndian)?;
     write_atomically(path, &bytes)
 }
 

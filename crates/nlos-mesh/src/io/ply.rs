@@ -175,9 +175,10 @@ pub fn read_ply(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
             let (Some(ix), Some(iy), Some(iz)) = (idx("x"), idx("y"), idx("z")) else {
                 return Err(err("element vertex", "needs scalar properties x, y and z"));
             };
-            let ia = idx("albedo");
+            let (ia, is) = (idx("albedo"), idx("support"));
             soup.positions.reserve(el.count);
             let mut albedo = Vec::with_capacity(if ia.is_some() { el.count } else { 0 });
+            let mut support = Vec::with_capacity(if is.is_some() { el.count } else { 0 });
             let mut vals = vec![0f64; el.props.len()];
             for vi in 0..el.count {
                 for (k, p) in el.props.iter().enumerate() {
@@ -200,8 +201,16 @@ pub fn read_ply(bytes: &[u8], file: &str) -> Result<TriangleSoup, MeshError> {
                     }
                     albedo.push(a);
                 }
+                if let Some(is) = is {
+                    let v = vals[is] as f32;
+                    if !v.is_finite() {
+                        return Err(err(&format!("vertex {vi} support"), "not a finite value"));
+                    }
+                    support.push(v);
+                }
             }
             soup.albedo = ia.map(|_| albedo);
+            soup.support = is.map(|_| support);
         } else if el.name == "face" {
             let list = el
                 .props
@@ -350,40 +359,77 @@ impl Cursor<'_> {
 /// Reading it back gives bit-identical positions and the same triangles.
 pub fn write_ply(mesh: &SurfaceMesh, encoding: PlyEncoding) -> Vec<u8> {
     let (pos, tris) = mesh.to_triangles();
-    ply_bytes(&pos, &tris, None, encoding)
+    ply_bytes(&pos, &tris, &PlyVertexFields::default(), encoding)
 }
 
-/// [`write_ply`] with a per-vertex albedo: the `float` vertex property `albedo` (read back by [`read_ply`] into
-/// [`super::TriangleSoup::albedo`]) and `uchar` red, green and blue, the albedo as grey scaled so that the
-/// largest is white (what MeshLab and Blender show). `albedo` holds one value per vertex of
+/// Per-vertex values that [`write_ply_with`] writes beside the positions, each one value per vertex of
 /// `mesh.to_triangles()`, in its order.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PlyVertexFields<'a> {
+    /// The `float` property `albedo` (finite, ≥ 0), with `uchar` red, green and blue: the albedo as grey
+    /// scaled so that the largest is white (what MeshLab and Blender show). Read back by [`read_ply`] into
+    /// [`super::TriangleSoup::albedo`].
+    pub albedo: Option<&'a [f32]>,
+    /// The `float` property `support` (finite, in [−1, 1]): how much of their light the data confirm
+    /// (`nlos_optim::support`). Read back into [`super::TriangleSoup::support`].
+    pub support: Option<&'a [f32]>,
+}
+
+/// [`write_ply`] with a per-vertex albedo ([`write_ply_with`] with [`PlyVertexFields::albedo`] alone).
 ///
 /// # Errors
-/// [`MeshError::InvalidParameter`] when `albedo` is not one finite value ≥ 0 per vertex (its value: the
-/// length, or the first bad value).
+/// As [`write_ply_with`].
 pub fn write_ply_with_albedo(mesh: &SurfaceMesh, albedo: &[f32], encoding: PlyEncoding) -> Result<Vec<u8>, MeshError> {
-    let (pos, tris) = mesh.to_triangles();
-    let bad = |value: f64, reason| Err(MeshError::InvalidParameter { name: "albedo", value, reason });
-    if albedo.len() != pos.len() {
-        return bad(albedo.len() as f64, "one albedo per vertex of the mesh, in the order of its triangles' list");
-    }
-    if let Some(a) = albedo.iter().find(|a| !(a.is_finite() && **a >= 0.0)) {
-        return bad(f64::from(*a), "an albedo is a finite value >= 0");
-    }
-    Ok(ply_bytes(&pos, &tris, Some(albedo), encoding))
+    write_ply_with(mesh, &PlyVertexFields { albedo: Some(albedo), support: None }, encoding)
 }
 
-/// The PLY file of `pos` and `tris`, with `albedo` (checked by the caller) as a property and grey colours.
-fn ply_bytes(pos: &[Vec3], tris: &[[u32; 3]], albedo: Option<&[f32]>, encoding: PlyEncoding) -> Vec<u8> {
+/// [`write_ply`] with the per-vertex values of `fields` as vertex properties.
+///
+/// # Errors
+/// [`MeshError::InvalidParameter`] naming the field when it is not one value per vertex, or holds a value
+/// outside its range (its value: the length, or the first bad value).
+pub fn write_ply_with(
+    mesh: &SurfaceMesh,
+    fields: &PlyVertexFields<'_>,
+    encoding: PlyEncoding,
+) -> Result<Vec<u8>, MeshError> {
+    let (pos, tris) = mesh.to_triangles();
+    type Valid = fn(f32) -> bool;
+    let checks: [(&'static str, Option<&[f32]>, Valid, &'static str); 2] = [
+        ("albedo", fields.albedo, |a| a.is_finite() && a >= 0.0, "an albedo is a finite value >= 0"),
+        ("support", fields.support, |s| (-1.0..=1.0).contains(&s), "a support is a value in [-1, 1]"),
+    ];
+    for (name, values, valid, range) in checks {
+        let Some(values) = values else { continue };
+        let bad = |value: f64, reason| Err(MeshError::InvalidParameter { name, value, reason });
+        if values.len() != pos.len() {
+            return bad(values.len() as f64, "one value per vertex of the mesh, in the order of its triangles' list");
+        }
+        if let Some(v) = values.iter().find(|&&v| !valid(v)) {
+            return bad(f64::from(*v), range);
+        }
+    }
+    Ok(ply_bytes(&pos, &tris, fields, encoding))
+}
+
+/// The PLY file of `pos` and `tris`, with `fields` (checked by the caller) as properties, the albedo also as
+/// grey colours.
+fn ply_bytes(pos: &[Vec3], tris: &[[u32; 3]], fields: &PlyVertexFields<'_>, encoding: PlyEncoding) -> Vec<u8> {
     let format = match encoding {
         PlyEncoding::Ascii => "ascii",
         PlyEncoding::BinaryLittleEndian => "binary_little_endian",
     };
-    let extra = if albedo.is_some() {
-        "property float albedo\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
-    } else {
-        ""
-    };
+    let (albedo, support) = (fields.albedo, fields.support);
+    let mut extra = String::new();
+    if albedo.is_some() {
+        extra.push_str("property float albedo\n");
+    }
+    if support.is_some() {
+        extra.push_str("property float support\n");
+    }
+    if albedo.is_some() {
+        extra.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
     let mut out = format!(
         "ply\nformat {format} 1.0\ncomment nlos-mesh\nelement vertex {}\nproperty float x\nproperty float y\n\
          property float z\n{extra}element face {}\nproperty list uchar int vertex_indices\nend_header\n",
@@ -397,15 +443,18 @@ fn ply_bytes(pos: &[Vec3], tris: &[[u32; 3]], albedo: Option<&[f32]>, encoding: 
         PlyEncoding::Ascii => {
             let mut s = String::with_capacity(pos.len() * 36 + tris.len() * 24);
             for (i, p) in pos.iter().enumerate() {
-                match albedo {
-                    Some(a) => {
-                        let g = grey(a[i]);
-                        let _ = writeln!(s, "{} {} {} {} {g} {g} {g}", p.x, p.y, p.z, a[i]);
-                    }
-                    None => {
-                        let _ = writeln!(s, "{} {} {}", p.x, p.y, p.z);
-                    }
+                let _ = write!(s, "{} {} {}", p.x, p.y, p.z);
+                if let Some(a) = albedo {
+                    let _ = write!(s, " {}", a[i]);
                 }
+                if let Some(v) = support {
+                    let _ = write!(s, " {}", v[i]);
+                }
+                if let Some(a) = albedo {
+                    let g = grey(a[i]);
+                    let _ = write!(s, " {g} {g} {g}");
+                }
+                s.push('\n');
             }
             for t in tris {
                 let _ = writeln!(s, "3 {} {} {}", t[0], t[1], t[2]);
@@ -420,6 +469,11 @@ fn ply_bytes(pos: &[Vec3], tris: &[[u32; 3]], albedo: Option<&[f32]>, encoding: 
                 }
                 if let Some(a) = albedo {
                     out.extend_from_slice(&a[i].to_le_bytes());
+                }
+                if let Some(v) = support {
+                    out.extend_from_slice(&v[i].to_le_bytes());
+                }
+                if let Some(a) = albedo {
                     out.extend_from_slice(&[grey(a[i]); 3]);
                 }
             }

@@ -11,7 +11,7 @@ use nlos_mesh::SurfaceMesh;
 use nlos_render::Renderer;
 use nlos_transient::Transient;
 
-use super::evaluation::{Attempt, Fit, evaluate};
+use super::evaluation::{Attempt, Fit, evaluate, row_terms};
 use super::plan::{BlockEnd, Next, Plan};
 use super::record::RunRecord;
 use super::rollback::{GoodReflectance, GoodShape, rollback, rollback_refl};
@@ -23,7 +23,6 @@ use super::{
 use crate::albedo;
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::data_term::RowLoss;
-use crate::data_term::counts::SensorRows;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
@@ -322,26 +321,13 @@ pub(super) fn prune_and_patch(
     let brdf = st.reflectance.brdf()?;
     let mut rendered = b.renderer.forward_any(&brdf);
     let (bins, scale) = (b.measured.bins(), st.scale);
-    let data_rows = |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
-        params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
-    };
     // The sensor fit's `J I`, kept current through the deletions (SensorRows::response).
     let response = match sensor {
         Some(m) => Some(RwLock::new(m.response(&rendered)?)),
         None => None,
     };
-    let cached_rows = sensor.map(|m| SensorRows {
-        fit: &m.fit,
-        counts: data,
-        bins,
-        background: m.background,
-        scale,
-        response: response.as_ref(),
-    });
-    let row_loss: &RowLoss<'_> = match &cached_rows {
-        Some(rows) => rows,
-        None => &data_rows,
-    };
+    let rows = row_terms(&b.fit, bins, scale, response.as_ref());
+    let row_loss: &RowLoss<'_> = &*rows;
     let mut keep = vec![true; st.surface.n_faces()];
     if let Some(pp) = &params.prune {
         let p = prune_boundary(st.surface.triangles(), &b.renderer, &brdf, &mut rendered, bins, row_loss, pp)?;

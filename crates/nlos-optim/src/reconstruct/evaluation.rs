@@ -1,13 +1,16 @@
 //! One evaluation of the run's data term at the current state ([`evaluate`]: value, scale, noise floor and
 //! gradients through the renderer's adjoint), its normaliser, and what each stage fits ([`StageData`]).
 
+use std::sync::RwLock;
+
 use glam::Vec3;
 use nlos_render::Renderer;
 use nlos_transient::Transient;
 
 use super::log::FitQuality;
 use super::record::RunRecord;
-use crate::data_term::counts::SensorModel;
+use crate::data_term::RowLoss;
+use crate::data_term::counts::{SensorModel, SensorRows};
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 
@@ -104,6 +107,37 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
             FitQuality { data: ev.value / norm, empty: empty.value / norm, noise_floor: floor }
         }
     })
+}
+
+/// The data term of `fit` row by row at `scale` ([`RowLoss`], what pruning, the region tests, the residual
+/// patches and the support take): the sensor fit's rows with the cached `J I` of the rendering (`response`,
+/// kept current through the deletions), else the plain data term's.
+pub(super) fn row_terms<'a>(
+    fit: &Fit<'a>,
+    bins: usize,
+    scale: f64,
+    response: Option<&'a RwLock<Vec<f64>>>,
+) -> Box<RowLoss<'a>> {
+    let (params, data) = (fit.params, fit.measured);
+    match fit.sensor {
+        Some(m) => Box::new(SensorRows { fit: &m.fit, counts: data, bins, background: m.background, scale, response }),
+        None => Box::new(move |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
+            params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
+        }),
+    }
+}
+
+/// The support of every face of the final surface ([`crate::support`]) at the run's scale.
+pub(super) fn face_support(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result<Vec<f64>> {
+    let brdf = st.reflectance.brdf()?;
+    let rendered = r.forward_any(&brdf);
+    let bins = r.time().bins;
+    let response = match fit.sensor {
+        Some(m) => Some(RwLock::new(m.response(&rendered)?)),
+        None => None,
+    };
+    let rows = row_terms(fit, bins, st.scale, response.as_ref());
+    crate::support::face_support(st.surface.n_faces(), r, &brdf, &rendered, bins, &*rows)
 }
 
 /// A shape step's evaluation: data term and gradient, the regulariser (normal + boundary smoothing), the

@@ -49,6 +49,7 @@
 
 use glam::Vec3;
 use nlos_mesh::SurfaceMesh;
+use nlos_mesh::io::PlyVertexFields;
 use nlos_render::{RenderParams, Renderer, Sampling};
 use nlos_transient::Transient;
 use serde::{Deserialize, Serialize};
@@ -63,6 +64,7 @@ use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
 use crate::regularizer::NormalSmoothing;
 use crate::residual::ResidualRecord;
+use crate::support::SUPPORT;
 use crate::surface::{Surface, VertexField};
 
 mod block;
@@ -206,6 +208,9 @@ pub struct Outcome {
     pub residual: Vec<ResidualRecord>,
     /// The fitted relative albedo of each vertex of `mesh` ([`ReconstructParams::albedo`]; None without).
     pub albedo: Option<Vec<f32>>,
+    /// How much of their light the data confirm, per vertex of `mesh` ([`crate::support`]: the area-weighted
+    /// mean of its faces' support, in [−1, 1]); None for a run that did not finish.
+    pub support: Option<Vec<f32>>,
     /// One record per block's region tests ([`crate::regions`]; empty without them).
     pub regions: Vec<crate::regions::RegionRecord>,
 }
@@ -493,6 +498,9 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
             }
             if st.finished.is_some() {
                 st.log.fit = Some(fit);
+                // How much of each final face's light the data confirm (mesh.ply, the report's 3-D view).
+                let support = evaluation::face_support(&st, &surface, &b.fit)?;
+                st.surface.face_mut(SUPPORT)?.copy_from_slice(&support);
             }
             if let Some(dir) = &params.out_dir {
                 st.write(dir)?;
@@ -508,12 +516,11 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
     let mesh = st.surface.mesh()?;
     if let Some(dir) = &params.out_dir {
         nlos_mesh::io::save(&mesh, dir.join("mesh.obj"))?;
-        match vertex_albedo(&st) {
-            // The relative albedo (area mean 1 over the surface) at each vertex, for viewers, `nlos render`
-            // and `nlos eval --front-view`.
-            Some(albedo) => nlos_mesh::io::save_ply_with_albedo(&mesh, &albedo, dir.join("mesh.ply"))?,
-            None => nlos_mesh::io::save(&mesh, dir.join("mesh.ply"))?,
-        }
+        // The relative albedo (area mean 1 over the surface) at each vertex, for viewers, `nlos render` and
+        // `nlos eval --front-view`; the support of the faces around each vertex.
+        let (albedo, support) = (vertex_albedo(&st), st.vertex_support());
+        let fields = PlyVertexFields { albedo: albedo.as_deref(), support: support.as_deref() };
+        nlos_mesh::io::save_ply_with(&mesh, &fields, dir.join("mesh.ply"))?;
     }
     Ok(outcome(&st, mesh, st.finished.unwrap_or(StopReason::MaxStages)))
 }
@@ -532,6 +539,7 @@ fn outcome(st: &RunRecord, mesh: SurfaceMesh, stop: StopReason) -> Outcome {
         prune: st.prune_log.clone(),
         residual: st.residual_log.clone(),
         albedo: vertex_albedo(st),
+        support: st.vertex_support(),
         regions: st.region_log.clone(),
     }
 }
@@ -595,6 +603,7 @@ mod tests {
             prune: vec![PruneRecord { stage: 0, block: 0, tested: 40, removed: 84, data_change: -0.1 }],
             residual: Vec::new(),
             albedo: None,
+            support: None,
             regions: Vec::new(),
         };
         let e = outcome(area / 0.01, StopReason::MaxStages).check_surface_kept().expect_err("1 % kept");

@@ -22,6 +22,7 @@ use crate::prune::PruneRecord;
 use crate::reflectance::Reflectance;
 use crate::regions::RegionRecord;
 use crate::residual::ResidualRecord;
+use crate::support::SUPPORT;
 use crate::surface::Surface;
 use nlos_transient::Transient;
 
@@ -111,6 +112,13 @@ impl RunRecord {
     /// none, [`crate::ReconstructParams::albedo`]).
     pub fn albedo(&self) -> Option<&[f64]> {
         self.surface.vertex(ALBEDO).ok()
+    }
+
+    /// How much of their light the data confirm, per vertex of [`RunRecord::surface`] ([`crate::support`]:
+    /// the area-weighted mean of the faces around); None until the run has finished.
+    pub fn vertex_support(&self) -> Option<Vec<f32>> {
+        let support = self.surface.face(SUPPORT).ok()?;
+        Some(crate::support::vertex_support(self.surface.positions(), self.surface.triangles(), support))
     }
 
     /// The region tests of every block ([`crate::regions`]).

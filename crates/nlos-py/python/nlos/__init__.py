@@ -265,6 +265,7 @@ def _reconstruction(result: Dict[str, Any]) -> "Reconstruction":
         log=json.loads(result["log"]),
         fit=result["fit"],
         explained=result["explained"],
+        support=result["support"],
     )
 
 
@@ -297,6 +298,10 @@ class Reconstruction:
     #: The share of the light above the noise floor the surface explains, in [0, 1] (``None`` while the
     #: run has blocks left, or for a capture with nothing above its floor).
     explained: Optional[float] = None
+    #: (n,) float32 support of each vertex in [-1, 1] (``mesh.ply``'s ``support``): how much of their light the
+    #: data confirm, +1 all of it, -1 none (the area-weighted mean over the faces around); ``None`` while the
+    #: run has blocks left.
+    support: Optional[np.ndarray] = None
 
     @property
     def mesh(self) -> Mesh:
