@@ -101,8 +101,9 @@ pub(crate) struct Args {
     /// Rays per side of the grid over the wall's scan area [−0.25, 0.25]² m (1 to 4096), with --gt.
     #[arg(long, default_value_t = 128, value_name = "N")]
     grid: usize,
-    /// Also draw the coverage picture as this PNG (with --gt): the ray grid coloured by hit within 5 mm, hit
-    /// but further apart, missed and extra pixels (as the run report's `coverage.png`).
+    /// Also draw the coverage picture as this PNG (with --gt, or with --gt-depth on its map's grid): the
+    /// pixels coloured by hit within 5 mm, hit but further apart, missed and extra (as the run report's
+    /// `coverage.png`).
     #[arg(long, value_name = "PNG")]
     map: Option<PathBuf>,
 }
@@ -268,6 +269,35 @@ pub(crate) fn score_maps(
     evaluate_maps(&rec, truth, threshold).map_err(|e| CliError::Input(e.to_string()))
 }
 
+/// The coverage picture of `reconstruction` against depth maps (`--gt-depth … --map`), on the maps' grid.
+fn map_coverage_figure(
+    reconstruction: &SurfaceMesh,
+    what: &str,
+    truth: (&Maps, &Path),
+    png: &Path,
+) -> Result<(), CliError> {
+    let (truth, depth_file) = truth;
+    let grid = &truth.grid;
+    if grid.width != grid.height {
+        return Err(CliError::Input(format!(
+            "--map: the coverage picture needs a square depth map; {} is {} x {}",
+            depth_file.display(),
+            grid.width,
+            grid.height
+        )));
+    }
+    let rec = mesh_maps(reconstruction, grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
+    // The maps' row 0 is the top (largest y); the picture's is the bottom.
+    let bottom_up = |d: &[f32]| -> Vec<f32> { d.chunks(grid.width).rev().flatten().copied().collect() };
+    let view = nlos_report::figures::DepthView { grid: grid.width, x_range: grid.x_range, y_range: grid.y_range };
+    let title =
+        Path::new(what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
+    let fig =
+        nlos_report::figures::coverage_figure(&[(&title, &bottom_up(&rec.depth))], &bottom_up(&truth.depth), &view)
+            .map_err(|e| CliError::Failure(format!("drawing the coverage picture: {e}")))?;
+    fig.save_png(png).map_err(|e| CliError::Failure(format!("cannot write {}: {e}", png.display())))
+}
+
 /// Runs `nlos eval`.
 pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     if let Some(png) = &args.map {
@@ -293,6 +323,9 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         };
         let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.gt_layout.into(), &place)?;
         let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
+        if let Some(png) = &args.map {
+            map_coverage_figure(&reconstruction, &what, (&truth, depth_file), png)?;
+        }
         let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         outln!("{line}");
         return Ok(());

@@ -224,6 +224,30 @@ fn depth_and_normal_maps() {
     fails(&["--gt-normal", b], "face away");
 }
 
+/// `--gt-depth … --map`: the coverage picture on the map's own grid (a square map); a map that is not square
+/// is an error saying so, before anything is written.
+#[test]
+fn map_draws_the_coverage_picture_against_depth_maps() {
+    let dir = scratch("depth-map-picture");
+    let n = 20usize;
+    let (d, png) = (dir.join("depth.npy"), dir.join("coverage.png"));
+    npy(&d, &vec![0.4f32; n * n], &[n, n]);
+    let flat = dir.join("flat.obj");
+    nlos_mesh::io::save(&plane(6, 0.4), &flat).expect("write");
+    let (f, ds, m) = (flat.to_str().expect("utf-8"), d.to_str().expect("utf-8"), png.to_str().expect("utf-8"));
+    let ext = ["--extent", "-0.2,0.2,-0.2,0.2"];
+    let v = eval_json(&[&["eval", f, "--gt-depth", ds, "--map", m][..], &ext].concat());
+    assert_eq!(num(&v, "coverage_within"), 1.0, "{v}");
+    let bytes = std::fs::read(&png).expect("coverage picture written");
+    assert_eq!(&bytes[1..4], b"PNG");
+    std::fs::remove_file(&png).expect("remove");
+    npy(&d, &vec![0.4f32; n * (n - 2)], &[n - 2, n]);
+    let o = nlos(&[&["eval", f, "--gt-depth", ds, "--map", m][..], &ext].concat());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("square") && stderr(&o).contains("depth.npy"), "{}", stderr(&o));
+    assert!(!png.exists(), "nothing drawn for a map that is not square");
+}
+
 /// A MATLAB depth map (column-major, NaN outside the object) reads as the same image: a plate covering the
 /// left half of the wall scores coverage 1 on the half the map marks, and the right half is no surface.
 #[test]
