@@ -38,8 +38,8 @@ pub(crate) use results::record;
 pub use results::update_readme;
 pub(crate) use runner::utc_now;
 use runner::{
-    Outcome, Ran, Runner, collision_check, p, reconstruct_and_eval, reconstruct_args, reconstruct_args_list, s,
-    with_photons,
+    Outcome, Ran, Runner, collision_check, fit_check, p, reconstruct_and_eval, reconstruct_args, reconstruct_args_list,
+    s, with_photons,
 };
 use sensor::sensor;
 use shape::{bunny, ggx, reference, seed_tag, soap};
@@ -221,6 +221,7 @@ pub fn accept(root: &Path, args: &[String]) -> Result<(), String> {
         let (text, pass) = match res {
             Ok(mut sec) => {
                 collision_check(&mut sec.text, &mut sec.pass, &r.collisions[first_run..]);
+                fit_check(&mut sec.text, &mut sec.pass, &r.collisions[first_run..]);
                 (sec.text, sec.pass)
             }
             Err(e) => (format!("- ERROR: {e}\n"), false),

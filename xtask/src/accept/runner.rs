@@ -58,6 +58,8 @@ pub(super) struct Collisions {
     pub(super) steps: u64,
     pub(super) steps_limited: u64,
     pub(super) remesh_refused: usize,
+    /// How much of its capture the finished surface explains (None in a log without the record).
+    pub(super) fit: Option<nlos_optim::FitQuality>,
 }
 
 impl Collisions {
@@ -75,8 +77,32 @@ impl Collisions {
             steps: log.collisions.iter().map(|r| u64::from(r.steps)).sum(),
             steps_limited: log.collisions.iter().map(|r| u64::from(r.steps_limited)).sum(),
             remesh_refused: log.collisions.iter().map(|r| r.remesh_refused).sum(),
+            fit: log.fit,
         })
     }
+}
+
+/// The check every scenario ends with after the collisions' (issue "Every result says how well it explains
+/// its capture"): each reconstruction's own verdict on its fit, the share of the light above the noise it
+/// explains, from its run log; a run without the record, or one no better than an empty scene, fails it.
+pub(super) fn fit_check(text: &mut String, pass: &mut bool, runs: &[Collisions]) {
+    if runs.is_empty() {
+        return;
+    }
+    let each: Vec<String> = runs
+        .iter()
+        .map(|c| match &c.fit {
+            Some(f) => format!("{}: {}", c.run, f.describe()),
+            None => format!("{}: no fit record in its run log", c.run),
+        })
+        .collect();
+    let ok = runs.iter().all(|c| c.fit.is_some_and(|f| f.data < f.empty));
+    check(
+        text,
+        pass,
+        &format!("every run explains more of its capture than an empty scene would ({})", each.join("; ")),
+        ok,
+    );
 }
 
 /// The check every scenario ends with (El Topo's promise): no self-intersection found after the start in any
@@ -309,4 +335,36 @@ pub(super) fn reconstruct_and_eval(
     let fk = r.nlos(&[s("eval"), s("--volume"), p(capture), s("--method"), s("fk"), s("--gt"), p(gt)])?;
     let fk = Metrics::parse(fk.stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or(""))?;
     Ok(Outcome { init, fk, result, recon, run_dir: run_dir.to_path_buf() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(name: &str, fit: Option<(f64, f64)>) -> Collisions {
+        Collisions {
+            run: name.into(),
+            start_pairs: 0,
+            checks: 1,
+            pairs_after_start: 0,
+            steps: 1,
+            steps_limited: 0,
+            remesh_refused: 0,
+            fit: fit.map(|(data, empty)| nlos_optim::FitQuality { data, empty, noise_floor: Some(0.07) }),
+        }
+    }
+
+    #[test]
+    fn the_fit_check_names_each_runs_share_and_fails_a_run_that_explains_nothing() {
+        let (mut text, mut pass) = (String::new(), true);
+        fit_check(&mut text, &mut pass, &[run("a", Some((0.0763, 0.9368))), run("b", Some((0.5, 0.93)))]);
+        assert!(pass, "{text}");
+        assert!(text.contains("a: explains 99 % of the light above the noise"), "{text}");
+        assert!(text.contains("b: explains 50 %"), "{text}");
+        for bad in [run("c", Some((0.95, 0.93))), run("d", None)] {
+            let (mut text, mut pass) = (String::new(), true);
+            fit_check(&mut text, &mut pass, &[run("a", Some((0.0763, 0.9368))), bad]);
+            assert!(!pass && text.starts_with("- FAIL"), "{text}");
+        }
+    }
 }
