@@ -68,10 +68,10 @@ pub use nlos_render::Loss;
 pub use params::{ReconstructParams, RenderSettings, SamplingSchedule};
 pub use prune::{PruneParams, PruneRecord, Pruned, prune_boundary};
 pub use reconstruct::{
-    BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, FitQuality, Hooks,
-    IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan, Progress, ProgressEvent,
-    ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, SHAPE_MOMENTS, StageRecord, StartRecord, StepKind, StopReason,
-    describe_device, reconstruct, reconstruct_with, resume,
+    BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, CHECKPOINT_FILE, DirectEvolve, Evolve, EvolveRecord, FIT_DETECTION,
+    FitQuality, Hooks, IntersectionCheck, IntersectionRecord, IterationRecord, MIN_SURFACE_KEPT, Outcome, Plan,
+    Progress, ProgressEvent, ProgressFn, RUN_LOG_FILE, RunLog, RunRecord, SHAPE_MOMENTS, StageRecord, StartRecord,
+    StepKind, StopReason, describe_device, reconstruct, reconstruct_with, resume,
 };
 pub use reflectance::Reflectance;
 pub use regions::{RegionFit, RegionNoise, RegionParams, RegionRecord, Regions, dark_regions};

@@ -90,7 +90,7 @@ fn run_dir(name: &str) -> (PathBuf, Transient, SurfaceMesh) {
         residual: Vec::new(),
         collisions: Vec::new(),
         start: None,
-        fit: Some(nlos_optim::FitQuality { data: 0.1, empty: 1.0, noise_floor: Some(0.08) }),
+        fit: Some(nlos_optim::FitQuality { data: 0.1, empty: 1.0, noise_floor: Some(0.08), detection: Some(2400.0) }),
     };
     std::fs::write(dir.join("run_log.json"), serde_json::to_vec(&log).expect("log json")).expect("log");
     let measured = measure(&truth);

@@ -91,6 +91,8 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
                 data: ev.value / norm,
                 empty: empty.value / norm,
                 noise_floor: Some(sensor.noise_floor(&a, ev.scale) / norm),
+                // The Poisson half-deviance: Λ = 2ΔE.
+                detection: Some(2.0 * (empty.value - ev.value)),
             }
         }
         None => {
@@ -99,14 +101,38 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
             // best constant level (the mean, for L2 and Poisson alike); with a fixed scale, nothing.
             let level = if params.data.solve_scale { 1.0f32 } else { 0.0 };
             let empty = params.data.evaluate(&vec![level; rendered.len()], measured, 0.0)?;
-            let floor = if params.data.counts {
-                Some(params.data.noise_floor(&rendered, measured, ev.scale)? / norm)
+            let (floor, detection) = if params.data.counts {
+                let gain = empty.value - ev.value;
+                let detection = match params.data.loss {
+                    nlos_render::Loss::L2 => {
+                        2.0 * gain / counts_variance(&rendered, ev.scale, params.data.weights.as_deref())
+                    }
+                    nlos_render::Loss::PoissonNll { .. } => 2.0 * gain,
+                };
+                (
+                    Some(params.data.noise_floor(&rendered, measured, ev.scale)? / norm),
+                    Some(detection).filter(|l| l.is_finite()),
+                )
             } else {
-                None
+                (None, None)
             };
-            FitQuality { data: ev.value / norm, empty: empty.value / norm, noise_floor: floor }
+            FitQuality { data: ev.value / norm, empty: empty.value / norm, noise_floor: floor, detection }
         }
     })
+}
+
+/// The variance `σ² = Σ w² μ (s I)² / Σ w (s I)²` (`μ = max(s I, 1)`) of the L2 fit of photon counts along the
+/// rendering `I` at `scale`, in which `2ΔE / σ²` is the likelihood-ratio statistic ([`FitQuality`]): the
+/// projection of the Poisson noise on the direction the fit moves in. NaN when nothing is rendered.
+fn counts_variance(rendered: &[f32], scale: f64, weights: Option<&[f32]>) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (k, &r) in rendered.iter().enumerate() {
+        let w = weights.map_or(1.0, |w| f64::from(w[k]));
+        let share = (scale * f64::from(r)).powi(2);
+        num += w * w * (scale * f64::from(r)).max(1.0) * share;
+        den += w * share;
+    }
+    if den > 0.0 { num / den } else { f64::NAN }
 }
 
 /// The data term of `fit` row by row at `scale` ([`RowLoss`], what pruning, the region tests, the residual

@@ -78,8 +78,8 @@ mod topology;
 use block::{Block, RunCtx};
 use evaluation::{Fit, StageData, data_normaliser};
 pub use log::{
-    EvolveRecord, FitQuality, IntersectionCheck, IntersectionRecord, IterationRecord, RunLog, StageRecord, StartRecord,
-    StepKind, StopReason,
+    EvolveRecord, FIT_DETECTION, FitQuality, IntersectionCheck, IntersectionRecord, IterationRecord, RunLog,
+    StageRecord, StartRecord, StepKind, StopReason,
 };
 pub use plan::{BLOCK_COST_L2_S, BLOCK_COST_SENSOR_S, Plan};
 pub use record::RunRecord;
@@ -248,8 +248,9 @@ impl Outcome {
         })
     }
 
-    /// Whether the finished surface explains more of its capture than an empty scene would
-    /// ([`RunLog::fit`]): its data term below the empty scene's (no surface, the background alone). A run whose
+    /// Whether the finished surface explains more of its capture than an empty scene would, by more than the
+    /// noise ([`RunLog::fit`], [`FitQuality::explains_anything`]): its data term below the empty scene's (no
+    /// surface, the background alone) and, for photon counts, its light detected at 3σ. A run whose
     /// surface only spreads light over the background — what a capture of noise alone gives — has not found a
     /// scene, whatever its mesh looks like. An interrupted run, or one without the record, is not judged.
     ///
@@ -257,7 +258,7 @@ impl Outcome {
     /// [`OptimError::ExplainsNothing`], with the verdict's figures.
     pub fn check_explains(&self) -> Result<()> {
         match &self.log.fit {
-            Some(fit) if self.stop != StopReason::Interrupted && !(fit.data < fit.empty) => {
+            Some(fit) if self.stop != StopReason::Interrupted && !fit.explains_anything() => {
                 Err(OptimError::ExplainsNothing { verdict: fit.describe() })
             }
             _ => Ok(()),
@@ -620,16 +621,19 @@ mod tests {
         // A surface no better than an empty scene is an error with the verdict's figures; a better one, an
         // interrupted run and a log without the record are not.
         let mut noise = outcome(area, StopReason::MaxStages);
-        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: Some(0.07) });
+        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: Some(0.07), detection: None });
         let e = noise.check_explains().expect_err("no better than empty");
         assert!(matches!(e, OptimError::ExplainsNothing { .. }), "{e:?}");
         let text = e.to_string();
         for part in ["explains no more than an empty scene would", "0.9800", "0.7700", "init.obj"] {
             assert!(text.contains(part), "{part:?} missing: {text}");
         }
-        noise.log.fit = Some(FitQuality { data: 0.5, empty: 0.77, noise_floor: Some(0.07) });
+        noise.log.fit = Some(FitQuality { data: 0.5, empty: 0.77, noise_floor: Some(0.07), detection: None });
         assert!(noise.check_explains().is_ok());
-        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: None });
+        noise.log.fit = Some(FitQuality { data: 0.76, empty: 0.77, noise_floor: Some(0.07), detection: Some(3.0) });
+        let e = noise.check_explains().expect_err("not by more than the noise");
+        assert!(e.to_string().contains("by more than the noise"), "{e}");
+        noise.log.fit = Some(FitQuality { data: 0.98, empty: 0.77, noise_floor: None, detection: None });
         noise.stop = StopReason::Interrupted;
         assert!(noise.check_explains().is_ok());
         noise.log.fit = None;
