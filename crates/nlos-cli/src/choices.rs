@@ -44,8 +44,12 @@ pub(crate) enum VisibilityArg {
 /// `nlos render --mode`: how the surface integral is evaluated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum ModeArg {
-    /// Noise-free adaptive quadrature.
+    /// Noise-free closed-form time integration against the box kernel (`Sampling::Splat` with
+    /// `Kernel::Box`): each face's path-length density integrated over each bin exactly.
     Exact,
+    /// Noise-free adaptive point quadrature (sub-triangles of at most half a bin, each assigned to one bin):
+    /// `--mode exact` before the closed form, 13× less accurate and 30× slower.
+    Quadrature,
     /// Tsai et al. 2019's stratified area sampling.
     Mc,
     /// The optimiser's rule: closed-form time integration against the tent kernel (`nlos_render::SplatRule`);

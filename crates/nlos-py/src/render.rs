@@ -250,11 +250,11 @@ impl Renderer {
 }
 
 /// A simulated capture of a mesh, as `nlos render` makes it: box kernel (a measurement integrates its
-/// bin), the exact adaptive rule, visibility cached at level 2 (or as given), Lambertian albedo 1 or GGX
+/// bin), the box kernel's closed form (`Sampling::Splat`), visibility cached at level 1 (or as given), Lambertian albedo 1 or GGX
 /// (`alpha`); with `photons`, SPAD photon counts (Poisson, expected `photons` per measurement, `seed`).
 #[pyfunction]
 #[pyo3(signature = (vertices, faces, setup = None, *, brdf = "lambert", alpha = 0.3, visibility = "cached",
-    vis_level = 2, two_sided = false, photons = None, seed = 0))]
+    vis_level = 1, two_sided = false, photons = None, seed = 0))]
 #[allow(clippy::too_many_arguments)] // one per Python keyword argument
 pub(crate) fn render(
     py: Python<'_>,
@@ -280,7 +280,7 @@ pub(crate) fn render(
     };
     let params = RenderParams {
         kernel: Kernel::Box,
-        sampling: Sampling::Deterministic(DeterministicRule::default()),
+        sampling: Sampling::Splat(SplatRule::default()),
         visibility: self::visibility(visibility, vis_level)?,
         two_sided,
     };

@@ -37,6 +37,8 @@ pub(crate) struct KernelEval {
     inv_sigma: f32,
     norm: f32,
     radius: f32,
+    /// The steady-state "kernel" ([`KernelEval::steady`]): a box, but never a time axis for the splat.
+    steady: bool,
 }
 
 impl KernelEval {
@@ -56,6 +58,7 @@ impl KernelEval {
             inv_sigma: 1.0 / sigma,
             norm: 1.0 / (sigma * (2.0 * std::f32::consts::PI).sqrt()),
             radius,
+            steady: false,
         }
     }
 
@@ -65,6 +68,19 @@ impl KernelEval {
             t0: self.t0,
             inv_dt: self.inv_dt,
             last: self.bins as f32 - 1.0,
+            box_kernel: false,
+        })
+    }
+
+    /// The splat's time axis for the box kernel (None for the other kernels and the steady state): the
+    /// tent's constants with the origin moved back half a bin, so that the splat's node units
+    /// `(τ − t0')/Δ − ½` are the box's bin units `(τ − t0)/Δ` (bin k is `[k, k + 1)`).
+    pub(crate) fn box_axis(&self) -> Option<TentAxis> {
+        (self.kind == Kernel::Box && !self.steady).then_some(TentAxis {
+            t0: self.t0 - 0.5 / self.inv_dt,
+            inv_dt: self.inv_dt,
+            last: self.bins as f32 - 1.0,
+            box_kernel: true,
         })
     }
 
@@ -81,7 +97,7 @@ impl KernelEval {
     /// The steady-state (time-integrated) "kernel": one bin that holds every path length, `K_0(τ) = 1`, no
     /// τ-derivative (a box of width 10³⁰ m starting at τ = 0; path lengths are ≥ 0).
     pub(crate) fn steady() -> Self {
-        Self::new(Kernel::Box, 0.0, 1e30, 1)
+        Self { steady: true, ..Self::new(Kernel::Box, 0.0, 1e30, 1) }
     }
 
     /// Calls `f(k, K_k(τ), dK_k/dτ)` for every bin with a non-zero weight.
@@ -183,6 +199,9 @@ pub(crate) struct TentAxis {
     pub(crate) inv_dt: f32,
     /// `bins − 1`, the largest valid lower bin.
     pub(crate) last: f32,
+    /// The splat integrates the box kernel instead of the tent ([`KernelEval::box_axis`]: `t0` is then
+    /// half a bin early, so that node units are bin units); never set for the point rules' tent path.
+    pub(crate) box_kernel: bool,
 }
 
 impl TentAxis {

@@ -47,7 +47,8 @@ impl DeterministicRule {
 /// `(2/r) e²/(6 n²)` (τ's Hessian has norm ≤ 1/|x − l| + 1/|x − s| ≤ 2/r, r a lower bound of the distance
 /// from the triangle to every wall spot; the linear interpolant's error on a triangle of longest edge e is
 /// at most `M e²/6` for a Hessian norm ≤ M), taken as the largest over each block of 256 triangles and
-/// clamped to `[1, max_level]`. Tent kernel only.
+/// clamped to `[1, max_level]`. With [`Kernel::Tent`] (the optimiser's: forward and adjoint) or
+/// [`Kernel::Box`] (simulation: forward only, the adjoint is refused), the closed form of either.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SplatRule {
     /// Largest departure of τ from linear over a sub-triangle, in bins (> 0). Default 0.09: on the first
@@ -82,7 +83,8 @@ pub enum Sampling {
     },
     /// Closed-form time integration of each (sub-)triangle against the tent kernel (see [`SplatRule`]):
     /// noise-free, and about (span in bins + 2) operations per pair instead of the n² samples a point rule
-    /// needs to resolve the same span. The optimiser's default. Needs [`Kernel::Tent`]; the steady-state
+    /// needs to resolve the same span. The optimiser's default (tent kernel); with [`Kernel::Box`] it is
+    /// `nlos render`'s exact mode (forward only). Needs one of those two kernels; the steady-state
     /// passes use the same sub-triangle centroids (time does not matter there).
     Splat(SplatRule),
 }
@@ -210,11 +212,12 @@ pub(super) fn check_params(p: &RenderParams) -> Result<()> {
             if !(1..=64).contains(&r.max_level) {
                 return bad("SplatRule.max_level", f64::from(r.max_level), "must be in 1..=64");
             }
-            if p.kernel != Kernel::Tent {
+            if !matches!(p.kernel, Kernel::Tent | Kernel::Box) {
                 return bad(
                     "Sampling::Splat",
                     0.0,
-                    "integrates the tent kernel in closed form: use Kernel::Tent (or a Deterministic rule)",
+                    "integrates the tent or the box kernel in closed form: use Kernel::Tent or Kernel::Box (or a \
+                     Deterministic rule)",
                 );
             }
         }

@@ -19,6 +19,17 @@
 //! `∂G/∂b`, `∂G/∂c` are closed form too (translation invariance: their sum is `−F(u)`), so the adjoint
 //! gets the exact derivative of the splat with respect to each corner's path length.
 //!
+//! **The box kernel** (eq. 3 of Tsai et al. 2019; what `nlos render` simulates, a bin holding the integral
+//! over `[t0 + kΔ, t0 + (k+1)Δ)`) is the first difference of the same density's CDF instead of the second
+//! difference of its integral: in **bin units** `u = (τ − t0)/Δ` (the node units of an axis half a bin earlier,
+//! `KernelEval::box_axis`),
+//! ```text
+//! w_k = ∫_k^{k+1} p = F(k + 1) − F(k),    F(u) = G'(u) = P(S ≤ u),
+//! ```
+//! F piecewise quadratic (`(u − a)²/(l1 d)` on (a, b], `(l1 + 2t − t²/l2)/d` with `t = u − b` on (b, c], 1
+//! beyond), non-zero only for `⌊a⌋ ≤ k ≤ ⌊c⌋`. Forward only: the optimiser's passes take the tent, whose
+//! weights are smooth in the corners.
+//!
 //! The only approximations are τ's departure from linear over the triangle (τ is convex: its Hessian has
 //! norm ≤ 1/|x − l| + 1/|x − s|; the renderer bounds the departure and subdivides, see
 //! [`crate::SplatRule`]) and h taken at the centroid (second order, as for the centroid rule).
@@ -125,6 +136,35 @@ pub(crate) fn g_lane(p: &[f32; 10], u: f32) -> f32 {
     } else {
         u - mean
     }
+}
+
+/// F = G' (the CDF of the pair's path-length density) at the shifted bin edge u from a pair's [`prepare`]
+/// constants, branch-free: 0 up to a, `(u − a)²/(l1 d)` on (a, b], `(l1 + 2t − t²/l2)/d` on (b, c], 1 beyond.
+#[inline(always)]
+pub(crate) fn f_lane(p: &[f32; 10], u: f32) -> f32 {
+    let [_, a, b, c, l1, inv_d, c2, inv_l2, _, _] = *p;
+    let d = u - a;
+    let f2 = d * d * (3.0 * c2);
+    let t = u - b;
+    let f3 = (l1 + 2.0 * t - t * t * inv_l2) * inv_d;
+    if u <= a {
+        0.0
+    } else if u <= b {
+        f2
+    } else if u <= c {
+        f3
+    } else {
+        1.0
+    }
+}
+
+/// Eight box weights of a pair in bin units, `w_m = F(m + 1) − F(m)` for `m = OFF .. OFF + 8` (bins
+/// `k0 + m`), branch-free for the vector kernels (the box counterpart of [`window_weights`]; F = 0 at
+/// shifted edges ≤ 0). A pair whose largest shifted corner value is c < N has all its weight in `m < N`.
+#[inline(always)]
+pub(crate) fn window_box_weights<const OFF: usize>(p: &[f32; 10]) -> [f32; 8] {
+    let f: [f32; 9] = std::array::from_fn(|j| if OFF + j == 0 { 0.0 } else { f_lane(p, (OFF + j) as f32) });
+    std::array::from_fn(|m| f[m + 1] - f[m])
 }
 
 /// `(G, ∂G/∂a, ∂G/∂b, ∂G/∂c)` at the shifted node u ≥ 1 > a, branch-free (as [`Knots::g_grad2`],
@@ -383,6 +423,38 @@ impl Knots {
         });
     }
 
+    /// F = G' at the shifted bin edge u (as [`f_lane`]).
+    #[inline(always)]
+    fn cdf(&self, u: f32) -> f32 {
+        if u <= self.a {
+            0.0
+        } else if u <= self.b {
+            let d = u - self.a;
+            d * d * (3.0 * self.c2)
+        } else if u <= self.c {
+            let t = u - self.b;
+            (self.l1 + 2.0 * t - t * t * self.inv_l2) * self.inv_d
+        } else {
+            1.0
+        }
+    }
+
+    /// Calls `f(k, w_k)` with the **box** weights `w_k = F(k + 1) − F(k)` (the knots in bin units, see the
+    /// module doc) for every bin k in `lo..=hi` ∩ `⌊a⌋..=⌊c⌋` (absolute indices).
+    #[inline(always)]
+    pub(crate) fn box_weights(&self, lo: i64, hi: i64, mut f: impl FnMut(i64, f32)) {
+        let (k_lo, k_hi) = (self.k0.max(lo), (self.k0 + floor(self.c) as i64).min(hi));
+        if k_lo > k_hi {
+            return;
+        }
+        let mut below = self.cdf((k_lo - self.k0) as f32);
+        for k in k_lo..=k_hi {
+            let above = self.cdf((k + 1 - self.k0) as f32);
+            f(k, above - below);
+            below = above;
+        }
+    }
+
     /// `(Σ_k r_k w_k, Σ_k r_k ∂w_k/∂(a, b, c))` over the bins `lo..=hi`, with `row(k) = r_k`: the adjoint's
     /// gather, derivatives in sorted order ([`to_corners`] maps them to the corners).
     #[inline(always)]
@@ -610,6 +682,80 @@ mod tests {
             check(short_gather::<8>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
             check(short_gather::<MAX_SPAN>(&p, std::array::from_fn(|m| row(k0 + m as i64))));
         }
+    }
+
+    /// Brute force: the box weight of bin k (`[k, k + 1)` in bin units) of τ = Σ λ_i u_i.
+    fn brute_box(u: [f64; 3], k: i64) -> f64 {
+        let n = 600;
+        let (mut s, mut cnt) = (0.0, 0.0);
+        for i in 0..n {
+            for j in 0..n - i {
+                for (di, dj) in [(1.0 / 3.0, 1.0 / 3.0), (2.0 / 3.0, 2.0 / 3.0)] {
+                    if di > 0.5 && j + 1 >= n - i {
+                        continue;
+                    }
+                    let (x, y) = ((i as f64 + di) / n as f64, (j as f64 + dj) / n as f64);
+                    let t = (1.0 - x - y) * u[0] + x * u[1] + y * u[2];
+                    s += f64::from(u8::from(t.floor() as i64 == k));
+                    cnt += 1.0;
+                }
+            }
+        }
+        s / cnt
+    }
+
+    #[test]
+    fn box_weights_match_brute_force_and_the_vector_kernels() {
+        for u in [
+            [800.3f32, 803.9, 801.2],
+            [10.0, 10.0, 14.5],
+            [7.25, 9.5, 9.5],
+            [3.2, 3.3, 3.25],
+            [5.0, 5.0, 5.0],
+            [100.999, 101.001, 100.0],
+            [0.5, 30.25, 12.0],
+            [2.0, 3.0, 4.0],
+        ] {
+            let kn = Knots::new(u).expect("finite");
+            let mut w = Vec::new();
+            kn.box_weights(i64::MIN / 4, i64::MAX / 4, |k, x| w.push((k, x)));
+            let total: f32 = w.iter().map(|(_, x)| x).sum();
+            assert!((total - 1.0).abs() < 1e-5, "{u:?}: Σw = {total}");
+            let ud = u.map(f64::from);
+            if u[0] == u[1] && u[1] == u[2] {
+                // A point mass (the brute force's rounding puts it either side of an edge).
+                assert_eq!(w, vec![(u[0].floor() as i64, 1.0)], "{u:?}");
+                continue;
+            }
+            // Brute force resolves a bin to about 1/600 of the triangle's span.
+            let tol = 3e-3;
+            for (k, x) in &w {
+                let b = brute_box(ud, *k);
+                assert!((f64::from(*x) - b).abs() < tol, "{u:?} bin {k}: {x} vs brute force {b}");
+            }
+            let lo = u.iter().copied().fold(f32::INFINITY, f32::min).floor() as i64;
+            assert!(w.first().is_some_and(|(k, _)| *k == lo), "{u:?}: the span starts at ⌊a⌋");
+            assert!(brute_box(ud, lo - 1) < 1e-12);
+            // The branch-free windows give the same weights.
+            let p = prepare(u[0], u[1], u[2]);
+            let k0 = p[0] as i64;
+            let (w_lo, w_hi) = (window_box_weights::<0>(&p), window_box_weights::<8>(&p));
+            if p[3] <= 15.0 {
+                for (k, x) in &w {
+                    let m = (k - k0) as usize;
+                    let y = if m < 8 { w_lo[m] } else { w_hi[m - 8] };
+                    assert!((y - x).abs() < 1e-6, "{u:?} bin {k}: {y} vs {x}");
+                }
+                let window: f32 = w_lo.iter().chain(&w_hi).sum();
+                assert!((window - 1.0).abs() < 1e-5, "{u:?}: the windows hold Σw = {window}");
+            }
+        }
+        // Clipped to a window of bins.
+        let kn = Knots::new([5.5, 9.0, 7.0]).expect("finite");
+        let (mut all, mut part) = (Vec::new(), Vec::new());
+        kn.box_weights(i64::MIN / 4, i64::MAX / 4, |k, w| all.push((k, w)));
+        kn.box_weights(6, 7, |k, w| part.push((k, w)));
+        assert_eq!(part, all.iter().copied().filter(|(k, _)| (6..=7).contains(k)).collect::<Vec<_>>());
     }
 
     #[test]

@@ -36,6 +36,14 @@ impl Cpu<'_> {
         let per_task = nt.div_ceil(32).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
         // The tent fast path gathers from rows padded by a zero bin at each end (bin k at k + 1).
         let splat = self.splat_axis(k);
+        if splat.is_some_and(|a| a.box_kernel) {
+            return Err(RenderError::InvalidParameter {
+                name: "Sampling::Splat with Kernel::Box",
+                value: 0.0,
+                reason: "the box splat simulates measurements (forward only); the adjoint integrates the tent \
+                         (Kernel::Tent), whose weights are smooth in the vertices",
+            });
+        }
         let (padded, row_len) = if self.tent_path(k).is_some() || splat.is_some() {
             let mut p = vec![0.0f32; d_loss.len() / bins * (bins + 2)];
             p.par_chunks_mut(bins + 2).zip(d_loss.par_chunks(bins)).for_each(|(p, a)| p[1..=bins].copy_from_slice(a));
@@ -224,7 +232,7 @@ impl Cpu<'_> {
         let confocal = self.wall.confocal;
         let isa = self.isa;
         let tent = self.tent_path(k);
-        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
+        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0, box_kernel: false });
         // Stage 1 (vector): |a|, |b|, the cosine tests (and the tent's bins).
         match (confocal, tent.is_some()) {
             (true, true) => soa::adjoint_lengths::<true, true>(isa, &blk, &fr, (u, v), &axis, sc),

@@ -154,8 +154,8 @@ impl Cpu<'_> {
 
     /// Forward pass of measurement m over the packed triangles `pk` of the block starting at slot `t0` into its
     /// padded histogram (bin k at k + 1), splat rule of level n: per sub-triangle, the vector kernel gives
-    /// each triangle's centroid value and corner path lengths, then each active pair's closed-form tent
-    /// weights are added over the bins it spans.
+    /// each triangle's centroid value and corner path lengths, then each active pair's closed-form tent (or
+    /// box, `axis.box_kernel`) weights are added over the bins it spans.
     pub(in crate::render) fn forward_tile_splat<B: FittedBrdf>(
         &self,
         pass: Pass<'_, B, TentAxis>,
@@ -210,7 +210,11 @@ impl Cpu<'_> {
                     Knots::lane(&sc.lanes, i).or_else(|| Knots::new([sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]]))
                 {
                     // Bins −1 and `bins` are the padding (index 0 and bins + 1): dropped afterwards.
-                    kn.weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+                    if axis.box_kernel {
+                        kn.box_weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+                    } else {
+                        kn.weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+                    }
                 }
             }
         });
@@ -251,10 +255,11 @@ impl Cpu<'_> {
             let (c0, c1, c2) =
                 splat::centred(c[0], c[1], c[2], node(x), (ra2.sqrt() + rb2.sqrt()) * axis.inv_dt, B::DISTANCE_POWER);
             if let Some(kn) = Knots::new([c0, c1, c2]) {
-                kn.weights(0, last, |k, w| {
+                let mut add = |k: i64, w: f32| {
                     hist[k as usize] += g * w;
                     (k_min, k_max) = (k_min.min(k), k_max.max(k));
-                });
+                };
+                if axis.box_kernel { kn.box_weights(0, last, &mut add) } else { kn.weights(0, last, &mut add) }
             }
         });
         (k_min <= k_max).then_some((k_min as usize, k_max as usize))
@@ -355,7 +360,7 @@ impl Cpu<'_> {
         let slots = &pk.slots[..len];
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
         let tent = self.tent_path(k);
-        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0 });
+        let axis = tent.unwrap_or(TentAxis { t0: 0.0, inv_dt: 0.0, last: 0.0, box_kernel: false });
         let isa = self.isa;
         self.centroids(n, |u, v, w| {
             match (self.wall.confocal, tent.is_some()) {

@@ -197,11 +197,12 @@ impl Scene {
         }
     }
 
-    /// The tent kernel's constants when the splat rule applies (splat sampling and the tent kernel `k`).
+    /// The splat's time axis when the splat rule applies (splat sampling and the tent or box kernel `k`,
+    /// not the steady state).
     #[inline(always)]
     pub(in crate::render) fn splat_axis(&self, k: &KernelEval) -> Option<TentAxis> {
         match self.params.sampling {
-            Sampling::Splat(_) => k.tent(),
+            Sampling::Splat(_) => k.tent().or_else(|| k.box_axis()),
             _ => None,
         }
     }

@@ -58,7 +58,7 @@ pub(crate) fn splat_samples<B: FittedBrdf, const CONFOCAL: bool>(
 ) {
     dispatch!(isa, splat_samples_body::<B, CONFOCAL>(brdf, b, fr, sub, tent, sc));
     prepare_lanes(isa, b.len, sc);
-    short_lanes(isa, b.len, sc);
+    short_lanes(isa, b.len, tent.box_kernel, sc);
 }
 
 /// The span the vector kernels run with over a block's pairs: the shortest of 4, 8 and `splat::MAX_SPAN`
@@ -83,21 +83,28 @@ fn block_span(len: usize, sc: &Scratch) -> usize {
     }
 }
 
-/// The bin weights of the pairs that span at most `sc.span` bins (`splat::window_weights`) from `lanes`
-/// into `sw` and `short`, vectorised (separate output arguments; eight weights per pass).
+/// The bin weights of the pairs that span at most `sc.span` bins (`splat::window_weights`, or
+/// `splat::window_box_weights` for the box kernel) from `lanes` into `sw` and `short`, vectorised (separate
+/// output arguments; eight weights per pass).
 #[inline(never)]
-fn short_lanes(isa: Isa, len: usize, sc: &mut Scratch) {
+fn short_lanes(isa: Isa, len: usize, box_kernel: bool, sc: &mut Scratch) {
     sc.span = block_span(len, sc);
     let lanes = &sc.lanes.v;
     let (lo, hi) = sc.sw.split_at_mut(8);
     let short = &mut sc.short;
     let (Some(lo), Some(hi)) = (split8(lo), split8(hi)) else { return };
-    match sc.span {
-        4 => short_lanes_best::<4, 0>(isa, len, lanes, lo, short),
-        8 => short_lanes_best::<8, 0>(isa, len, lanes, lo, short),
-        _ => {
-            short_lanes_best::<{ MAX_SPAN }, 0>(isa, len, lanes, lo, short);
-            short_lanes_best::<{ MAX_SPAN }, 8>(isa, len, lanes, hi, short);
+    match (sc.span, box_kernel) {
+        (4, false) => short_lanes_best::<4, 0, false>(isa, len, lanes, lo, short),
+        (8, false) => short_lanes_best::<8, 0, false>(isa, len, lanes, lo, short),
+        (_, false) => {
+            short_lanes_best::<{ MAX_SPAN }, 0, false>(isa, len, lanes, lo, short);
+            short_lanes_best::<{ MAX_SPAN }, 8, false>(isa, len, lanes, hi, short);
+        }
+        (4, true) => short_lanes_best::<4, 0, true>(isa, len, lanes, lo, short),
+        (8, true) => short_lanes_best::<8, 0, true>(isa, len, lanes, lo, short),
+        (_, true) => {
+            short_lanes_best::<{ MAX_SPAN }, 0, true>(isa, len, lanes, lo, short);
+            short_lanes_best::<{ MAX_SPAN }, 8, true>(isa, len, lanes, hi, short);
         }
     }
 }
@@ -121,9 +128,9 @@ type Lanes8<'a> = (
 );
 
 kernel! {
-    /// Weights `OFF .. OFF + min(N, 8)` of every pair into `w`; with `OFF = 0`, `short` = 1.0 for the valid
-    /// pairs spanning at most N bins.
-    fn short_lanes_body [<const N: usize, const OFF: usize>] [::<N, OFF>] (
+    /// Weights `OFF .. OFF + min(N, 8)` of every pair into `w` (the tent's, or the box's with `BOX`); with
+    /// `OFF = 0`, `short` = 1.0 for the valid pairs spanning at most N bins.
+    fn short_lanes_body [<const N: usize, const OFF: usize, const BOX: bool>] [::<N, OFF, BOX>] (
         len: usize,
         lanes: &[Vec<f32>; 10],
         w: Lanes8<'_>,
@@ -139,7 +146,11 @@ kernel! {
         };
         for i in 0..len {
             let p = [v[0][i], v[1][i], v[2][i], v[3][i], v[4][i], v[5][i], v[6][i], v[7][i], v[8][i], v[9][i]];
-            let w = crate::render::splat::window_weights::<OFF>(&p);
+            let w = if BOX {
+                crate::render::splat::window_box_weights::<OFF>(&p)
+            } else {
+                crate::render::splat::window_weights::<OFF>(&p)
+            };
             (w0[i], w1[i], w2[i], w3[i]) = (w[0], w[1], w[2], w[3]);
             if N > 4 {
                 (w4[i], w5[i], w6[i], w7[i]) = (w[4], w[5], w[6], w[7]);
