@@ -517,8 +517,8 @@ impl Knots {
 mod tests {
     use super::*;
 
-    /// Brute force: the tent weights of τ = Σ λ_i u_i over a fine barycentric grid of the triangle.
-    fn brute(u: [f64; 3], k: i64) -> f64 {
+    /// Brute force: the mean of `kernel(τ)` for τ = Σ λ_i u_i over a fine barycentric grid of the triangle.
+    fn brute_mean(u: [f64; 3], kernel: impl Fn(f64) -> f64) -> f64 {
         let n = 600;
         let mut s = 0.0;
         let mut cnt = 0.0;
@@ -529,13 +529,17 @@ mod tests {
                         continue;
                     }
                     let (x, y) = ((i as f64 + di) / n as f64, (j as f64 + dj) / n as f64);
-                    let t = (1.0 - x - y) * u[0] + x * u[1] + y * u[2];
-                    s += (1.0 - (t - k as f64).abs()).max(0.0);
+                    s += kernel((1.0 - x - y) * u[0] + x * u[1] + y * u[2]);
                     cnt += 1.0;
                 }
             }
         }
         s / cnt
+    }
+
+    /// Brute force: the tent weight of node k.
+    fn brute(u: [f64; 3], k: i64) -> f64 {
+        brute_mean(u, |t| (1.0 - (t - k as f64).abs()).max(0.0))
     }
 
     fn weights(u: [f32; 3]) -> Vec<(i64, f32)> {
@@ -684,24 +688,9 @@ mod tests {
         }
     }
 
-    /// Brute force: the box weight of bin k (`[k, k + 1)` in bin units) of τ = Σ λ_i u_i.
+    /// Brute force: the box weight of bin k (`[k, k + 1)` in bin units).
     fn brute_box(u: [f64; 3], k: i64) -> f64 {
-        let n = 600;
-        let (mut s, mut cnt) = (0.0, 0.0);
-        for i in 0..n {
-            for j in 0..n - i {
-                for (di, dj) in [(1.0 / 3.0, 1.0 / 3.0), (2.0 / 3.0, 2.0 / 3.0)] {
-                    if di > 0.5 && j + 1 >= n - i {
-                        continue;
-                    }
-                    let (x, y) = ((i as f64 + di) / n as f64, (j as f64 + dj) / n as f64);
-                    let t = (1.0 - x - y) * u[0] + x * u[1] + y * u[2];
-                    s += f64::from(u8::from(t.floor() as i64 == k));
-                    cnt += 1.0;
-                }
-            }
-        }
-        s / cnt
+        brute_mean(u, |t| f64::from(u8::from(t.floor() as i64 == k)))
     }
 
     #[test]
