@@ -348,7 +348,8 @@ pub(super) fn prune_and_patch(
         };
         let (triangles, renderer) = (st.surface.triangles(), &b.renderer);
         let fit = RegionFit { renderer, brdf: &brdf, rendered: &mut rendered, bins, row_loss };
-        let r = dark_regions(triangles, weights, &keep, fit, noise, rp)?;
+        let rim = st.stage >= rp.rim_stage.min(last_stage);
+        let r = dark_regions(triangles, weights, &keep, fit, noise, rp, rim)?;
         keep = r.keep;
         let record = RegionRecord {
             stage: st.stage,
