@@ -47,9 +47,10 @@
 //! nested — one parameter each — so the test chooses the one that explains the data better: the region is
 //! deleted when `ΔE_R,rim < 0`. Print keeps its light in its middle, where no rim reaches: on the `holes`
 //! scenario's printed plate at 4.6 mm faces the bars kept `Λ_R,rim` (`ΔE_R,rim` in the units of `Λ_R`) of
-//! 7.6 (15 mm), 17–22 (20 mm) and 32–36 (30 mm), where the slots' regions had −4 to −6. At coarser faces a bar two faces across is all rim, and its rim brightened by a
-//! tenth stood for it ([`RegionParams::rim_stage`]). The rim's brightening is only the test's: the next
-//! shape steps fit the rim's albedo. Data without a noise model get the plain test only.
+//! 7.6 (15 mm), 17–22 (20 mm) and 32–36 (30 mm), where the slots' regions had −4 to −6. At coarser faces a
+//! bar two faces across is all rim, and its rim brightened by a tenth stood for it
+//! ([`RegionParams::rim_stage`]). The rim's brightening is only the test's: the next shape steps fit the
+//! rim's albedo. Data without a noise model get the plain test only.
 //!
 //! **Deletion.** A deleted region's faces go at once; a vertex the deletion leaves between two fans of faces
 //! (a non-manifold pinch) keeps its largest fan and loses the others — a few faces on the new hole's rim,
@@ -372,7 +373,7 @@ impl std::fmt::Debug for RegionFit<'_> {
     }
 }
 
-/// Deletes the dark regions whose light the data do not detect (module docs); with `rim`, also those whose
+/// Deletes the dark regions whose light the data do not detect (module docs); with `rim_test`, also those whose
 /// light the data detect but a brighter rim explains better (module docs, "Rim").
 ///
 /// `fit.renderer` holds `triangles` at the current positions with the face factors `weights`; `keep` marks
