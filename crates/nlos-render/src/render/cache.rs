@@ -42,10 +42,11 @@ fn wall_points(wall: &Wall) -> (Vec<Vec3>, Vec<u32>, Vec<u32>) {
     (points, l, s)
 }
 
-/// The wall's distinct spots (`points`), each measurement's laser and sensor spot among them, and whether
+/// The wall's distinct spots (their coordinates, `axes`), each measurement's laser and sensor spot among them, and whether
 /// they are the measurements themselves in order (a confocal scan of distinct spots).
 struct Spots<'a> {
-    points: &'a [Vec3],
+    /// The points' x, y and z coordinates, one array each (the per-face side test runs over them).
+    axes: [Vec<f32>; 3],
     laser: &'a [u32],
     sensor: &'a [u32],
     confocal: bool,
@@ -76,7 +77,8 @@ impl Scene {
         let bundle = self.bvh.as_ref().map(|bvh| Bundle { bvh, wall: &tree });
         let confocal =
             points.len() == m && laser.iter().zip(&sensor).enumerate().all(|(i, (&l, &s))| l as usize == i && s == l);
-        let spots = Spots { points: &points, laser: &laser, sensor: &sensor, confocal };
+        let axes = [0, 1, 2].map(|k| points.iter().map(|p| p[k]).collect());
+        let spots = Spots { axes, laser: &laser, sensor: &sensor, confocal };
         // At least one tile of triangles per round, whatever the scan's size.
         let round = (ROUND_BYTES / m).max(TILE);
         let mut columns = vec![0u8; round.min(nt) * m];
@@ -124,33 +126,33 @@ impl Scene {
         column: &mut [u8],
     ) {
         let t = self.mesh_triangle(slot);
-        column.fill(0);
         if !self.tris.valid[t] {
+            column.fill(0);
             return;
         }
-        // Which side of the face each measurement lights: [`Scene::orientation`], from each spot's side.
+        // Which side of the face each measurement lights: [`Scene::orientation`], from each spot's side (the
+        // same arithmetic, `n·(p − v0)`, on the spots' coordinates laid out per axis).
         let (n, v0) = (self.tris.n[t], self.tris.v0[t]);
-        for (side, p) in buf.spot_side.iter_mut().zip(spots.points) {
-            let d = n.dot(*p - v0);
-            *side = if d > 0.0 {
-                1
-            } else if d < 0.0 && self.params.two_sided {
-                -1
-            } else {
-                0
-            };
+        let two_sided = self.params.two_sided;
+        let [xs, ys, zs] = &spots.axes;
+        for (((side, &x), &y), &z) in buf.spot_side.iter_mut().zip(xs).zip(ys).zip(zs) {
+            let d = (x - v0.x) * n.x + (y - v0.y) * n.y + (z - v0.z) * n.z;
+            *side = i8::from(d > 0.0) - i8::from(d < 0.0 && two_sided);
         }
-        let mut sides = [false; 2];
-        for (mi, side) in buf.side.iter_mut().enumerate() {
-            let (l, s) = (buf.spot_side[spots.laser[mi] as usize], buf.spot_side[spots.sensor[mi] as usize]);
-            *side = if l == s { l } else { 0 };
-            if *side != 0 {
-                sides[usize::from(*side < 0)] = true;
+        if spots.confocal {
+            buf.side.copy_from_slice(&buf.spot_side);
+        } else {
+            for (mi, side) in buf.side.iter_mut().enumerate() {
+                let (l, s) = (buf.spot_side[spots.laser[mi] as usize], buf.spot_side[spots.sensor[mi] as usize]);
+                *side = if l == s { l } else { 0 };
             }
         }
+        let sides = [buf.side.contains(&1), buf.side.contains(&-1)];
         if !(sides[0] || sides[1]) {
+            column.fill(0);
             return;
         }
+        // A measurement's count grows only where it lights the side tested, so one not lit keeps 0.
         buf.count.fill(0);
         let unit = n.normalize();
         self.centroids(level, |u, v, _| {
@@ -165,23 +167,28 @@ impl Scene {
                 let seen = &buf.visible;
                 if spots.confocal {
                     for ((c, &side), &v) in buf.count.iter_mut().zip(&buf.side).zip(seen) {
-                        *c += u16::from(side == sign && v);
+                        *c += u16::from((side == sign) & v);
                     }
                 } else {
                     for (mi, c) in buf.count.iter_mut().enumerate() {
-                        let v = seen[spots.laser[mi] as usize] && seen[spots.sensor[mi] as usize];
-                        *c += u16::from(buf.side[mi] == sign && v);
+                        let v = seen[spots.laser[mi] as usize] & seen[spots.sensor[mi] as usize];
+                        *c += u16::from((buf.side[mi] == sign) & v);
                     }
                 }
             }
         });
         let total = level * level;
+        if total == 1 {
+            // One centroid: the share is 255 or 0.
+            for (out, &c) in column.iter_mut().zip(&buf.count) {
+                *out = 0u8.wrapping_sub(c as u8);
+            }
+            return;
+        }
         // The share in bytes, rounded: (c · 255 + total / 2) / total for each count c.
         let share: Vec<u8> = (0..=total).map(|c| ((c * 255 + total / 2) / total) as u8).collect();
-        for ((out, &c), &side) in column.iter_mut().zip(&buf.count).zip(&buf.side) {
-            if side != 0 {
-                *out = share[usize::from(c)];
-            }
+        for (out, &c) in column.iter_mut().zip(&buf.count) {
+            *out = share[usize::from(c)];
         }
     }
 
