@@ -265,17 +265,23 @@ pub(crate) fn score_maps(
     truth: &Maps,
     threshold: f64,
 ) -> Result<MapMetrics, CliError> {
-    let rec = mesh_maps(reconstruction, &truth.grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
-    evaluate_maps(&rec, truth, threshold).map_err(|e| CliError::Input(e.to_string()))
+    score_rendered(&reconstruction_maps(reconstruction, what, truth)?, truth, threshold)
 }
 
-/// The coverage picture of `reconstruction` against depth maps (`--gt-depth … --map`), on the maps' grid.
-fn map_coverage_figure(
-    reconstruction: &SurfaceMesh,
-    what: &str,
-    truth: (&Maps, &Path),
-    png: &Path,
-) -> Result<(), CliError> {
+/// The reconstruction's depth and normal maps (`nlos_mesh::map_metrics::mesh_maps`: a +z ray per pixel) on the
+/// grid of `truth`.
+fn reconstruction_maps(reconstruction: &SurfaceMesh, what: &str, truth: &Maps) -> Result<Maps, CliError> {
+    mesh_maps(reconstruction, &truth.grid).map_err(|e| CliError::Input(format!("{what}: {e}")))
+}
+
+/// Scores the reconstruction's maps `rec` against the maps `truth`.
+fn score_rendered(rec: &Maps, truth: &Maps, threshold: f64) -> Result<MapMetrics, CliError> {
+    evaluate_maps(rec, truth, threshold).map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// The coverage picture of the reconstruction's maps `rec` (of the mesh `what`) against depth maps
+/// (`--gt-depth … --map`), on the maps' grid.
+fn map_coverage_figure(rec: &Maps, what: &str, truth: (&Maps, &Path), png: &Path) -> Result<(), CliError> {
     let (truth, depth_file) = truth;
     let grid = &truth.grid;
     if grid.width != grid.height {
@@ -286,7 +292,6 @@ fn map_coverage_figure(
             grid.height
         )));
     }
-    let rec = mesh_maps(reconstruction, grid).map_err(|e| CliError::Input(format!("{what}: {e}")))?;
     // The maps' row 0 is the top (largest y); the picture's is the bottom.
     let bottom_up = |d: &[f32]| -> Vec<f32> { d.chunks(grid.width).rev().flatten().copied().collect() };
     let view = nlos_report::figures::DepthView { grid: grid.width, x_range: grid.x_range, y_range: grid.y_range };
@@ -322,9 +327,11 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
             (None, _, extent) => MapPlace::Extent(extent.unwrap_or([-0.25, 0.25, -0.25, 0.25])),
         };
         let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.gt_layout.into(), &place)?;
-        let metrics = score_maps(&reconstruction, &what, &truth, args.threshold)?;
+        // One ray per pixel serves the scores and the picture.
+        let rec = reconstruction_maps(&reconstruction, &what, &truth)?;
+        let metrics = score_rendered(&rec, &truth, args.threshold)?;
         if let Some(png) = &args.map {
-            map_coverage_figure(&reconstruction, &what, (&truth, depth_file), png)?;
+            map_coverage_figure(&rec, &what, (&truth, depth_file), png)?;
         }
         let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
         outln!("{line}");

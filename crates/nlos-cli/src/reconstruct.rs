@@ -260,7 +260,7 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         .map(|r| {
             format!(
                 "stage {} at {:.1} mm (schedule {:.1} mm)",
-                r.stage + 1,
+                r.stage,
                 1e3 * r.edge_length,
                 1e3 * r.schedule_edge_length
             )
@@ -280,12 +280,12 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         .intersections
         .iter()
         .filter(|r| r.check != IntersectionCheck::Start && r.pairs > 0)
-        .map(|r| format!("stage {} block {}: {} pairs", r.stage + 1, r.block + 1, r.pairs))
+        .map(|r| format!("stage {} block {}: {} pairs", r.stage, r.block, r.pairs))
         .collect();
     if !found.is_empty() {
         eprintln!(
             "warning: the surface intersected itself after the start ({}); the faces were deleted \
-             (run_log.json \"intersections\")",
+             (run_log.json \"intersections\"; stages and blocks numbered from 0, as there and in stage_NN.obj)",
             found.join(", ")
         );
     }
