@@ -65,6 +65,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::data_term::RowLoss;
+use crate::data_term::intensities::counts_variance;
 use crate::error::{OptimError, Result};
 use crate::prune::{apply_spans, delta};
 use nlos_render::{AnyBrdf, Renderer, RowSpan};
@@ -250,16 +251,12 @@ fn units(spans: &[RowSpan], rendered: &[f32], bins: usize, noise: RegionNoise) -
     match noise {
         RegionNoise::Poisson => Some(2.0),
         RegionNoise::Counts { scale } => {
-            let (mut num, mut den) = (0.0, 0.0);
-            for s in spans {
+            let terms = spans.iter().flat_map(|s| {
                 let row = &rendered[s.measurement * bins..(s.measurement + 1) * bins];
-                for (r, v) in row[s.first_bin..].iter().zip(&s.values) {
-                    let share = (scale * f64::from(*v)).powi(2);
-                    num += (scale * f64::from(*r)).max(1.0) * share;
-                    den += share;
-                }
-            }
-            Some(if den > 0.0 { 2.0 * den / num } else { 0.0 })
+                row[s.first_bin..].iter().zip(&s.values).map(|(&r, &v)| (r, v, 1.0))
+            });
+            let variance = counts_variance(terms, scale);
+            Some(if variance.is_nan() { 0.0 } else { 2.0 / variance })
         }
         RegionNoise::None => None,
     }

@@ -255,6 +255,22 @@ impl DataTerm {
 /// agree to 1e-5 there).
 pub(crate) const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
 
+/// The variance `σ² = Σ w² μ (s d)² / Σ w (s d)²` (`μ = max(s I, 1)`, the expected counts of the rendering `I`)
+/// of the L2 fit of photon counts at scale `s` along a direction `d` of the rendering: the projection of the
+/// Poisson noise on the direction the fit moves in, so that `2ΔE / σ²` is the likelihood-ratio statistic of a
+/// change of the rendering along `d` by `ΔE`. `terms` yields `(I, d, w)` per bin (`w` the bin's weight, 1 for
+/// an unweighted term): the whole rendering along itself for the fit against an empty scene
+/// (`crate::FitQuality`), a region's share for the region tests (`crate::regions`). NaN when `d` is 0.
+pub(crate) fn counts_variance(terms: impl IntoIterator<Item = (f32, f32, f64)>, scale: f64) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (rendered, direction, w) in terms {
+        let share = (scale * f64::from(direction)).powi(2);
+        num += w * w * (scale * f64::from(rendered)).max(1.0) * share;
+        den += w * share;
+    }
+    if den > 0.0 { num / den } else { f64::NAN }
+}
+
 /// The expected Poisson half-deviance `d(μ) = E[μ − n + n ln(n/μ)]` of one bin with `n ~ Poisson(μ)`
 /// ([`crate::data_term::counts`]'s module docs, "Noise floor"): ≈ `μ ln(1/μ)` for `μ → 0`, → ½ for large `μ` (Wilks: twice the
 /// deviance is χ²₁). `0` for `μ ≤ 0` or not finite.
@@ -286,6 +302,20 @@ pub fn expected_half_deviance(mu: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn counts_variance_is_the_poisson_variance_along_the_direction() {
+        // A direction on bins of 4 expected counts: σ² = 4; where the counts fall below one the variance is
+        // held at 1 (μ = max(s I, 1)); bins the direction does not touch do not count; no direction: NaN.
+        let v = counts_variance([(2.0, 1.0, 1.0), (2.0, 3.0, 1.0), (50.0, 0.0, 1.0)], 2.0);
+        assert!((v - 4.0).abs() < 1e-12, "{v}");
+        let v = counts_variance([(0.1, 1.0, 1.0), (0.2, 2.0, 1.0)], 1.0);
+        assert!((v - 1.0).abs() < 1e-12, "{v}");
+        // Weights w: Σ w² μ d² / Σ w d².
+        let v = counts_variance([(4.0, 1.0, 2.0), (9.0, 1.0, 1.0)], 1.0);
+        assert!((v - (4.0 * 4.0 + 9.0) / 3.0).abs() < 1e-12, "{v}");
+        assert!(counts_variance([(3.0, 0.0, 1.0)], 1.0).is_nan());
+    }
 
     fn data() -> (Vec<f32>, Vec<f32>, Vec<f32>) {
         let rendered: Vec<f32> = (0..40).map(|i| 0.5 + ((i * 7 % 11) as f32) * 0.1).collect();

@@ -11,6 +11,7 @@ use super::log::FitQuality;
 use super::record::RunRecord;
 use crate::data_term::RowLoss;
 use crate::data_term::counts::{SensorModel, SensorRows};
+use crate::data_term::intensities::counts_variance;
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 
@@ -105,7 +106,7 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
                 let gain = empty.value - ev.value;
                 let detection = match params.data.loss {
                     nlos_render::Loss::L2 => {
-                        2.0 * gain / counts_variance(&rendered, ev.scale, params.data.weights.as_deref())
+                        2.0 * gain / counts_variance(along_itself(&rendered, params.data.weights.as_deref()), ev.scale)
                     }
                     nlos_render::Loss::PoissonNll { .. } => 2.0 * gain,
                 };
@@ -121,18 +122,10 @@ pub(super) fn fit_quality(st: &RunRecord, r: &Renderer, fit: &Fit<'_>) -> Result
     })
 }
 
-/// The variance `σ² = Σ w² μ (s I)² / Σ w (s I)²` (`μ = max(s I, 1)`) of the L2 fit of photon counts along the
-/// rendering `I` at `scale`, in which `2ΔE / σ²` is the likelihood-ratio statistic ([`FitQuality`]): the
-/// projection of the Poisson noise on the direction the fit moves in. NaN when nothing is rendered.
-fn counts_variance(rendered: &[f32], scale: f64, weights: Option<&[f32]>) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for (k, &r) in rendered.iter().enumerate() {
-        let w = weights.map_or(1.0, |w| f64::from(w[k]));
-        let share = (scale * f64::from(r)).powi(2);
-        num += w * w * (scale * f64::from(r)).max(1.0) * share;
-        den += w * share;
-    }
-    if den > 0.0 { num / den } else { f64::NAN }
+/// The rendering's bins as `(I, d, w)` terms of [`counts_variance`] along the rendering itself, `w` the data
+/// term's weights (1 without).
+fn along_itself<'a>(rendered: &'a [f32], weights: Option<&'a [f32]>) -> impl Iterator<Item = (f32, f32, f64)> + 'a {
+    rendered.iter().enumerate().map(move |(k, &r)| (r, r, weights.map_or(1.0, |w| f64::from(w[k]))))
 }
 
 /// The data term of `fit` row by row at `scale` ([`RowLoss`], what pruning, the region tests, the residual
