@@ -53,14 +53,21 @@ impl Loss {
         self.check(rendered, measured, weights)?;
         let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
         let mut e = 0.0f64;
-        match *self {
-            Loss::L2 => {
+        match (*self, weights) {
+            // Unweighted: the same terms (0.5 · 1 = 0.5 exactly) without a weight per bin.
+            (Loss::L2, None) => {
+                for (&r, &m) in rendered.iter().zip(measured) {
+                    let r = scale * r - m;
+                    e += 0.5 * f64::from(r) * f64::from(r);
+                }
+            }
+            (Loss::L2, Some(_)) => {
                 for i in 0..rendered.len() {
                     let r = scale * rendered[i] - measured[i];
                     e += 0.5 * f64::from(wt(i)) * f64::from(r) * f64::from(r);
                 }
             }
-            Loss::PoissonNll { floor } => {
+            (Loss::PoissonNll { floor }, _) => {
                 for i in 0..rendered.len() {
                     let (i_r, i_m) = (scale * rendered[i], measured[i]);
                     let clamped = i_r.max(floor);

@@ -251,6 +251,55 @@ impl DataTerm {
     }
 }
 
+/// The plain data term row by row at a fixed scale ([`crate::data_term::RowTerm`]): histogram m of
+/// `measured` (`bins` each) against a rendered row. A sum over bins, so a share's changes are evaluated on
+/// its window alone (the same bits as the trait's default, which shifts a copy of the whole row).
+pub(crate) struct DataTermRows<'a> {
+    pub(crate) term: &'a DataTerm,
+    pub(crate) measured: &'a [f32],
+    pub(crate) bins: usize,
+    pub(crate) scale: f64,
+}
+
+impl DataTermRows<'_> {
+    /// Histogram m of the measurement.
+    fn measured_row(&self, m: usize) -> Result<&[f32]> {
+        self.measured.get(m * self.bins..(m + 1) * self.bins).ok_or(OptimError::LengthMismatch {
+            what: "measured",
+            expected: (m + 1) * self.bins,
+            got: self.measured.len(),
+        })
+    }
+}
+
+impl crate::data_term::RowTerm for DataTermRows<'_> {
+    fn value(&self, m: usize, row: &[f32], window: std::ops::Range<usize>) -> Result<f64> {
+        self.term.row_value_in(row, self.measured_row(m)?, m * self.bins, self.scale, window)
+    }
+
+    fn changes(&self, m: usize, row: &[f32], share: &nlos_render::RowSpan, ks: &[f32]) -> Result<Vec<f64>> {
+        let measured = self.measured_row(m)?;
+        if measured.len() != row.len() {
+            return Err(OptimError::LengthMismatch { what: "rendered row", expected: measured.len(), got: row.len() });
+        }
+        // Clamped to the row, as the trait's default.
+        let end = (share.first_bin + share.values.len()).min(row.len());
+        let window = share.first_bin.min(end)..end;
+        let now = self.value(m, row, window.clone())?;
+        let (base, measured) = (&row[window.clone()], &measured[window.clone()]);
+        let mut shifted = base.to_vec();
+        ks.iter()
+            .map(|&k| {
+                for ((x, v), r) in shifted.iter_mut().zip(&share.values).zip(base) {
+                    *x = (*r + k * v).max(0.0);
+                }
+                let offset = m * self.bins + window.start;
+                Ok(self.term.row_value_in(&shifted, measured, offset, self.scale, 0..shifted.len())? - now)
+            })
+            .collect()
+    }
+}
+
 /// Above this mean the expected half-deviance uses its asymptotic expansion (the series and the expansion
 /// agree to 1e-5 there).
 pub(crate) const DEVIANCE_SERIES_MAX_MU: f64 = 50.0;
@@ -315,6 +364,39 @@ mod tests {
         let v = counts_variance([(4.0, 1.0, 2.0), (9.0, 1.0, 1.0)], 1.0);
         assert!((v - (4.0 * 4.0 + 9.0) / 3.0).abs() < 1e-12, "{v}");
         assert!(counts_variance([(3.0, 0.0, 1.0)], 1.0).is_nan());
+    }
+
+    /// `DataTermRows::changes` over the share's window gives the bits of the trait's default over the whole
+    /// row, for both losses, with and without weights, for a share inside the row and one past its end.
+    #[test]
+    fn row_changes_on_the_window_are_the_whole_rows_changes() {
+        use crate::data_term::RowTerm;
+        let (bins, rows) = (40, 3);
+        let rendered: Vec<f32> = (0..bins * rows).map(|i| 0.5 + ((i * 7 % 11) as f32) * 0.1).collect();
+        let measured: Vec<f32> = (0..bins * rows).map(|i| 2.0 + ((i * 5 % 13) as f32) * 0.25).collect();
+        let weights: Vec<f32> = (0..bins * rows).map(|i| 0.5 + (i % 3) as f32 * 0.5).collect();
+        let ks = [-1.0f32, 1.0, 2.0];
+        for loss in [Loss::L2, Loss::PoissonNll { floor: 1e-6 }] {
+            for w in [None, Some(weights.clone())] {
+                let term = DataTerm { loss, weights: w, solve_scale: true, counts: true };
+                let rows_term = DataTermRows { term: &term, measured: &measured, bins, scale: 1.3 };
+                let whole = |m: usize, row: &[f32], window: std::ops::Range<usize>| {
+                    term.row_value_in(row, &measured[m * bins..(m + 1) * bins], m * bins, 1.3, window)
+                };
+                for (m, first_bin) in [(1, 12), (2, 35)] {
+                    let share = nlos_render::RowSpan {
+                        measurement: m,
+                        first_bin,
+                        values: vec![0.3, 0.7, 0.2, 0.9, 0.1, 0.4, 0.6, 0.8],
+                    };
+                    let row = &rendered[m * bins..(m + 1) * bins];
+                    let fast = rows_term.changes(m, row, &share, &ks).expect("ok");
+                    let slow = whole.changes(m, row, &share, &ks).expect("ok");
+                    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&fast), bits(&slow), "{loss:?}, share at {first_bin}");
+                }
+            }
+        }
     }
 
     fn data() -> (Vec<f32>, Vec<f32>, Vec<f32>) {

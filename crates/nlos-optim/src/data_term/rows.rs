@@ -35,14 +35,16 @@ pub trait RowTerm: Sync {
         let end = (share.first_bin + share.values.len()).min(row.len());
         let window = share.first_bin.min(end)..end;
         let now = self.value(m, row, window.clone())?;
+        // The row shifted inside the window only: restored there after each k (not copied whole per k).
         let mut shifted = row.to_vec();
         ks.iter()
             .map(|&k| {
-                shifted.copy_from_slice(row);
-                for (x, v) in shifted[window.clone()].iter_mut().zip(&share.values) {
-                    *x = (*x + k * v).max(0.0);
+                for ((x, v), r) in shifted[window.clone()].iter_mut().zip(&share.values).zip(&row[window.clone()]) {
+                    *x = (*r + k * v).max(0.0);
                 }
-                Ok(self.value(m, &shifted, window.clone())? - now)
+                let change = self.value(m, &shifted, window.clone())? - now;
+                shifted[window.clone()].copy_from_slice(&row[window.clone()]);
+                Ok(change)
             })
             .collect()
     }

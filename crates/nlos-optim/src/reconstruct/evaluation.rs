@@ -11,7 +11,7 @@ use super::log::FitQuality;
 use super::record::RunRecord;
 use crate::data_term::RowLoss;
 use crate::data_term::counts::{SensorModel, SensorRows};
-use crate::data_term::intensities::counts_variance;
+use crate::data_term::intensities::{DataTermRows, counts_variance};
 use crate::error::{OptimError, Result};
 use crate::params::ReconstructParams;
 
@@ -140,9 +140,7 @@ pub(super) fn row_terms<'a>(
     let (params, data) = (fit.params, fit.measured);
     match fit.sensor {
         Some(m) => Box::new(SensorRows { fit: &m.fit, counts: data, bins, background: m.background, scale, response }),
-        None => Box::new(move |m: usize, row: &[f32], window: std::ops::Range<usize>| -> Result<f64> {
-            params.data.row_value_in(row, &data[m * bins..(m + 1) * bins], m * bins, scale, window)
-        }),
+        None => Box::new(DataTermRows { term: &params.data, measured: data, bins, scale }),
     }
 }
 

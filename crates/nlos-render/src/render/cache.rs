@@ -13,19 +13,68 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::scene::{Scene, Wall};
+use super::soa::BLOCK;
 use crate::visibility::bundle::{Bundle, Scratch};
 use crate::visibility::wall::WallTree;
 
-/// Bytes of columns computed per round (then written into the measurement-major cache): 4,096 triangles at
-/// 4,096 measurements, fewer triangles for larger scans, so the round's buffer stays at 16 MiB. The unit
+/// Bytes of columns computed per round (then written into the cache's blocks, [`CacheLayout`]): 4,096
+/// triangles at 4,096 measurements, fewer triangles for larger scans (whole blocks, at least one), so the
+/// round's buffer stays at 16 MiB. The unit
 /// tests' scenes are small: they use rounds of 64 KiB, so that theirs have many (and ragged last tiles).
 #[cfg(not(test))]
 const ROUND_BYTES: usize = 1 << 24;
 #[cfg(test)]
 const ROUND_BYTES: usize = 1 << 16;
-/// The transpose from columns to rows works on this many rows at a time (one memory page each, at a few
-/// thousand triangles: more would miss the TLB on every byte).
+/// The transpose from columns to a block's rows works on this many rows at a time (a few KiB of rows, kept
+/// in the L1 cache while the block's columns are read).
 const TILE: usize = 16;
+
+/// Where the cache keeps the entry of measurement m and block slot `slot`: block by block (`BLOCK` slots,
+/// the kernels' blocks), within a block measurement by measurement, within that slot by slot. The block
+/// kernels read one block's entries for a few consecutive measurements at a time: in this order those are
+/// one contiguous run of memory (in measurement-major order they were rows a whole mesh apart, each read
+/// waiting on memory).
+#[derive(Debug, Clone, Copy)]
+pub(in crate::render) struct CacheLayout {
+    pub(in crate::render) triangles: usize,
+    pub(in crate::render) measurements: usize,
+}
+
+impl CacheLayout {
+    /// The first slot of `slot`'s block, and the block's width (`BLOCK`, less for the last block).
+    #[inline(always)]
+    fn block(&self, slot: usize) -> (usize, usize) {
+        let start = slot - slot % BLOCK;
+        (start, BLOCK.min(self.triangles - start))
+    }
+
+    /// Index of the entry of measurement m and block slot `slot`.
+    #[inline(always)]
+    pub(in crate::render) fn index(&self, m: usize, slot: usize) -> usize {
+        let (start, width) = self.block(slot);
+        start * self.measurements + m * width + (slot - start)
+    }
+
+    /// The entries of measurement m for the block starting at slot `t0` (a multiple of `BLOCK`), in slot order.
+    #[inline(always)]
+    pub(in crate::render) fn row(&self, m: usize, t0: usize) -> std::ops::Range<usize> {
+        let (start, width) = self.block(t0);
+        let first = start * self.measurements + m * width;
+        first..first + width
+    }
+
+    /// The cache in measurement-major order (entry `m · triangles + slot`), as the GPU backend reads it.
+    pub(in crate::render) fn measurement_major(&self, cache: &[u8]) -> Vec<u8> {
+        let mut out = vec![0u8; cache.len()];
+        for (m, row) in out.chunks_mut(self.triangles.max(1)).enumerate() {
+            for t0 in (0..self.triangles).step_by(BLOCK) {
+                let r = self.row(m, t0);
+                row[t0..t0 + r.len()].copy_from_slice(&cache[r]);
+            }
+        }
+        out
+    }
+}
 
 /// The wall's distinct spots, and each measurement's laser and sensor spot among them.
 fn wall_points(wall: &Wall) -> (Vec<Vec3>, Vec<u32>, Vec<u32>) {
@@ -63,8 +112,8 @@ struct Buffers {
 }
 
 impl Scene {
-    /// The cache at sub-triangle `level` (1..=16), measurement-major: entry `m · triangles + slot` for block
-    /// slot `slot` ([`Scene::mesh_triangle`]).
+    /// The cache at sub-triangle `level` (1..=16), in the order of [`CacheLayout`] over the block slots
+    /// ([`Scene::mesh_triangle`]).
     pub(in crate::render) fn visibility_cache(&self, level: u32) -> Vec<u8> {
         let nt = self.tris.v0.len();
         let m = self.wall.l.len();
@@ -79,8 +128,8 @@ impl Scene {
             points.len() == m && laser.iter().zip(&sensor).enumerate().all(|(i, (&l, &s))| l as usize == i && s == l);
         let axes = [0, 1, 2].map(|k| points.iter().map(|p| p[k]).collect());
         let spots = Spots { axes, laser: &laser, sensor: &sensor, confocal };
-        // At least one tile of triangles per round, whatever the scan's size.
-        let round = (ROUND_BYTES / m).max(TILE);
+        // Whole blocks per round, at least one, whatever the scan's size.
+        let round = (ROUND_BYTES / m).max(BLOCK).next_multiple_of(BLOCK);
         let mut columns = vec![0u8; round.min(nt) * m];
         let mut reported = 0;
         for s0 in (0..nt).step_by(round) {
@@ -95,15 +144,18 @@ impl Scene {
             columns[..(s1 - s0) * m].par_chunks_mut(m).enumerate().for_each_init(init, |buf, (j, column)| {
                 self.cache_column(s0 + j, level, bundle.as_ref(), &spots, buf, column);
             });
-            // Transpose the round's columns into the rows, in tiles that stay in the L1 cache.
-            cache.par_chunks_mut(nt * TILE).enumerate().for_each(|(b, rows)| {
-                let m0 = b * TILE;
-                let nrows = rows.len() / nt;
-                for j0 in (s0..s1).step_by(TILE) {
-                    for j in j0..(j0 + TILE).min(s1) {
-                        let col = &columns[(j - s0) * m + m0..(j - s0) * m + m0 + nrows];
-                        for (r, &v) in col.iter().enumerate() {
-                            rows[r * nt + j] = v;
+            // Each block's columns into its rows (one row of `width` entries per measurement), TILE rows at
+            // a time so that the rows written stay in the L1 cache.
+            let blocks = &mut cache[s0 * m..s1 * m];
+            blocks.par_chunks_mut(BLOCK * m).enumerate().for_each(|(b, rows)| {
+                let first = b * BLOCK;
+                let width = rows.len() / m;
+                for m0 in (0..m).step_by(TILE) {
+                    let m1 = (m0 + TILE).min(m);
+                    for j in 0..width {
+                        let col = &columns[(first + j) * m..(first + j + 1) * m];
+                        for (r, &v) in (m0..m1).zip(&col[m0..m1]) {
+                            rows[r * width + j] = v;
                         }
                     }
                 }
@@ -113,6 +165,11 @@ impl Scene {
             reported = done;
         }
         cache
+    }
+
+    /// Where [`Scene::visibility_cache`] keeps each entry.
+    pub(in crate::render) fn cache_layout(&self) -> CacheLayout {
+        CacheLayout { triangles: self.tris.v0.len(), measurements: self.wall.l.len() }
     }
 
     /// The cache's column of block slot `slot`: one entry per measurement.
@@ -197,8 +254,8 @@ impl Scene {
     #[cfg(test)]
     pub(in crate::render) fn visibility_cache_by_rays(&self, level: u32) -> Vec<u8> {
         let nt = self.tris.v0.len();
-        let mut cache = vec![0u8; nt * self.wall.l.len()];
-        cache.par_chunks_mut(nt.max(1)).enumerate().for_each(|(m, row)| {
+        let mut rows = vec![0u8; nt * self.wall.l.len()];
+        rows.par_chunks_mut(nt.max(1)).enumerate().for_each(|(m, row)| {
             let fr = self.frame(m);
             for (slot, out) in row.iter_mut().enumerate() {
                 let t = self.mesh_triangle(slot);
@@ -214,7 +271,7 @@ impl Scene {
                 *out = ((visible * 255 + total / 2) / total) as u8;
             }
         });
-        cache
+        self.in_cache_layout(&rows)
     }
 
     /// The cache without occlusion (255 wherever the measurement lights the face): what the tests compare
@@ -222,13 +279,26 @@ impl Scene {
     #[cfg(test)]
     pub(in crate::render) fn visibility_cache_unshadowed(&self) -> Vec<u8> {
         let nt = self.tris.v0.len();
-        let mut cache = vec![0u8; nt * self.wall.l.len()];
-        for (m, row) in cache.chunks_mut(nt.max(1)).enumerate() {
+        let mut rows = vec![0u8; nt * self.wall.l.len()];
+        for (m, row) in rows.chunks_mut(nt.max(1)).enumerate() {
             let fr = self.frame(m);
             for (slot, out) in row.iter_mut().enumerate() {
                 if self.orientation(self.mesh_triangle(slot), &fr).is_some() {
                     *out = 255;
                 }
+            }
+        }
+        self.in_cache_layout(&rows)
+    }
+
+    /// A measurement-major cache (entry `m · triangles + slot`) in the order of [`CacheLayout`].
+    #[cfg(test)]
+    fn in_cache_layout(&self, rows: &[u8]) -> Vec<u8> {
+        let layout = self.cache_layout();
+        let mut cache = vec![0u8; rows.len()];
+        for (m, row) in rows.chunks(layout.triangles.max(1)).enumerate() {
+            for (slot, &v) in row.iter().enumerate() {
+                cache[layout.index(m, slot)] = v;
             }
         }
         cache

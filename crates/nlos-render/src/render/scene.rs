@@ -57,8 +57,8 @@ pub(crate) struct Scene {
     pub(in crate::render) params: RenderParams,
     pub(in crate::render) kernel: KernelEval,
     pub(in crate::render) bvh: Option<Bvh>,
-    /// Visible fraction × 255 per (measurement, triangle), measurement-major, triangles in the block order
-    /// (`tris.soa.order`, kept by `set_positions` while the cache exists).
+    /// Visible fraction × 255 per (measurement, triangle), block by block ([`super::cache::CacheLayout`]),
+    /// triangles in the block order (`tris.soa.order`, kept by `set_positions` while the cache exists).
     pub(in crate::render) cache: Option<Vec<u8>>,
     /// Fraction of the stratified samples drawn from the glossy lobe (0: area sampling only).
     pub(in crate::render) lobe_fraction: f32,
@@ -245,8 +245,8 @@ impl Scene {
         }
         self.bvh = Bvh::build(&self.tris.v0, &self.tris.e1, &self.tris.e2, &self.tris.valid);
         let Visibility::Cached { level } = self.params.visibility else { return };
-        // Regroup the triangles by their current normals; the cache is stored in that order (row m, slot i:
-        // mesh triangle order[i]), so the block kernels read it contiguously.
+        // Regroup the triangles by their current normals; the cache is stored in that order (slot i: mesh
+        // triangle order[i]), so the block kernels read it contiguously.
         let t = &self.tris;
         self.tris.soa = Soa::new(&t.v0, &t.e1, &t.e2, &t.n, &t.valid, None);
         self.update_levels();

@@ -265,6 +265,19 @@ pub(crate) fn to_corners(u: [f32; 3], d: [f32; 3]) -> [f32; 3] {
     })
 }
 
+/// A pair's gather split into the adjoint's path-length terms (stage 2 of the splat adjoint): `d` holds
+/// `Σ_k r_k ∂w_k/∂(a, b, c)` in sorted order ([`to_corners`] maps it to the corners `u`); through the shift of
+/// [`centred`] (`∂s/∂u_j`, `∂s/∂t_c`, [`centred_grad`]) the corners carry `∂/∂u_j + Σ ∂s/∂u_j` and the
+/// centroid `Σ ∂s/∂t_c`. Returns `(centroid term, corner terms)` per metre of path (`inv_dt` = 1/Δ turns
+/// node units into metres); `tc` is the centroid's path length in node units.
+#[inline(always)]
+pub(crate) fn split_gather(u: [f32; 3], d: [f32; 3], tc: f32, inv_dt: f32, power: f32) -> (f32, [f32; 3]) {
+    let d = to_corners(u, d);
+    let sum = d[0] + d[1] + d[2];
+    let (ds_du, ds_dtc) = centred_grad(u, tc, power);
+    (sum * ds_dtc * inv_dt, std::array::from_fn(|j| (d[j] + sum * ds_du[j]) * inv_dt))
+}
+
 /// The sorted corner values of one (sub-)triangle in node units, shifted by the integer `k0 = ⌊a⌋` so that
 /// the arithmetic runs on small numbers (path lengths are hundreds of bins; f32 keeps ~7 digits).
 #[derive(Debug, Clone, Copy)]

@@ -316,3 +316,28 @@ fn bundled_cache_is_the_cache_of_rays() {
         }
     }
 }
+
+/// The cache's layout is one-to-one: every (measurement, slot) has its own entry, a block's row for a
+/// measurement holds the block's slots in order, and the measurement-major copy the GPU reads puts each
+/// entry at `m · triangles + slot` (ragged last blocks and a mesh smaller than a block included).
+#[test]
+fn cache_layout_is_one_to_one() {
+    for (triangles, measurements) in [(3 * BLOCK + 37, 5), (BLOCK, 3), (17, 4), (2 * BLOCK, 1)] {
+        let layout = cache::CacheLayout { triangles, measurements };
+        let mut seen = vec![false; triangles * measurements];
+        let cache: Vec<u8> = (0..triangles * measurements).map(|i| (i % 251) as u8).collect();
+        let rows = layout.measurement_major(&cache);
+        for m in 0..measurements {
+            for t0 in (0..triangles).step_by(BLOCK) {
+                let row = layout.row(m, t0);
+                assert_eq!(row.len(), BLOCK.min(triangles - t0));
+                for (k, i) in row.enumerate() {
+                    assert_eq!(layout.index(m, t0 + k), i);
+                    assert!(!std::mem::replace(&mut seen[i], true), "entry {i} twice");
+                    assert_eq!(rows[m * triangles + t0 + k], cache[i]);
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s), "{triangles} × {measurements}: an entry unused");
+    }
+}

@@ -166,40 +166,38 @@ impl Cpu<'_> {
         }
         let last = adj.len() as i64 - 2;
         let (u, v) = sub.centroid;
-        // Pairs spanning at most `sc.span` bins: their gathers in the vector kernels.
+        // Pairs spanning at most `sc.span` bins: their gathers and their split in the vector kernels.
         soa::short_gathers(isa, len, adj, sc);
-        for i in 0..len {
-            let mut out = (0.0f32, [0.0f32; 3]);
+        soa::split_short_gathers(isa, len, axis.inv_dt, B::DISTANCE_POWER, sc);
+        // The other active pairs one by one: those longer than the span, and hidden samples (live visibility).
+        let todo = sc.select(len, |sc, i| (sc.ok[i] != 0.0) & (live | (sc.short[i] == 0.0)));
+        for t in 0..todo {
+            let i = sc.todo[t] as usize;
             let corners = [sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]];
-            if sc.ok[i] != 0.0 && sc.short[i] != 0.0 {
-                let d = [sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]];
-                out = (sc.sw[0][i], splat::to_corners(corners, d));
-            } else if sc.ok[i] != 0.0
-                && let Some(kn) = Knots::lane(&sc.lanes, i).or_else(|| Knots::new(corners))
-            {
-                let (val, d) = kn.gather_d2(
-                    -1,
-                    last,
-                    |k| adj[(k + 1) as usize],
-                    |j| d2.get((j + 1) as usize).copied().unwrap_or(0.0),
-                );
-                out = (val, splat::to_corners(corners, d));
-            }
-            if live
-                && sc.ok[i] != 0.0
-                && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr)
-            {
-                sc.ok[i] = 0.0;
-                out = (0.0, [0.0; 3]);
-            }
-            sc.a_val[i] = out.0;
-            // Through the shift of `splat::centred` (∂s/∂u_j, ∂s/∂τ_c): the corners carry ∂/∂u_j + Σ ∂s/∂u_j,
-            // the centroid Σ ∂s/∂τ_c (its path-length term of stage 3); node units → metres of path.
-            let sum = out.1[0] + out.1[1] + out.1[2];
-            let (ds_du, ds_dtc) = splat::centred_grad(corners, (sc.tau[i] + sc.g[i]) * axis.inv_dt, B::DISTANCE_POWER);
-            sc.a_der[i] = sum * ds_dtc * axis.inv_dt;
-            for ((ct, d), ds) in sc.ct.iter_mut().zip(out.1).zip(ds_du) {
-                ct[i] = (d + sum * ds) * axis.inv_dt;
+            let out =
+                if live && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr) {
+                    sc.ok[i] = 0.0;
+                    Some((0.0, [0.0; 3]))
+                } else if sc.short[i] == 0.0 {
+                    Knots::lane(&sc.lanes, i).or_else(|| Knots::new(corners)).map(|kn| {
+                        kn.gather_d2(
+                            -1,
+                            last,
+                            |k| adj[(k + 1) as usize],
+                            |j| d2.get((j + 1) as usize).copied().unwrap_or(0.0),
+                        )
+                    })
+                } else {
+                    None
+                };
+            if let Some((val, d)) = out {
+                let tc = (sc.tau[i] + sc.g[i]) * axis.inv_dt;
+                let (der, ct) = splat::split_gather(corners, d, tc, axis.inv_dt, B::DISTANCE_POWER);
+                sc.a_val[i] = val;
+                sc.a_der[i] = der;
+                for (c, t) in sc.ct.iter_mut().zip(ct) {
+                    c[i] = t;
+                }
             }
         }
         if confocal {

@@ -88,7 +88,9 @@ impl Cpu<'_> {
             let fr = self.frame(m);
             let Some(sign) = self.orientation(triangle, &fr) else { continue };
             let vis = match (&self.params.visibility, &self.cache) {
-                (Visibility::Cached { .. }, Some(c)) => f32::from(c[m * nt + slot]) * (1.0 / 255.0),
+                (Visibility::Cached { .. }, Some(c)) => {
+                    f32::from(c[self.cache_layout().index(m, slot)]) * (1.0 / 255.0)
+                }
                 _ => 1.0,
             } * self.face_weight(triangle);
             if vis == 0.0 {
@@ -136,7 +138,7 @@ impl Cpu<'_> {
         soa::orientation(blk, fr, self.params.two_sided, &mut sc.sign);
         match (&self.params.visibility, &self.cache) {
             (Visibility::Cached { .. }, Some(c)) => {
-                let row = &c[m * self.tris.v0.len() + t0..][..len];
+                let row = &c[self.cache_layout().row(m, t0)][..len];
                 for (o, b) in sc.vis[..len].iter_mut().zip(row) {
                     *o = f32::from(*b) * (1.0 / 255.0);
                 }
@@ -172,7 +174,6 @@ impl Cpu<'_> {
         let blk = pk.block();
         let len = blk.len;
         let live = self.params.visibility == Visibility::Live && self.bvh.is_some();
-        let last = hist.len() as i64 - 2;
         subtriangles(n, |sub| {
             if self.wall.confocal {
                 soa::splat_samples::<B, true>(self.isa, brdf, &blk, &fr, &sub, axis, sc);
@@ -180,42 +181,13 @@ impl Cpu<'_> {
                 soa::splat_samples::<B, false>(self.isa, brdf, &blk, &fr, &sub, axis, sc);
             }
             let (u, v) = sub.centroid;
-            for i in 0..len {
-                let g = sc.g[i];
-                if g == 0.0 {
-                    continue;
-                }
-                if live && !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr) {
-                    continue;
-                }
-                // Pairs spanning at most `sc.span` bins: their weights came with the vector kernels.
-                let k0 = sc.lanes.v[0][i];
-                if sc.short[i] != 0.0 && k0 >= -1.0 {
-                    let p = (k0 + 1.0) as usize;
-                    if sc.span == 4 {
-                        if let Some(h) = hist.get_mut(p..p + 4) {
-                            for (x, w) in h.iter_mut().zip([sc.sw[0][i], sc.sw[1][i], sc.sw[2][i], sc.sw[3][i]]) {
-                                *x += g * w;
-                            }
-                            continue;
-                        }
-                    } else if let Some(h) = hist.get_mut(p..p + sc.span) {
-                        for (x, w) in h.iter_mut().zip(&sc.sw) {
-                            *x += g * w[i];
-                        }
-                        continue;
-                    }
-                }
-                if let Some(kn) =
-                    Knots::lane(&sc.lanes, i).or_else(|| Knots::new([sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]]))
-                {
-                    // Bins −1 and `bins` are the padding (index 0 and bins + 1): dropped afterwards.
-                    if axis.box_kernel {
-                        kn.box_weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
-                    } else {
-                        kn.weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
-                    }
-                }
+            let hidden =
+                |i: usize| !self.visible_live(blk.point(i, u, v), self.mesh_triangle(t0 + pk.slots[i] as usize), &fr);
+            let hidden: Option<&dyn Fn(usize) -> bool> = if live { Some(&hidden) } else { None };
+            match sc.span {
+                4 => scatter::<4>(hist, sc, len, axis.box_kernel, hidden),
+                8 => scatter::<8>(hist, sc, len, axis.box_kernel, hidden),
+                _ => scatter::<{ splat::MAX_SPAN }>(hist, sc, len, axis.box_kernel, hidden),
             }
         });
     }
@@ -325,7 +297,7 @@ impl Cpu<'_> {
         soa::orientation_dispatch(self.isa, &pk.block(), fr, self.params.two_sided, &mut sc.sign);
         match (&self.params.visibility, &self.cache) {
             (Visibility::Cached { .. }, Some(c)) => {
-                let row = &c[m * self.tris.v0.len() + t0..];
+                let row = &c[self.cache_layout().row(m, t0)];
                 for (o, &t) in sc.vis[..len].iter_mut().zip(&pk.slots[..len]) {
                     *o = f32::from(row[t as usize]) * (1.0 / 255.0);
                 }
@@ -424,5 +396,46 @@ impl Cpu<'_> {
             let q = cl * pl * cs * ps * inv_2n / (ra2 * ra2 * rb2 * rb2);
             k.splat(tau, w * vis_c * fs * q, hist);
         });
+    }
+}
+
+/// Adds one splat sub-triangle's pairs into the padded histogram `hist` (bin k at k + 1), in pair order: the
+/// pairs spanning at most N bins (N = the block's `sc.span`) from the weights the vector kernels left in
+/// `sc.sw`, the others through their knots (the tent's weights, or the box's). `hidden` (live visibility)
+/// drops pairs whose sample is occluded.
+#[inline(always)]
+fn scatter<const N: usize>(
+    hist: &mut [f32],
+    sc: &Scratch,
+    len: usize,
+    box_kernel: bool,
+    hidden: Option<&dyn Fn(usize) -> bool>,
+) {
+    let last = hist.len() as i64 - 2;
+    let sw: [&[f32]; N] = std::array::from_fn(|k| &sc.sw[k][..len]);
+    let (gs, short, k0s) = (&sc.g[..len], &sc.short[..len], &sc.lanes.v[0][..len]);
+    for i in 0..len {
+        let g = gs[i];
+        if g == 0.0 || hidden.is_some_and(|h| h(i)) {
+            continue;
+        }
+        let k0 = k0s[i];
+        if short[i] != 0.0 && k0 >= -1.0 {
+            let p = (k0 + 1.0) as usize;
+            if let Some(h) = hist.get_mut(p..p + N) {
+                for (x, w) in h.iter_mut().zip(sw) {
+                    *x += g * w[i];
+                }
+                continue;
+            }
+        }
+        if let Some(kn) = Knots::lane(&sc.lanes, i).or_else(|| Knots::new([sc.kn[0][i], sc.kn[1][i], sc.kn[2][i]])) {
+            // Bins −1 and `bins` are the padding (index 0 and bins + 1): dropped afterwards.
+            if box_kernel {
+                kn.box_weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+            } else {
+                kn.weights(-1, last, |k, w| hist[(k + 1) as usize] += g * w);
+            }
+        }
     }
 }

@@ -405,7 +405,10 @@ impl GpuRenderer {
         if self.vis.as_ref().is_some_and(|v| v.key == key) {
             return Ok(());
         }
-        let words: Vec<u32> = cache
+        // The shader reads the cache measurement-major (entry m · triangles + slot).
+        let words: Vec<u32> = r
+            .cache_layout()
+            .measurement_major(cache)
             .chunks(4)
             .map(|c| c.iter().enumerate().fold(0u32, |w, (i, b)| w | (u32::from(*b) << (8 * i))))
             .collect();

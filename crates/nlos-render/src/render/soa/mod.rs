@@ -415,6 +415,8 @@ pub(crate) struct Scratch {
     /// adjoint's gathers in the first four (`splat::gather_window`). `short`: 1.0 for those pairs.
     pub(crate) sw: [Vec<f32>; crate::render::splat::MAX_SPAN],
     pub(crate) short: Vec<f32>,
+    /// Splat: the pairs the scalar loops visit ([`Scratch::select`]), ascending.
+    pub(crate) todo: Vec<u32>,
     /// The span (4, 8 or `splat::MAX_SPAN` bins) the vector kernels ran with for this block ([`block_span`]).
     pub(crate) span: usize,
 }
@@ -440,8 +442,22 @@ impl Scratch {
             lanes: crate::render::splat::Lanes::new(BLOCK),
             sw: std::array::from_fn(|_| z()),
             short: z(),
+            todo: vec![0; BLOCK],
             span: 4,
         }
+    }
+
+    /// Collects into `todo` the pairs `0..len` for which `pick` holds, in order, without a branch per pair
+    /// (the scalar loops then skip the others without mispredicted branches). Returns their number.
+    #[inline(always)]
+    pub(crate) fn select(&mut self, len: usize, pick: impl Fn(&Self, usize) -> bool) -> usize {
+        let mut c = 0;
+        for i in 0..len {
+            let p = pick(self, i);
+            self.todo[c] = i as u32;
+            c += usize::from(p);
+        }
+        c
     }
 }
 
@@ -557,4 +573,4 @@ pub(crate) fn orientation_dispatch(isa: Isa, b: &Block<'_>, fr: &Frame, two_side
 mod point;
 mod splat;
 pub(crate) use point::{Acc, adjoint_lengths, adjoint_samples, forward_samples, tent_gather};
-pub(crate) use splat::{Sub, short_gathers, splat_corner_terms, splat_lengths, splat_samples};
+pub(crate) use splat::{Sub, short_gathers, splat_corner_terms, splat_lengths, splat_samples, split_short_gathers};

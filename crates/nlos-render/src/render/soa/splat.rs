@@ -426,3 +426,67 @@ kernel! {
     }
     best: short_gathers_best, avx2: short_gathers_avx2;
 }
+
+/// Adjoint, stage 2 of a splat sub-triangle, the pairs [`short_gathers`] gathered: their gathers split into
+/// the centroid's and the corners' path-length terms (`splat::split_gather`) into `a_val`, `a_der` and `ct`,
+/// vectorised; every other pair gets zeros (the scalar loop redoes the pairs longer than the span).
+#[inline(never)]
+pub(crate) fn split_short_gathers(isa: Isa, len: usize, inv_dt: f32, power: f32, sc: &mut Scratch) {
+    let [k0, k1, k2] = &sc.kn;
+    let [s0, s1, s2, s3, ..] = &sc.sw;
+    let [c0, c1, c2] = &mut sc.ct;
+    let (a_val, a_der) = (&mut sc.a_val, &mut sc.a_der);
+    let (ok, short, ra, rb) = (&sc.ok, &sc.short, &sc.tau, &sc.g);
+    split_short_best(
+        isa,
+        len,
+        inv_dt,
+        power,
+        ok,
+        short,
+        [k0, k1, k2],
+        [s0, s1, s2, s3],
+        ra,
+        rb,
+        a_val,
+        a_der,
+        c0,
+        c1,
+        c2,
+    );
+}
+
+kernel! {
+    fn split_short_body [] [] (
+        len: usize,
+        inv_dt: f32,
+        power: f32,
+        ok: &[f32],
+        short: &[f32],
+        kn: [&Vec<f32>; 3],
+        sw: [&Vec<f32>; 4],
+        ra: &[f32],
+        rb: &[f32],
+        a_val: &mut [f32],
+        a_der: &mut [f32],
+        c0: &mut [f32],
+        c1: &mut [f32],
+        c2: &mut [f32],
+    ) {
+        let (ok, short, ra, rb) = (&ok[..len], &short[..len], &ra[..len], &rb[..len]);
+        let (k0, k1, k2) = (&kn[0][..len], &kn[1][..len], &kn[2][..len]);
+        let (s0, s1, s2, s3) = (&sw[0][..len], &sw[1][..len], &sw[2][..len], &sw[3][..len]);
+        let (a_val, a_der) = (&mut a_val[..len], &mut a_der[..len]);
+        let (c0, c1, c2) = (&mut c0[..len], &mut c1[..len], &mut c2[..len]);
+        for i in 0..len {
+            let gathered = (ok[i] != 0.0) & (short[i] != 0.0);
+            let (val, d) = if gathered { (s0[i], [s1[i], s2[i], s3[i]]) } else { (0.0, [0.0; 3]) };
+            let tc = (ra[i] + rb[i]) * inv_dt;
+            let (der, ct) = crate::render::splat::split_gather([k0[i], k1[i], k2[i]], d, tc, inv_dt, power);
+            a_val[i] = val;
+            a_der[i] = der;
+            (c0[i], c1[i], c2[i]) = (ct[0], ct[1], ct[2]);
+        }
+    }
+    best: split_short_best, avx2: split_short_avx2;
+}
