@@ -25,9 +25,10 @@ use crate::visibility::wall::WallTree;
 const ROUND_BYTES: usize = 1 << 24;
 #[cfg(test)]
 const ROUND_BYTES: usize = 1 << 16;
-/// The transpose from columns to a block's rows works on this many rows at a time (a few KiB of rows, kept
-/// in the L1 cache while the block's columns are read).
-const TILE: usize = 16;
+/// The transpose from columns to a block's rows works on this many rows at a time: one cache line of each
+/// column, read once (columns a scan's width apart share the L1 cache's sets, so a line left for a later
+/// pass is gone by then), into 16 KiB of rows.
+const TILE: usize = 64;
 
 /// Where the cache keeps the entry of measurement m and block slot `slot`: block by block (`BLOCK` slots,
 /// the kernels' blocks), within a block measurement by measurement, within that slot by slot. The block
