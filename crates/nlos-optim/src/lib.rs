@@ -52,6 +52,7 @@ pub mod reconstruct;
 pub mod reflectance;
 pub mod regions;
 pub mod regularizer;
+pub mod release;
 pub mod residual;
 pub mod schedule;
 pub mod support;

@@ -200,7 +200,16 @@ impl Prepared {
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
-        p.albedo = (config.albedo == AlbedoChoice::Vertex).then(crate::AlbedoParams::default);
+        p.albedo = match config.albedo {
+            AlbedoChoice::Vertex => Some(crate::AlbedoParams::default()),
+            AlbedoChoice::Detected => Some(crate::AlbedoParams { held: true, ..crate::AlbedoParams::default() }),
+            AlbedoChoice::Off => None,
+        };
+        if config.albedo == AlbedoChoice::Detected {
+            if let Some(r) = p.regions.as_mut() {
+                r.first_stage = r.rim_stage;
+            }
+        }
         p.validate()?;
         Ok(p)
     }
