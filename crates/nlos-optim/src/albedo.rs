@@ -50,10 +50,6 @@ pub const ALBEDO: VertexField<f64> = VertexField::new("albedo", 1.0);
 /// The Adam moments of [`ALBEDO`].
 pub const ALBEDO_MOMENTS: VertexField<ScalarMoments> = VertexField::new("albedo_adam", ScalarMoments::ZERO);
 
-/// Whether a vertex's albedo is free to step ([`AlbedoParams::held`]: held vertices keep the surface's
-/// albedo, 1, until a region of them is released, [`crate::release`]). Unused without `held`.
-pub const ALBEDO_FREE: VertexField<bool> = VertexField::new("albedo_free", false);
-
 /// Smoothing ε of the total variation (relative albedo): jumps much larger than it cost their length.
 pub const TV_EPSILON: f64 = 0.01;
 
@@ -67,16 +63,11 @@ pub struct AlbedoParams {
     pub tv: f64,
     /// Largest relative albedo (default 8): a guard, so that a vertex that sees little light cannot run away.
     pub max: f64,
-    /// Every vertex holds the surface's albedo (1) until the data release the region around it
-    /// ([`crate::release`]): only released vertices step, within `[0, 1]`, and the albedos are not
-    /// recentred (the held ones fix the gauge). Default false: every vertex steps.
-    #[serde(default)]
-    pub held: bool,
 }
 
 impl Default for AlbedoParams {
     fn default() -> Self {
-        Self { lr: 0.05, tv: 0.05, max: 8.0, held: false }
+        Self { lr: 0.05, tv: 0.05, max: 8.0 }
     }
 }
 
@@ -195,22 +186,14 @@ pub fn step(surface: &mut Surface, steps: &mut u64, grad_faces: &[f32], settings
         let (_, g) = total_variation(surface.positions(), surface.triangles(), surface.vertex(ALBEDO)?);
         grad.iter_mut().zip(&g).for_each(|(x, t)| *x += tv_weight * t);
     }
-    // Held vertices ([`AlbedoParams::held`]) neither step nor gather moments.
-    let free: Option<Vec<bool>> = if params.held { Some(surface.vertex(ALBEDO_FREE)?.to_vec()) } else { None };
-    if let Some(free) = &free {
-        grad.iter_mut().zip(free).filter(|(_, f)| !**f).for_each(|(g, _)| *g = 0.0);
-    }
     *steps += 1;
     let delta = scalar_step(adam, *steps, surface.vertex_mut(ALBEDO_MOMENTS)?, &grad, lr);
     let (positions, triangles) = (surface.positions().to_vec(), surface.triangles().to_vec());
     let albedo = surface.vertex_mut(ALBEDO)?;
-    let top = if params.held { 1.0 } else { params.max };
-    for (v, (a, d)) in albedo.iter_mut().zip(&delta).enumerate() {
-        if free.as_ref().is_none_or(|f| f[v]) {
-            *a = (*a + d).clamp(0.0, top);
-        }
+    for (a, d) in albedo.iter_mut().zip(&delta) {
+        *a = (*a + d).clamp(0.0, params.max);
     }
-    if recentre_mean && !params.held {
+    if recentre_mean {
         recentre(albedo, &positions, &triangles);
     }
     Ok(())

@@ -52,7 +52,6 @@ pub mod reconstruct;
 pub mod reflectance;
 pub mod regions;
 pub mod regularizer;
-pub mod release;
 pub mod residual;
 pub mod schedule;
 pub mod support;

@@ -160,9 +160,6 @@ pub struct RegionRecord {
     pub kept: usize,
     /// Change of the data term from the deletions, normalised as the run log's data term.
     pub data_change: f64,
-    /// Regions whose albedo the data set free ([`crate::release`]; with held albedos only).
-    #[serde(default)]
-    pub released: usize,
 }
 
 /// The result of [`dark_regions`].
@@ -240,7 +237,7 @@ fn merge(spans: impl IntoIterator<Item = RowSpan>) -> Vec<RowSpan> {
 }
 
 /// The rendered share of `faces` (their shares summed, [`merge`]).
-pub(crate) fn share(renderer: &Renderer, brdf: &AnyBrdf, faces: &[usize]) -> Result<Vec<RowSpan>> {
+fn share(renderer: &Renderer, brdf: &AnyBrdf, faces: &[usize]) -> Result<Vec<RowSpan>> {
     let mut all = Vec::new();
     for &f in faces {
         all.extend(renderer.forward_triangle_any(brdf, f)?);
@@ -250,7 +247,7 @@ pub(crate) fn share(renderer: &Renderer, brdf: &AnyBrdf, faces: &[usize]) -> Res
 
 /// `Λ_R / ΔE_R` for a region of share `spans` (module docs): 2 for the Poisson half-deviance, `2 / σ²_R` for
 /// the L2 fit of counts; None for intensities, which have no noise to weigh in.
-pub(crate) fn units(spans: &[RowSpan], rendered: &[f32], bins: usize, noise: RegionNoise) -> Option<f64> {
+fn units(spans: &[RowSpan], rendered: &[f32], bins: usize, noise: RegionNoise) -> Option<f64> {
     match noise {
         RegionNoise::Poisson => Some(2.0),
         RegionNoise::Counts { scale } => {
@@ -466,7 +463,7 @@ pub fn dark_regions(
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     /// Two squares of two faces each, sharing only vertex 2: members join across edges, not vertices.
@@ -490,7 +487,7 @@ pub(crate) mod tests {
 
     /// A plate 16 cm square at 0.4 m of 24 × 24 quads (6.7 mm), a strip |x| < 12 mm of it four quads wide, and
     /// its rim (the two columns of quads beside it).
-    pub(crate) fn strip_plate() -> (Vec<glam::Vec3>, Vec<[u32; 3]>, Vec<bool>, Vec<bool>) {
+    fn strip_plate() -> (Vec<glam::Vec3>, Vec<[u32; 3]>, Vec<bool>, Vec<bool>) {
         let (n, half, z) = (24u32, 0.08f32, 0.4f32);
         let at = |i: u32, j: u32| i * (n + 1) + j;
         let mut p = Vec::new();
@@ -517,7 +514,7 @@ pub(crate) mod tests {
     }
 
     /// The light of the plate at per-face weights `w` (faces of weight 0 left out), photons per unit.
-    pub(crate) fn plate_light(p: &[glam::Vec3], t: &[[u32; 3]], w: &[f32]) -> (Renderer, Vec<f32>) {
+    fn plate_light(p: &[glam::Vec3], t: &[[u32; 3]], w: &[f32]) -> (Renderer, Vec<f32>) {
         let scan = nlos_transient::Scan::confocal(nlos_transient::PointSet::wall_grid(12, 12, 0.08, 0.08).unwrap());
         let time = nlos_transient::TimeAxis::new(0.78, 0.0024, 50).unwrap();
         let params = nlos_render::RenderParams { visibility: nlos_render::Visibility::Off, ..Default::default() };

@@ -189,9 +189,6 @@ pub enum AlbedoChoice {
     /// An albedo per vertex, fitted with the shape; dark regions whose light the data do not detect are
     /// deleted. For objects with print or holes.
     Vertex,
-    /// An albedo per vertex, held at the surface's until the data detect a darker region
-    /// ([`crate::release`]); dark regions are then judged as with `Vertex`.
-    Detected,
     /// One albedo for the whole surface (Tsai et al. 2019).
     #[default]
     Off,
@@ -201,7 +198,6 @@ impl fmt::Display for AlbedoChoice {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             Self::Vertex => "vertex",
-            Self::Detected => "detected",
             Self::Off => "off",
         })
     }

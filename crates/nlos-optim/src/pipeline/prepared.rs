@@ -200,16 +200,7 @@ impl Prepared {
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
-        p.albedo = match config.albedo {
-            AlbedoChoice::Vertex => Some(crate::AlbedoParams::default()),
-            AlbedoChoice::Detected => Some(crate::AlbedoParams { held: true, ..crate::AlbedoParams::default() }),
-            AlbedoChoice::Off => None,
-        };
-        if config.albedo == AlbedoChoice::Detected {
-            if let Some(r) = p.regions.as_mut() {
-                r.first_stage = r.rim_stage;
-            }
-        }
+        p.albedo = (config.albedo == AlbedoChoice::Vertex).then(crate::AlbedoParams::default);
         p.validate()?;
         Ok(p)
     }

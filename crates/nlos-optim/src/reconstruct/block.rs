@@ -28,7 +28,6 @@ use crate::params::ReconstructParams;
 use crate::prune::{PruneRecord, prune_boundary};
 use crate::regions::{RegionFit, RegionNoise, RegionRecord, dark_regions};
 use crate::regularizer::{NormalSmoothing, auto_weight};
-use crate::release::{FaceTerms, Release, ReleaseParams, released_regions};
 use crate::residual::{PatchFit, PatchNote, ResidualRecord, residual_rounds};
 use crate::surface::Remap;
 
@@ -341,8 +340,12 @@ pub(super) fn prune_and_patch(
             data_change: p.data_change / norm,
         });
     }
-    let noise = region_noise(sensor.is_some(), ctx.counts, scale);
     if let (Some(rp), Some(weights)) = (regions, b.renderer.face_weights()) {
+        let noise = match (sensor, ctx.counts) {
+            (Some(_), _) => RegionNoise::Poisson,
+            (None, true) => RegionNoise::Counts { scale },
+            (None, false) => RegionNoise::None,
+        };
         let (triangles, renderer) = (st.surface.triangles(), &b.renderer);
         let fit = RegionFit { renderer, brdf: &brdf, rendered: &mut rendered, bins, row_loss };
         let rim = st.stage >= rp.rim_stage.min(last_stage);
@@ -356,7 +359,6 @@ pub(super) fn prune_and_patch(
             removed: r.removed,
             kept: r.tested - r.deleted,
             data_change: r.data_change / norm,
-            released: 0,
         };
         st.region_log.push(record);
     }
@@ -402,124 +404,6 @@ pub(super) fn prune_and_patch(
         }
     }
     Ok(stage_mesh)
-}
-
-/// The noise model the region tests weigh in.
-fn region_noise(sensor: bool, counts: bool, scale: f64) -> RegionNoise {
-    match (sensor, counts) {
-        (true, _) => RegionNoise::Poisson,
-        (false, true) => RegionNoise::Counts { scale },
-        (false, false) => RegionNoise::None,
-    }
-}
-
-/// Step 1b: with held albedos ([`crate::AlbedoParams::held`]), the regions whose albedo the data ask darker
-/// by more than the noise are set free before the block's shape steps ([`crate::release`]), so that the
-/// steps can darken them instead of bending them. The block's renderer gets the new face factors.
-pub(super) fn release_block(st: &mut RunRecord, ctx: &RunCtx<'_>, b: &mut Block<'_>) -> Result<()> {
-    if !ctx.params.albedo.is_some_and(|a| a.held) {
-        return Ok(());
-    }
-    let Some(weights) = b.renderer.face_weights().map(<[f32]>::to_vec) else { return Ok(()) };
-    // The block's scale, solved at the block's start, and the data term's slope along each face's factor.
-    let ev = evaluate(st, &b.renderer, &b.fit, false)?;
-    st.scale = ev.scale;
-    let brdf = st.reflectance.brdf()?;
-    let mut rendered = ev.rendered;
-    // Each face's light summed over every bin: the adjoint of the sum.
-    let light = b.renderer.adjoint_any(&brdf, &vec![1.0; rendered.len()])?.faces;
-    let terms = FaceTerms { slope: &ev.grad_faces, light: &light };
-    let bins = b.measured.bins();
-    let response = match b.fit.sensor {
-        Some(m) => Some(RwLock::new(m.response(&rendered)?)),
-        None => None,
-    };
-    let rows = row_terms(&b.fit, bins, st.scale, response.as_ref());
-    let row_loss: &RowLoss<'_> = &*rows;
-    let noise = region_noise(b.fit.sensor.is_some(), ctx.counts, st.scale);
-    let fit = RegionFit { renderer: &b.renderer, brdf: &brdf, rendered: &mut rendered, bins, row_loss };
-    let found = released_regions(st.surface.triangles(), &weights, &terms, fit, noise, &ReleaseParams::default())?;
-    release_albedo(st, &found.regions)?;
-    if !found.regions.is_empty() {
-        flatten_released(st, ctx, b, &found.regions)?;
-    }
-    set_albedo_weights(st, &mut b.renderer)?;
-    st.region_log.push(RegionRecord {
-        stage: st.stage,
-        block: st.block_in_stage,
-        tested: 0,
-        deleted: 0,
-        removed: 0,
-        kept: 0,
-        data_change: 0.0,
-        released: found.regions.len(),
-    });
-    Ok(())
-}
-
-/// The released regions' inner vertices (those on no face outside the regions, nor on the boundary) moved to
-/// the harmonic surface of their rims (uniform weights, Jacobi iterations), through the collision-limited
-/// step: a dent released as print is fitted at its neighbours' depth.
-fn flatten_released(st: &mut RunRecord, ctx: &RunCtx<'_>, b: &mut Block<'_>, regions: &[Release]) -> Result<()> {
-    let tris = st.surface.triangles().to_vec();
-    let nv = st.surface.n_vertices();
-    let mut in_region = vec![false; tris.len()];
-    regions.iter().flat_map(|r| &r.faces).for_each(|&f| in_region[f] = true);
-    let (mut inside, mut outside) = (vec![false; nv], vec![false; nv]);
-    for (f, t) in tris.iter().enumerate() {
-        for &v in t {
-            if in_region[f] { inside[v as usize] = true } else { outside[v as usize] = true }
-        }
-    }
-    let boundary = st.surface.boundary_vertices();
-    let free: Vec<bool> = (0..nv).map(|v| inside[v] && !outside[v] && !boundary[v]).collect();
-    if !free.iter().any(|&x| x) {
-        return Ok(());
-    }
-    let mut nbr: Vec<Vec<usize>> = vec![Vec::new(); nv];
-    for t in &tris {
-        for k in 0..3 {
-            let (a, c) = (t[k] as usize, t[(k + 1) % 3] as usize);
-            if free[a] {
-                nbr[a].push(c)
-            }
-            if free[c] {
-                nbr[c].push(a)
-            }
-        }
-    }
-    let start = st.surface.positions().to_vec();
-    let mut p = start.clone();
-    for _ in 0..300 {
-        let q = p.clone();
-        for v in (0..nv).filter(|&v| free[v]) {
-            p[v] = nbr[v].iter().map(|&u| q[u]).sum::<Vec3>() / nbr[v].len() as f32;
-        }
-    }
-    let d: Vec<Vec3> = p.iter().zip(&start).map(|(a, c)| *a - *c).collect();
-    let new = match ctx.params.collision {
-        Some(ep) => collision_step(&st.surface, &d, b.target as f32, ep, &mut b.collisions)?,
-        None => p,
-    };
-    st.surface.set_positions(new)?;
-    b.renderer.set_positions(st.surface.positions())?;
-    Ok(())
-}
-
-/// Sets the albedo of every vertex of the released regions free ([`crate::release`]), starting at the albedo
-/// the data ask for (or its own, if darker), its moments cleared.
-fn release_albedo(st: &mut RunRecord, regions: &[Release]) -> Result<()> {
-    let triangles = st.surface.triangles().to_vec();
-    for r in regions {
-        let vertices: Vec<usize> = r.faces.iter().flat_map(|&f| triangles[f]).map(|v| v as usize).collect();
-        let albedo = st.surface.vertex_mut(albedo::ALBEDO)?;
-        vertices.iter().for_each(|&v| albedo[v] = albedo[v].min(r.albedo));
-        let free = st.surface.vertex_mut(albedo::ALBEDO_FREE)?;
-        vertices.iter().for_each(|&v| free[v] = true);
-        let moments = st.surface.vertex_mut(albedo::ALBEDO_MOMENTS)?;
-        vertices.iter().for_each(|&v| moments[v] = crate::adam::ScalarMoments::ZERO);
-    }
-    Ok(())
 }
 
 /// Step 5b: the bookkeeping — self-intersections removed, the stage advanced (its mesh saved as

@@ -24,10 +24,8 @@ pub(super) struct Eval {
     pub(super) scale: f64,
     pub(super) grad_vertices: Vec<Vec3>,
     pub(super) grad_theta: Vec<f64>,
-    /// dE/dw_t per triangle (`nlos_render::Gradient::faces`), for the albedo per vertex.
+    /// dE/dw_t per triangle (`nlos_render::Gradient::faces`), for the albedo map.
     pub(super) grad_faces: Vec<f32>,
-    /// The forward pass the evaluation rendered (measurement-major).
-    pub(super) rendered: Vec<f32>,
 }
 
 /// The data term of a run: the plain [`crate::DataTerm`], or the sensor fit on the stage's bins.
@@ -73,7 +71,6 @@ pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: 
         grad_theta: st.reflectance.chain(&g.brdf),
         grad_vertices: g.vertices,
         grad_faces: g.faces,
-        rendered,
     })
 }
 

@@ -301,9 +301,6 @@ pub fn reconstruct_with(
     if params.albedo.is_some() {
         // Created at its initial value, the mean (1), so that every later change of topology carries it.
         surface.vertex_mut(ALBEDO)?;
-        if params.albedo.is_some_and(|a| a.held) {
-            surface.vertex_mut(crate::albedo::ALBEDO_FREE)?;
-        }
     }
     let mut state = RunRecord {
         version: RunRecord::VERSION,
@@ -475,7 +472,6 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
             tv_weight: 0.0,
         };
         let block_stage = st.stage;
-        block::release_block(&mut st, &ctx, &mut b)?;
         block::shape_block(&mut st, &ctx, &mut b, &mut hooks, evolve.as_deref_mut())?;
         if ctx.refl_iters > 0 {
             block::reflectance_block(&mut st, &ctx, &mut b, &mut hooks)?;
