@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use crate::bvh::{ClosestPoint, TriangleBvh, closest_point_on_triangle};
 use crate::curvature::max_abs_curvature;
 use crate::error::MeshError;
-use crate::evolve::guard::{CollisionGuard, MoveScratch, face_box};
+use crate::evolve::guard::{CollisionGuard, MoveScratch};
 use crate::handles::{EdgeId, FaceId, HalfedgeId, VertexId};
 use crate::surface_mesh::SurfaceMesh;
 
@@ -500,23 +500,13 @@ impl<'a> Remesher<'a> {
         };
         // The continuous test, then the exact static test of the moved one-ring (contact below the continuous
         // test's tolerance, e.g. in near-coplanar motion, is caught there, as `evolve`'s final check does).
-        let ring: Vec<FaceId> = self.mesh.vertex_faces(v).collect();
-        let moved: Vec<([u32; 3], [Vec3; 3])> = ring
-            .iter()
-            .map(|&f| {
-                let vs = self.mesh.face_vertices(f);
-                (vs.map(|w| w.0), vs.map(|w| if w == v { to } else { self.mesh.position(w) }))
-            })
-            .collect();
-        if g.move_collides(self.mesh, v, to, &mut self.scratch) || g.new_faces_intersect(self.mesh, &moved, &ring) {
+        if g.move_intersects(self.mesh, v, to, &mut self.scratch) {
             self.report.refused_intersections += 1;
             return false;
         }
-        let old: Vec<(FaceId, [Vec3; 2])> = self.mesh.vertex_faces(v).map(|f| (f, face_box(self.mesh, f))).collect();
+        self.scratch.remember_ring(self.mesh, v);
         self.mesh.set_position(v, to);
-        for (f, b) in old {
-            g.moved(self.mesh, f, b);
-        }
+        g.moved_ring(self.mesh, &self.scratch);
         true
     }
 

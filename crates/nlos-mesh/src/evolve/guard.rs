@@ -197,6 +197,13 @@ impl CollisionGuard {
         self.grid.moved(mesh, f, old);
     }
 
+    /// The faces of [`MoveScratch::remember_ring`] moved with their vertex: replaces their entries.
+    pub(crate) fn moved_ring(&mut self, mesh: &SurfaceMesh, scratch: &MoveScratch) {
+        for &(f, b) in &scratch.boxes {
+            self.grid.moved(mesh, f, b);
+        }
+    }
+
     /// Whether the new faces (vertex ids, positions) intersect any live face except those in `skip`.
     #[inline(never)]
     pub(crate) fn new_faces_intersect(
@@ -266,17 +273,14 @@ impl CollisionGuard {
         let overlap = |x: &(Vec3, Vec3), y: &(Vec3, Vec3)| x.0.cmple(y.1).all() && y.0.cmple(x.1).all();
         // swept boxes of the moving primitives: the point, the one-ring faces, the one-ring edges
         let vbox = boxed(&[from, to]);
-        let ring_m: Vec<([VertexId; 3], (Vec3, Vec3))> = scratch
-            .ring
-            .iter()
-            .map(|&f| {
-                let fv = mesh.face_vertices(f);
-                let p = mesh.face_points(f);
-                (fv, boxed(&[p[0], p[1], p[2], to]))
-            })
-            .collect();
-        let spokes: Vec<(VertexId, (Vec3, Vec3))> =
-            mesh.vertex_vertices(v).map(|u| (u, boxed(&[from, to, mesh.position(u)]))).collect();
+        scratch.ring_m.clear();
+        scratch.ring_m.extend(scratch.ring.iter().map(|&f| {
+            let fv = mesh.face_vertices(f);
+            let p = mesh.face_points(f);
+            (fv, boxed(&[p[0], p[1], p[2], to]))
+        }));
+        scratch.spokes.clear();
+        scratch.spokes.extend(mesh.vertex_vertices(v).map(|u| (u, boxed(&[from, to, mesh.position(u)]))));
         self.grid.query(mesh, lo - pad, hi + pad, &mut scratch.cands);
         scratch.verts.clear();
         scratch.edges.clear();
@@ -308,7 +312,7 @@ impl CollisionGuard {
             let w = VertexId(w);
             let q = mesh.position(w);
             let wbox = (q, q);
-            for (fv, fbox) in &ring_m {
+            for (fv, fbox) in &scratch.ring_m {
                 if fv.contains(&w) || !overlap(&wbox, fbox) {
                     continue;
                 }
@@ -322,7 +326,7 @@ impl CollisionGuard {
         for &(c, d) in &scratch.edges {
             let (c, d) = (VertexId(c), VertexId(d));
             let ebox = boxed(&[mesh.position(c), mesh.position(d)]);
-            for &(u, sbox) in &spokes {
+            for &(u, sbox) in &scratch.spokes {
                 if c == u || d == u || !overlap(&ebox, &sbox) {
                     continue;
                 }
@@ -333,13 +337,127 @@ impl CollisionGuard {
         }
         false
     }
+
+    /// The two questions of a vertex move, from one grid query: would moving `v` on a straight line to `to`
+    /// meet anything on the way ([`Self::move_collides`]), or would one of its one-ring faces, with `v` at
+    /// `to`, intersect a face outside the ring or another ring face ([`Self::new_faces_intersect`] of the
+    /// moved ring, skipping the ring)? The same answer as asking the two in turn: the continuous test's query
+    /// box holds every moved ring face's box, so its candidates hold each static query's, and the static
+    /// test keeps those whose current box overlaps the moved face's, as the grid's own query does.
+    pub(crate) fn move_intersects(
+        &mut self,
+        mesh: &SurfaceMesh,
+        v: VertexId,
+        to: Vec3,
+        scratch: &mut MoveScratch,
+    ) -> bool {
+        if self.move_collides(mesh, v, to, scratch) {
+            return true;
+        }
+        // `move_collides` ran to its end: `scratch.ring` is the one-ring, `scratch.cands` the live faces
+        // whose box overlaps the ring's swept box.
+        scratch.moved.clear();
+        scratch.moved.extend(scratch.ring.iter().map(|&f| {
+            let vs = mesh.face_vertices(f);
+            (vs.map(|w| w.0), vs.map(|w| if w == v { to } else { mesh.position(w) }))
+        }));
+        // the candidates outside the ring, with their boxes
+        scratch.cand_boxes.clear();
+        let outside = scratch.cands.iter().filter(|g| !scratch.ring.contains(g));
+        scratch.cand_boxes.extend(outside.map(|&g| (g, face_box(mesh, g))));
+        for (k, (fv, t)) in scratch.moved.iter().enumerate() {
+            let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            for &(g, [glo, ghi]) in &scratch.cand_boxes {
+                if !(glo.cmple(hi).all() && lo.cmple(ghi).all()) {
+                    continue;
+                }
+                let gv = mesh.face_vertices(g).map(|v| v.0);
+                if faces_intersect(*fv, *t, gv, mesh.face_points(g)) {
+                    return true;
+                }
+            }
+            for (gv, u) in &scratch.moved[k + 1..] {
+                if faces_intersect(*fv, *t, *gv, *u) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
 }
 
-/// Reused buffers of [`CollisionGuard::move_collides`].
+/// Reused buffers of [`CollisionGuard::move_collides`] and [`CollisionGuard::move_intersects`].
 #[derive(Default)]
 pub(crate) struct MoveScratch {
     ring: Vec<FaceId>,
     cands: Vec<FaceId>,
     verts: Vec<u32>,
     edges: Vec<(u32, u32)>,
+    /// The one-ring's faces with their swept boxes, and its spokes' far ends with theirs.
+    ring_m: Vec<([VertexId; 3], (Vec3, Vec3))>,
+    spokes: Vec<(VertexId, (Vec3, Vec3))>,
+    /// The one-ring's faces with `v` at its target (vertex ids, positions).
+    moved: Vec<([u32; 3], [Vec3; 3])>,
+    /// The static test's candidates (outside the one-ring) with their boxes.
+    cand_boxes: Vec<(FaceId, [Vec3; 2])>,
+    /// The one-ring's faces with their boxes before a move, for the grid's update after it.
+    boxes: Vec<(FaceId, [Vec3; 2])>,
+}
+
+impl MoveScratch {
+    /// The one-ring's faces and their current boxes, kept in [`Self::boxes`] until
+    /// [`CollisionGuard::moved_ring`] hands them to the grid.
+    pub(crate) fn remember_ring(&mut self, mesh: &SurfaceMesh, v: VertexId) {
+        self.boxes.clear();
+        self.boxes.extend(mesh.vertex_faces(v).map(|f| (f, face_box(mesh, f))));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `move_intersects` answers as the continuous test followed by the static test of the moved one-ring,
+    /// each from its own grid queries, on a flattened sphere whose two sides lie closer than the moves, with
+    /// the accepted moves applied (so the grid's updates are tested too).
+    #[test]
+    fn move_intersects_is_the_continuous_then_the_static_test() {
+        let mut mesh = crate::shapes::icosphere(Vec3::ZERO, 1.0, 3);
+        for v in mesh.vertices().collect::<Vec<_>>() {
+            let p = mesh.position(v);
+            mesh.set_position(v, Vec3::new(p.x, p.y, 0.04 * p.z));
+        }
+        let l = mesh.mean_edge_length();
+        let mut guard = CollisionGuard::new(&mesh, 2.0 * l, 1e-7);
+        let mut scratch = MoveScratch::default();
+        let mut rng = nlos_transient::rng::SplitMix64::new(7);
+        let verts: Vec<VertexId> = mesh.vertices().collect();
+        let (mut refused, mut moved) = (0, 0);
+        for k in 0..4000 {
+            let v = verts[rng.below(verts.len())];
+            let reach = [0.01, 0.1, 0.5][k % 3] * l;
+            let d = Vec3::new(rng.range_f32(-1.0, 1.0), rng.range_f32(-1.0, 1.0), rng.range_f32(-1.0, 1.0));
+            let to = mesh.position(v) + reach * d;
+            let ring: Vec<FaceId> = mesh.vertex_faces(v).collect();
+            let new: Vec<([u32; 3], [Vec3; 3])> = ring
+                .iter()
+                .map(|&f| {
+                    let vs = mesh.face_vertices(f);
+                    (vs.map(|w| w.0), vs.map(|w| if w == v { to } else { mesh.position(w) }))
+                })
+                .collect();
+            let want = guard.move_collides(&mesh, v, to, &mut scratch) || guard.new_faces_intersect(&mesh, &new, &ring);
+            assert_eq!(guard.move_intersects(&mesh, v, to, &mut scratch), want, "move {k}");
+            if want {
+                refused += 1;
+            } else {
+                scratch.remember_ring(&mesh, v);
+                mesh.set_position(v, to);
+                guard.moved_ring(&mesh, &scratch);
+                moved += 1;
+            }
+        }
+        assert!(refused > 100 && moved > 100, "both answers tested: {refused} refused, {moved} moved");
+        assert_eq!(crate::intersect::self_intersections(&mesh).expect("faces"), vec![]);
+    }
 }

@@ -141,9 +141,7 @@ impl DataTerm {
         if measured.len() != rendered.len() {
             return Err(OptimError::LengthMismatch { what: "measured", expected: rendered.len(), got: measured.len() });
         }
-        self.validate(rendered.len())?;
-        let scale =
-            if self.solve_scale { self.optimal_scale(rendered, measured).unwrap_or(fallback_scale) } else { 1.0 };
+        let scale = self.scale_for(rendered, measured, fallback_scale)?;
         let s32 = scale as f32;
         let scaled: Vec<f32> = rendered.iter().map(|r| s32 * r).collect();
         let (value, mut d) = self.loss.evaluate(&scaled, measured, self.weights.as_deref())?;
@@ -152,6 +150,19 @@ impl DataTerm {
             *x *= s32;
         }
         Ok(DataEval { value, scale, d_rendered: d })
+    }
+
+    /// The scale [`DataTerm::evaluate`] renders at: `s*` when solved and defined, else `fallback_scale` (1
+    /// without scale solving).
+    ///
+    /// # Errors
+    /// As [`DataTerm::evaluate`].
+    pub fn scale_for(&self, rendered: &[f32], measured: &[f32], fallback_scale: f64) -> Result<f64> {
+        if measured.len() != rendered.len() {
+            return Err(OptimError::LengthMismatch { what: "measured", expected: rendered.len(), got: measured.len() });
+        }
+        self.validate(rendered.len())?;
+        Ok(if self.solve_scale { self.optimal_scale(rendered, measured).unwrap_or(fallback_scale) } else { 1.0 })
     }
 
     /// The data term of one histogram at a fixed scale: `E(s·I; Ĩ)` over `rendered_row` and `measured_row`

@@ -44,30 +44,42 @@ pub(super) fn evaluate(st: &RunRecord, r: &Renderer, fit: &Fit<'_>, want_floor: 
     let (params, measured, norm) = (fit.params, fit.measured, fit.norm);
     let brdf = st.reflectance.brdf()?;
     let rendered = r.forward_any(&brdf);
-    let mut floor = 0.0;
-    let ev = match fit.sensor {
+    let inv = (1.0 / norm) as f32;
+    let (data, floor, scale, g) = match fit.sensor {
         Some(sensor) => {
             let (ev, a) = sensor.evaluate(&rendered, measured, params.data.solve_scale, st.scale)?;
-            if want_floor {
-                floor = sensor.noise_floor(&a, ev.scale) / norm;
-            }
-            ev
+            let floor = if want_floor { sensor.noise_floor(&a, ev.scale) / norm } else { 0.0 };
+            let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
+            (ev.value, floor, ev.scale, r.adjoint_any(&brdf, &d)?)
         }
         None => {
-            let ev = params.data.evaluate(&rendered, measured, st.scale)?;
-            if want_floor && params.data.counts {
-                floor = params.data.noise_floor(&rendered, measured, ev.scale)? / norm;
-            }
-            ev
+            // `DataTerm::evaluate`'s scale, value and gradient, to the bit: the gradient bin by bin on both
+            // cores, then the adjoint on both cores while the value and the noise floor (sums in bin order)
+            // take whichever core is free.
+            let term = &params.data;
+            let scale = term.scale_for(&rendered, measured, st.scale)?;
+            let (s32, w) = (scale as f32, term.weights.as_deref());
+            let d = term.loss.gradient_scaled(&rendered, s32, measured, w, inv)?;
+            let (g, sums) = rayon::join(
+                || r.adjoint_any(&brdf, &d),
+                || -> Result<(f64, f64)> {
+                    let value = term.loss.value_scaled(&rendered, s32, measured, w)?;
+                    let floor = if want_floor && term.counts {
+                        term.noise_floor(&rendered, measured, scale)? / norm
+                    } else {
+                        0.0
+                    };
+                    Ok((value, floor))
+                },
+            );
+            let (value, floor) = sums?;
+            (value, floor, scale, g?)
         }
     };
-    let inv = (1.0 / norm) as f32;
-    let d: Vec<f32> = ev.d_rendered.iter().map(|x| x * inv).collect();
-    let g = r.adjoint_any(&brdf, &d)?;
     Ok(Eval {
-        data: ev.value / norm,
+        data: data / norm,
         floor,
-        scale: ev.scale,
+        scale,
         grad_theta: st.reflectance.chain(&g.brdf),
         grad_vertices: g.vertices,
         grad_faces: g.faces,

@@ -65,6 +65,7 @@ impl CacheLayout {
     }
 
     /// The cache in measurement-major order (entry `m · triangles + slot`), as the GPU backend reads it.
+    #[cfg(any(feature = "gpu", test))]
     pub(in crate::render) fn measurement_major(&self, cache: &[u8]) -> Vec<u8> {
         let mut out = vec![0u8; cache.len()];
         for (m, row) in out.chunks_mut(self.triangles.max(1)).enumerate() {

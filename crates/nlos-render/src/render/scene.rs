@@ -75,6 +75,9 @@ pub(crate) struct Scene {
     pub(in crate::render) vis_generation: u64,
     /// Measurements finished by the CPU's visibility and forward passes ([`Renderer::new_observed`]).
     pub(in crate::render) progress: Option<Arc<AtomicUsize>>,
+    /// Seconds each task of the CPU's last adjoint pass took (its ranges of triangles): the next pass starts
+    /// the longest first ([`super::cpu::longest_first`]). A schedule only: the results do not depend on it.
+    pub(in crate::render) adjoint_costs: std::sync::Mutex<Vec<f64>>,
 }
 
 impl Scene {
@@ -138,6 +141,7 @@ impl Scene {
             tri_levels: Vec::new(),
             vis_generation: 0,
             progress,
+            adjoint_costs: std::sync::Mutex::new(Vec::new()),
         };
         r.set_positions(positions)?;
         if matches!(params.visibility, Visibility::Cached { .. }) {

@@ -65,67 +65,64 @@ impl Cpu<'_> {
         };
         let packed = self.packed_rule();
         let mut per_tri = vec![[0.0f64; 12]; nt];
-        let per_task_params: Vec<[f64; 4]> = per_tri
-            .par_chunks_mut(per_task)
-            .enumerate()
-            .map(|(ci, out)| {
-                let (r0, r1) = (ci * per_task, ci * per_task + out.len());
-                let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
-                let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
-                if !packed {
-                    for (m, adj) in d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]) {
-                        for (b0, b1) in blocks() {
-                            let o = &mut out[b0 - r0..b1 - r0];
-                            let row = Row { m, d: adj, d2: &[] };
-                            self.adjoint_pairs(Pass { brdf, kernel: k }, row, (b0, b1), o, &mut params, &mut sc);
-                        }
-                    }
-                    return params;
-                }
-                // Fixed and splat rules. Groups of FLUSH measurements × blocks: the group's potentially active
-                // triangles of the block are packed once; per sample point (sub-triangle) they are swept over
-                // the group's measurements, accumulating in f32 (packed order), then flushed into f64 (the
-                // f32 accumulators hold plain sums of dE/dx, the barycentric weights are applied at the
-                // flush). Per triangle the additions come in the same order whatever the packing and the
-                // thread count.
-                let (mut acc, mut pk) = (Acc::new(BLOCK), Packed::new());
-                let ms: Vec<usize> = (0..nonzero.len()).filter(|m| nonzero[*m]).collect();
-                for group in ms.chunks(FLUSH) {
+        let tasks: Vec<&mut [[f64; 12]]> = per_tri.chunks_mut(per_task).collect();
+        let per_task_params: Vec<[f64; 4]> = super::longest_first(tasks, &self.adjoint_costs, |ci, out| {
+            let (r0, r1) = (ci * per_task, ci * per_task + out.len());
+            let blocks = || (r0..r1).step_by(BLOCK).map(move |b0| (b0, (b0 + BLOCK).min(r1)));
+            let (mut sc, mut params) = (Scratch::new(), [0.0f64; 4]);
+            if !packed {
+                for (m, adj) in d_loss.chunks(bins).enumerate().filter(|(m, _)| nonzero[*m]) {
                     for (b0, b1) in blocks() {
-                        if !self.pack(group, b0, b1, &mut pk) {
-                            continue;
-                        }
-                        let n = self.block_level(b0);
-                        let tile = Tile { t0: b0, pk: &pk, level: n };
                         let o = &mut out[b0 - r0..b1 - r0];
-                        let slots = &pk.slots[..pk.len];
-                        subtriangles(n, |sub| {
-                            for &m in group {
-                                let adj = &padded[m * row_len..(m + 1) * row_len];
-                                match &splat {
-                                    Some(axis) => {
-                                        let d2 = &second[m * row_len..(m + 1) * row_len];
-                                        let (pass, row) = (Pass { brdf, kernel: axis }, Row { m, d: adj, d2 });
-                                        self.adjoint_tile_splat(pass, tile, row, &sub, &mut acc, &mut sc);
-                                    }
-                                    None => {
-                                        let (u, v) = sub.centroid;
-                                        let (pass, row) = (Pass { brdf, kernel: k }, Row { m, d: adj, d2: &[] });
-                                        self.adjoint_tile_fixed(pass, tile, row, (u, v, sub.w), &mut acc, &mut sc);
-                                    }
+                        let row = Row { m, d: adj, d2: &[] };
+                        self.adjoint_pairs(Pass { brdf, kernel: k }, row, (b0, b1), o, &mut params, &mut sc);
+                    }
+                }
+                return params;
+            }
+            // Fixed and splat rules. Groups of FLUSH measurements × blocks: the group's potentially active
+            // triangles of the block are packed once; per sample point (sub-triangle) they are swept over
+            // the group's measurements, accumulating in f32 (packed order), then flushed into f64 (the
+            // f32 accumulators hold plain sums of dE/dx, the barycentric weights are applied at the
+            // flush). Per triangle the additions come in the same order whatever the packing and the
+            // thread count.
+            let (mut acc, mut pk) = (Acc::new(BLOCK), Packed::new());
+            let ms: Vec<usize> = (0..nonzero.len()).filter(|m| nonzero[*m]).collect();
+            for group in ms.chunks(FLUSH) {
+                for (b0, b1) in blocks() {
+                    if !self.pack(group, b0, b1, &mut pk) {
+                        continue;
+                    }
+                    let n = self.block_level(b0);
+                    let tile = Tile { t0: b0, pk: &pk, level: n };
+                    let o = &mut out[b0 - r0..b1 - r0];
+                    let slots = &pk.slots[..pk.len];
+                    subtriangles(n, |sub| {
+                        for &m in group {
+                            let adj = &padded[m * row_len..(m + 1) * row_len];
+                            match &splat {
+                                Some(axis) => {
+                                    let d2 = &second[m * row_len..(m + 1) * row_len];
+                                    let (pass, row) = (Pass { brdf, kernel: axis }, Row { m, d: adj, d2 });
+                                    self.adjoint_tile_splat(pass, tile, row, &sub, &mut acc, &mut sc);
+                                }
+                                None => {
+                                    let (u, v) = sub.centroid;
+                                    let (pass, row) = (Pass { brdf, kernel: k }, Row { m, d: adj, d2: &[] });
+                                    self.adjoint_tile_fixed(pass, tile, row, (u, v, sub.w), &mut acc, &mut sc);
                                 }
                             }
-                            if splat.is_some() {
-                                acc.flush_splat(sub.centroid, sub.corners, slots, o, &mut params);
-                            } else {
-                                acc.flush_packed(sub.centroid, slots, o, &mut params);
-                            }
-                        });
-                    }
+                        }
+                        if splat.is_some() {
+                            acc.flush_splat(sub.centroid, sub.corners, slots, o, &mut params);
+                        } else {
+                            acc.flush_packed(sub.centroid, slots, o, &mut params);
+                        }
+                    });
                 }
-                params
-            })
-            .collect();
+            }
+            params
+        });
         let dp = per_task_params.iter().fold([0.0f64; 4], |mut a, b| {
             for i in 0..4 {
                 a[i] += b[i];

@@ -88,6 +88,56 @@ impl std::ops::Deref for Cpu<'_> {
 }
 
 mod adjoint;
+
+/// Runs `work(i, task)` for every task `i` on the pool's threads, the longest first: in decreasing order of
+/// `costs` (each task's seconds the last time, in task order; index order when their number differs), each
+/// thread taking the next task when it finishes one (longest-processing-time scheduling), and stores the
+/// seconds each took in `costs` for the next call. A pass of a few dozen tasks of unequal cost (the
+/// adjoint's ranges of triangles) otherwise often ends on one thread. The results come back in task
+/// order and do not depend on the order the tasks ran in.
+pub(in crate::render) fn longest_first<T: Send, R: Send>(
+    tasks: Vec<&mut [T]>,
+    costs: &std::sync::Mutex<Vec<f64>>,
+    work: impl Fn(usize, &mut [T]) -> R + Sync,
+) -> Vec<R> {
+    use std::sync::Mutex;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let n = tasks.len();
+    let mut order: Vec<usize> = (0..n).collect();
+    {
+        let last = costs.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if last.len() == n {
+            order.sort_by(|&a, &b| last[b].total_cmp(&last[a]));
+        }
+    }
+    let slots: Vec<Mutex<Option<&mut [T]>>> = tasks.into_iter().map(|t| Mutex::new(Some(t))).collect();
+    let done: Vec<Mutex<Option<(R, f64)>>> = (0..n).map(|_| Mutex::new(None)).collect();
+    let next = AtomicUsize::new(0);
+    let run = || {
+        loop {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            let Some(&i) = order.get(k) else { break };
+            let Some(task) = slots[i].lock().ok().and_then(|mut s| s.take()) else { continue };
+            let clock = std::time::Instant::now();
+            let r = work(i, task);
+            if let Ok(mut d) = done[i].lock() {
+                *d = Some((r, clock.elapsed().as_secs_f64()));
+            }
+        }
+    };
+    rayon::scope(|s| {
+        for _ in 1..rayon::current_num_threads().min(n) {
+            s.spawn(|_| run());
+        }
+        run();
+    });
+    let (results, seconds): (Vec<R>, Vec<f64>) = done
+        .into_iter()
+        .map(|d| d.into_inner().ok().flatten().expect("every task ran once (the scope waits for them)"))
+        .unzip();
+    *costs.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = seconds;
+    results
+}
 mod forward;
 pub(crate) mod lobe;
 mod sampling;
@@ -134,4 +184,34 @@ pub(in crate::render) struct Row<'a> {
     pub(in crate::render) m: usize,
     pub(in crate::render) d: &'a [f32],
     pub(in crate::render) d2: &'a [f32],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::longest_first;
+
+    /// Every task runs once on its own slice, the results come back in task order whatever the order they
+    /// ran in, and the seconds of each are kept for the next call (which then orders by them).
+    #[test]
+    fn longest_first_runs_each_task_once_and_returns_in_task_order() {
+        let costs = std::sync::Mutex::new(Vec::new());
+        for round in 0..3 {
+            let mut data = vec![0u32; 103];
+            let tasks: Vec<&mut [u32]> = data.chunks_mut(10).collect();
+            let n = tasks.len();
+            let out = longest_first(tasks, &costs, |i, s| {
+                // unequal work: the later tasks are slower
+                std::thread::sleep(std::time::Duration::from_micros(50 * i as u64));
+                for x in s.iter_mut() {
+                    *x += 1 + i as u32;
+                }
+                (i, s.len())
+            });
+            assert_eq!(out, (0..n).map(|i| (i, if i + 1 < n { 10 } else { 3 })).collect::<Vec<_>>(), "{round}");
+            assert!(data.iter().enumerate().all(|(k, &x)| x == 1 + (k / 10) as u32), "each task once");
+            let c = costs.lock().expect("not poisoned");
+            assert_eq!(c.len(), n);
+            assert!(c.iter().all(|&s| s > 0.0));
+        }
+    }
 }
