@@ -134,8 +134,9 @@ fn the_readme_is_short() {
     assert!(lines <= 125, "README.md has {lines} lines; keep it a page (details go to docs/)");
 }
 
-/// The crate table of docs/ARCHITECTURE.md lists, for every workspace crate, its `[dependencies]` exactly as
-/// its `Cargo.toml` declares them (parenthesised remarks aside; `—` for none).
+/// The crate table of docs/ARCHITECTURE.md lists, for every workspace crate, its `[dependencies]`
+/// (platform-specific ones included) exactly as its `Cargo.toml` declares them (parenthesised remarks aside;
+/// `—` for none).
 #[test]
 fn the_architecture_crate_table_matches_the_manifests() {
     let arch = std::fs::read_to_string(root().join("docs/ARCHITECTURE.md")).expect("docs/ARCHITECTURE.md");
@@ -174,11 +175,14 @@ fn the_architecture_crate_table_matches_the_manifests() {
         let text = std::fs::read_to_string(&manifest).expect("Cargo.toml");
         let toml: toml::Table = text.parse().expect("a valid Cargo.toml");
         let name = toml["package"]["name"].as_str().expect("package.name").to_string();
-        let declared: std::collections::BTreeSet<String> = toml
-            .get("dependencies")
-            .and_then(|d| d.as_table())
-            .map(|d| d.keys().cloned().collect())
-            .unwrap_or_default();
+        // `[dependencies]` and every `[target.'cfg(…)'.dependencies]`: a platform's dependency is one too.
+        let targets = toml.get("target").and_then(|t| t.as_table());
+        let declared: std::collections::BTreeSet<String> = std::iter::once(toml.get("dependencies"))
+            .chain(targets.into_iter().flat_map(|t| t.values().map(|cfg| cfg.get("dependencies"))))
+            .flatten()
+            .filter_map(|d| d.as_table())
+            .flat_map(|d| d.keys().cloned())
+            .collect();
         match rows.remove(&name) {
             None => wrong.push(format!("{name}: no row in the crate table")),
             Some(listed) if listed != declared => wrong.push(format!(
