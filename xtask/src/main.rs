@@ -15,14 +15,19 @@
 //!   `fuzz/` (cargo-fuzz on nightly, installed when missing); its table replaces the `fuzz` section of
 //!   `docs/results.md` (see `fuzz.rs`).
 //! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`, marking stale each
-//!   scenario whose section ran on code that has changed since (see `accept/results.rs`).
+//!   row whose inputs changed since it ran (see `board.rs`).
+//! - `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: re-runs every stale row, longest first.
+//! - `cargo xtask guard`: CI's subset of the board (the bunny, the `holes` slots); fails when a check the
+//!   committed board shows passing fails now.
 //! - `cargo xtask fixtures`: regenerates `fixtures/` (see `fixtures/README.md`).
 //! - `cargo xtask test [ARGS…]`: `cargo test --workspace ARGS…`, then the count of tests skipped for want of
 //!   the shared data.
 //! - `cargo xtask help`.
 
 mod accept;
+mod board;
 mod fuzz;
+mod znlos;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -32,11 +37,13 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("reconstruct") if args.len() > 1 => nlos(&args.iter().map(String::as_str).collect::<Vec<_>>()),
         Some("reconstruct") => demo(),
+        Some("accept") if args.iter().any(|a| a == "--stale") => board::refresh(&workspace_root(), &args[1..]),
         Some("accept") => accept::accept(&workspace_root(), &args[1..]),
+        Some("guard") => board::guard::guard(&workspace_root(), &args[1..]),
         Some("fixtures") => fixtures(),
         Some("test") => test(&args[1..]),
         Some("status") => accept::update_readme(&workspace_root()),
-        Some("benchmark") => benchmark(&args[1..]),
+        Some("benchmark") => znlos::benchmark(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&workspace_root(), &args[1..]),
         None | Some("help" | "--help" | "-h") => {
             println!("usage: cargo xtask reconstruct             the built-in demo (no data needed)");
@@ -57,8 +64,11 @@ fn main() -> ExitCode {
             println!(
                 "                                           N minutes (60) per fuzz target; writes docs/results.md"
             );
+            println!("       cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]");
+            println!("                                           every stale row re-run, longest first");
             println!("       cargo xtask status                  the README's status table from docs/results.md,");
             println!("                                           stale rows marked");
+            println!("       cargo xtask guard                   CI: the bunny and the holes slots against the board");
             println!(
                 "       cargo xtask fixtures                regenerate fixtures/ (the bunny start needs ../shared/data)"
             );
@@ -76,44 +86,7 @@ fn main() -> ExitCode {
     }
 }
 
-/// `cargo xtask benchmark znlos DIR [-- ARGS…]`: runs `nlos benchmark` and records its table.
-fn benchmark(args: &[String]) -> Result<(), String> {
-    let usage = "usage: cargo xtask benchmark znlos DIR [-- NLOS_BENCHMARK_ARGS...]";
-    let (Some("znlos"), Some(dir)) = (args.first().map(String::as_str), args.get(1)) else {
-        return Err(usage.into());
-    };
-    let extra: Vec<&str> = match args.get(2).map(String::as_str) {
-        Some("--") => args[3..].iter().map(String::as_str).collect(),
-        Some(other) => return Err(format!("unexpected `{other}`; {usage}")),
-        None => Vec::new(),
-    };
-    let root = workspace_root();
-    let out = root.join("out/benchmark");
-    let table = out.join("znlos.md");
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let (o, t) = (out.to_string_lossy().into_owned(), table.to_string_lossy().into_owned());
-    let mut cmd = vec!["benchmark", dir.as_str(), "--out", &o, "--table", &t];
-    cmd.extend(extra.iter().copied());
-    let started = std::time::Instant::now();
-    nlos(&cmd)?;
-    let rows = std::fs::read_to_string(&table).map_err(|e| format!("{}: {e}", table.display()))?;
-    let name = Path::new(dir).file_name().map_or_else(|| dir.clone(), |n| n.to_string_lossy().into_owned());
-    let md = format!(
-        "## znlos — measured — {}
-
-`nlos benchmark` on the Z-NLOS captures of `{name}` (ground-truth maps beside \
-         each), {:.0} s in all: each capture reconstructed by LCT and f-k (their surfaces: the arg-max depth of the \
-         kept columns) and by `nlos reconstruct` with the default settings{}, scored as `nlos eval --gt-depth \
-         --gt-normal --gt-layout dlct --wall CAPTURE` scores them: the maps as published, on the capture's full \
-         wall grid. Normal errors are over the pixels in brackets (the truth's and the method's surface).\n\n{rows}",
-        accept::utc_now(),
-        started.elapsed().as_secs_f64(),
-        if extra.is_empty() { String::new() } else { format!(" and `{}`", extra.join(" ")) },
-    );
-    accept::record(&root, "znlos", &md)
-}
-
-fn workspace_root() -> PathBuf {
+pub(crate) fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
@@ -245,7 +218,7 @@ fn test(args: &[String]) -> Result<(), String> {
     if status.success() { Ok(()) } else { Err(format!("`cargo test --workspace` failed ({status})")) }
 }
 
-fn nlos(args: &[&str]) -> Result<(), String> {
+pub(crate) fn nlos(args: &[&str]) -> Result<(), String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
         .current_dir(workspace_root())

@@ -86,7 +86,16 @@ impl FaceGrid {
     fn range(&self, lo: Vec3, hi: Vec3) -> ([i32; 3], [i32; 3]) {
         let (a, mut b) = (self.cell(lo), self.cell(hi));
         for k in 0..3 {
-            // bound the work for huge boxes (they get coarse coverage through the clamp in `insert`)
+            // Bounds the work for huge boxes: at most 65 cells per axis from the box's low corner. A box wider
+            // than that (a face, or a ring's swept move, over 64 cells: with the remesher's cells of two mean
+            // target edges, over 128 target edges on one axis) is inserted and queried over its first 65
+            // cells only, so a face that overlaps it only beyond them is not a candidate. Kept because no
+            // guarded operation comes near it: the remesher builds its guard on a mesh whose edges its sizing
+            // field describes (a start mesh, or the last stage's remeshed surface, whose longest edge is 4/3 of
+            // its target), and its moves stay inside a one-ring. Where a miss happened anyway, the run's
+            // exact self-intersection check after each block finds it (the board's collision check reports
+            // it; `NLOS_REQUIRE_NO_INTERSECTIONS=1` makes it an error). An exact form (an overflow list for
+            // wide faces, every face for a wide query) changes no run that stays under the clamp.
             b[k] = b[k].min(a[k].saturating_add(64));
         }
         (a, b)

@@ -31,8 +31,10 @@ impl Cpu<'_> {
         // Parallel over ranges of triangles: each task sweeps every measurement over its range, block by
         // block (the adjoint row stays in L1 across the blocks), and owns the range's accumulators, so there
         // is no lock and no reduction of per-thread vertex arrays. The range size depends on the mesh only
-        // (about 32 tasks, 1..16 blocks each), so the result does not depend on the thread count. Per
-        // triangle: the 12 geometric sums of `Acc::flush`.
+        // (about 32 tasks, 1..16 blocks each), so the result does not depend on the thread count. The tasks
+        // run longest first (`longest_first`: by the seconds each took in the last pass, kept in
+        // `adjoint_costs`), so that a pass does not end on one thread finishing a long range; the order they
+        // run in changes no sum. Per triangle: the 12 geometric sums of `Acc::flush`.
         let per_task = nt.div_ceil(32).next_multiple_of(BLOCK).clamp(BLOCK, 16 * BLOCK);
         // The tent fast path gathers from rows padded by a zero bin at each end (bin k at k + 1).
         let splat = self.splat_axis(k);
