@@ -723,7 +723,25 @@ pub(crate) fn readers_of_extension(path: &Path) -> Vec<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::normalized;
+    use std::collections::BTreeSet;
+
+    use super::{Fingerprints, normalized};
+
+    /// The readers a row reaches follow the readers' own references: the OpenEXR reader uses the sidecar and
+    /// nothing a MAT or HDF5 capture reaches uses it, so a change to it stales only the rows that read EXR.
+    #[test]
+    fn a_reader_reaches_the_readers_it_refers_to_and_no_other() {
+        let mut fp = Fingerprints::new(&crate::workspace_root());
+        let set = |v: &[&str]| v.iter().map(|s| (*s).to_string()).collect::<BTreeSet<String>>();
+        let exr = fp.reader_closure(&set(&["exr"])).expect("readers");
+        assert_eq!(exr, set(&["exr", "sidecar"]));
+        for entry in ["mat", "hdf5", "npy"] {
+            let reached = fp.reader_closure(&set(&[entry])).expect("readers");
+            assert!(reached.contains(entry) && !reached.contains("exr"), "{entry}: {reached:?}");
+        }
+        // A name that is no reader reaches nothing.
+        assert!(fp.reader_closure(&set(&["mesh"])).expect("readers").is_empty());
+    }
 
     fn same(a: &str, b: &str) -> bool {
         normalized(a).expect("a").to_string() == normalized(b).expect("b").to_string()
