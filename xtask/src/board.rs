@@ -209,10 +209,9 @@ pub(crate) fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
             Some(b) if Inputs::parse(b).is_none() && !b.contains(inputs::INPUTS_LINE) => {
                 match legacy::equivalent(&mut fp, &name, b) {
                     Ok(inputs) => {
-                        println!(
-                            "{name}: its code is as it ran ({}); inputs recorded",
-                            legacy::commit_of(b).unwrap_or("?")
-                        );
+                        let commit = legacy::commit_of(b).unwrap_or("?");
+                        let what = if dry { "its inputs would be recorded" } else { "inputs recorded" };
+                        println!("{name}: its code is as it ran ({commit}); {what}");
                         if !dry {
                             doc = page::replace_section(&doc, &name, &legacy::rekeyed(b, &inputs));
                         }
@@ -253,11 +252,11 @@ pub(crate) fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
             failed.push(name.clone());
         }
     }
+    let not_passing =
+        if failed.is_empty() { String::new() } else { format!("; not passing or not run: {}", failed.join(", ")) };
     println!(
-        "refreshed {} rows ({} not passing: {}); commit docs/results.md, README.md and docs/img as one Board commit",
-        stale.len(),
-        failed.len(),
-        failed.join(", ")
+        "refreshed {} rows{not_passing}; commit docs/results.md, README.md and docs/img as one Board commit",
+        stale.len()
     );
     Ok(())
 }
