@@ -5,17 +5,17 @@
 //!   xtask sources that define it ([`scenario_sources`]) and the shared data it reads ([`scenario_data`]); a
 //!   fuzz target's, its source and its readers. A row is stale only when one of those changed: a comment, a doc,
 //!   a test, a benchmark or a lint attribute changes none of them.
-//! - `cargo xtask accept --stale` ([`refresh`]) re-runs every stale row, one after another, longest first,
+//! - `cargo xtask accept --stale` ([`crate::refresh`]) re-runs every stale row, one after another, longest first,
 //!   each section written as it lands; a developer commits the batch as one "Board" commit.
 //! - `cargo xtask guard` ([`guard::guard`]) runs a short subset in CI and fails when a check that the committed
 //!   board shows passing fails on the code under test.
 
 pub(crate) mod guard;
 pub(crate) mod inputs;
-mod legacy;
+pub(crate) mod legacy;
 pub(crate) mod page;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use inputs::{Fingerprints, Inputs};
 
@@ -84,13 +84,46 @@ pub(crate) fn fuzz_target(row: &str) -> Option<&str> {
     row.strip_prefix("fuzz ")
 }
 
-/// Every row of the board in the order of `docs/results.md`, with what it checks: the scenarios, then one row
-/// per fuzz target.
-pub(crate) fn rows() -> Vec<(String, String)> {
+/// The scenarios with what each checks, in the order of `docs/results.md` (`crate::accept::SCENARIOS`; the
+/// callers pass it, so that the board depends on no scenario's code). Its `fuzz` entry stands for the fuzz
+/// targets ([`FUZZ_TARGETS`]).
+pub(crate) type Scenarios = [(&'static str, &'static str)];
+
+/// Every fuzz target, with what it reads.
+pub(crate) const FUZZ_TARGETS: [(&str, &str); 11] = [
+    ("mat_v5", "MAT v5: Stanford LCT, Tsai 2019, Stanford f-k"),
+    ("znlos_mat", "MAT v5: Z-NLOS as NeTF preprocessed it, and its wall"),
+    ("general_nlos", "MAT v5 pair: general-NLOS `data.mat` + `setup.mat`"),
+    ("hdf5", "HDF5: y-tal, Z-NLOS, MAT v7.3"),
+    ("npy", "`.npy` + JSON sidecar"),
+    ("exr", "OpenEXR captures"),
+    ("maps", "depth and normal maps (`.npy`, `.mat`, EXR), both layouts, scoring"),
+    ("mesh", "OBJ, PLY, GLB meshes"),
+    ("settings", "settings TOML → `Config`, resolved against a capture"),
+    ("checkpoint", "`checkpoint.json` through `resume`"),
+    ("grid", "grid detection from point lists"),
+];
+
+/// The capture readers (`crates/nlos-transient/src/formats` children) a target enters; the board keys its
+/// row to them and to those they use.
+pub(crate) fn fuzz_readers(target: &str) -> &'static [&'static str] {
+    match target {
+        "mat_v5" | "znlos_mat" | "general_nlos" => &["mat"],
+        "hdf5" => &["hdf5"],
+        "npy" | "grid" => &["npy"],
+        "exr" => &["exr"],
+        "maps" => &["npy", "mat", "exr"],
+        _ => &[],
+    }
+}
+
+/// Every row of the board in the order of `docs/results.md`, with what it checks: the scenarios, the fuzz
+/// targets in the place of `fuzz`.
+pub(crate) fn rows(scenarios: &Scenarios) -> Vec<(String, String)> {
     let mut v = Vec::new();
-    for (name, what) in crate::accept::SCENARIOS {
+    for &(name, what) in scenarios {
         if name == "fuzz" {
-            for (target, reads) in crate::fuzz::TARGETS {
+            for (target, reads) in FUZZ_TARGETS {
                 v.push((format!("fuzz {target}"), format!("fuzzed (`cargo xtask fuzz {target}`): {reads}")));
             }
         } else {
@@ -103,7 +136,7 @@ pub(crate) fn rows() -> Vec<(String, String)> {
 /// The components of row `name` now, for a run whose commands were `commands`.
 pub(crate) fn row_inputs(fp: &mut Fingerprints, name: &str, commands: &[String]) -> Result<Inputs, String> {
     match fuzz_target(name) {
-        Some(target) => fp.fuzz_inputs(target, crate::fuzz::readers(target)),
+        Some(target) => fp.fuzz_inputs(target, fuzz_readers(target)),
         None => fp.scenario_inputs(name, commands),
     }
 }
@@ -140,127 +173,4 @@ pub(crate) fn section<'a>(doc: &'a str, name: &str) -> Option<&'a str> {
     let i = doc.find(&open)? + open.len();
     let j = doc[i..].find(&close)? + i;
     Some(&doc[i..j])
-}
-
-/// Seconds a row last took: a scenario's "scenario wall time", the benchmark's "in all", a fuzz target's
-/// campaign (`fuzz_minutes`); 0 when its section says none.
-fn expected_seconds(name: &str, body: Option<&str>, fuzz_minutes: f64) -> f64 {
-    if fuzz_target(name).is_some() {
-        return fuzz_minutes * 60.0;
-    }
-    let body = body.unwrap_or_default();
-    let after = |m: &str| body.split(m).nth(1)?.split_whitespace().next()?.parse::<f64>().ok();
-    let before =
-        |m: &str| body.split(m).next().filter(|b| b.len() < body.len())?.split_whitespace().last()?.parse().ok();
-    after("scenario wall time ").or_else(|| before(" s in all")).unwrap_or(0.0)
-}
-
-/// The scenarios' cached renders (`out/accept/*_clean.*`) are made by the code that made them: removed when
-/// the `nlos` binary's code is not what the last refresh ran.
-fn invalidate_renders(root: &Path, fp: &mut Fingerprints) -> Result<(), String> {
-    let code = fp.component(&format!("code {BINARY_PACKAGE}"))?;
-    let out = root.join("out/accept");
-    let key = out.join("renders.code");
-    if std::fs::read_to_string(&key).is_ok_and(|k| k.trim() == code) {
-        return Ok(());
-    }
-    if let Ok(dir) = std::fs::read_dir(&out) {
-        for e in dir.flatten() {
-            if e.file_name().to_string_lossy().contains("_clean.") {
-                println!("removing {} (rendered by other code)", e.path().display());
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    std::fs::write(&key, &code).map_err(|e| format!("{}: {e}", key.display()))
-}
-
-/// `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: every stale row re-run, longest first, each
-/// section written as it lands; a section from before inputs were recorded whose code is unchanged gets its
-/// inputs line instead. Fuzz targets run M minutes each (default 5), adding to their total on the same code.
-pub(crate) fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
-    let mut fuzz_minutes = 5.0;
-    let mut dry = false;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--stale" => {}
-            "--dry-run" => dry = true,
-            "--fuzz-minutes" => {
-                fuzz_minutes = it
-                    .next()
-                    .and_then(|m| m.parse::<f64>().ok())
-                    .filter(|m| m.is_finite() && *m > 0.0)
-                    .ok_or("--fuzz-minutes takes a positive number")?;
-            }
-            other => return Err(format!("`accept --stale` takes --fuzz-minutes M and --dry-run, not `{other}`")),
-        }
-    }
-    let results = root.join(page::RESULTS);
-    let mut doc = std::fs::read_to_string(&results).map_err(|e| format!("{}: {e}", results.display()))?;
-    let mut fp = Fingerprints::new(root);
-    let mut stale = Vec::new();
-    for (name, _) in rows() {
-        let current = doc.clone();
-        let body = section(&current, &name);
-        let why = match body {
-            None => Some("never ran".to_string()),
-            Some(b) if Inputs::parse(b).is_none() && !b.contains(inputs::INPUTS_LINE) => {
-                match legacy::equivalent(&mut fp, &name, b) {
-                    Ok(inputs) => {
-                        let commit = legacy::commit_of(b).unwrap_or("?");
-                        let what = if dry { "its inputs would be recorded" } else { "inputs recorded" };
-                        println!("{name}: its code is as it ran ({commit}); {what}");
-                        if !dry {
-                            doc = page::replace_section(&doc, &name, &legacy::rekeyed(b, &inputs));
-                        }
-                        None
-                    }
-                    Err(why) => Some(why),
-                }
-            }
-            Some(b) => staleness(&mut fp, &name, b),
-        };
-        if let Some(why) = why {
-            stale.push((expected_seconds(&name, body, fuzz_minutes), name, why));
-        }
-    }
-    if !dry {
-        std::fs::write(&results, &doc).map_err(|e| format!("{}: {e}", results.display()))?;
-        page::update_readme(root)?;
-    }
-    stale.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let total: f64 = stale.iter().map(|s| s.0).sum();
-    println!("{} stale rows, about {:.0} min in all, longest first:", stale.len(), total / 60.0);
-    for (secs, name, why) in &stale {
-        println!("  {name} ({why}; about {:.0} min)", secs / 60.0);
-    }
-    if dry || stale.is_empty() {
-        return Ok(());
-    }
-    invalidate_renders(root, &mut fp)?;
-    let mut failed = Vec::new();
-    for (_, name, _) in &stale {
-        let res = match (fuzz_target(name), name.as_str()) {
-            (Some(target), _) => crate::fuzz::fuzz(root, &[s("--minutes"), fuzz_minutes.to_string(), s(target)]),
-            (None, "znlos") => crate::znlos::benchmark(&[s("znlos"), shared("znlos").to_string_lossy().into_owned()]),
-            (None, scenario) => crate::accept::accept(root, &[s(scenario)]),
-        };
-        if let Err(e) = res {
-            println!("{name}: {e}");
-            failed.push(name.clone());
-        }
-    }
-    let not_passing =
-        if failed.is_empty() { String::new() } else { format!("; not passing or not run: {}", failed.join(", ")) };
-    println!(
-        "refreshed {} rows{not_passing}; commit docs/results.md, README.md and docs/img as one Board commit",
-        stale.len()
-    );
-    Ok(())
-}
-
-fn s(x: &str) -> String {
-    x.to_string()
 }

@@ -11,34 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::accept;
-
-/// Every fuzz target, with what it reads.
-pub(crate) const TARGETS: [(&str, &str); 11] = [
-    ("mat_v5", "MAT v5: Stanford LCT, Tsai 2019, Stanford f-k"),
-    ("znlos_mat", "MAT v5: Z-NLOS as NeTF preprocessed it, and its wall"),
-    ("general_nlos", "MAT v5 pair: general-NLOS `data.mat` + `setup.mat`"),
-    ("hdf5", "HDF5: y-tal, Z-NLOS, MAT v7.3"),
-    ("npy", "`.npy` + JSON sidecar"),
-    ("exr", "OpenEXR captures"),
-    ("maps", "depth and normal maps (`.npy`, `.mat`, EXR), both layouts, scoring"),
-    ("mesh", "OBJ, PLY, GLB meshes"),
-    ("settings", "settings TOML → `Config`, resolved against a capture"),
-    ("checkpoint", "`checkpoint.json` through `resume`"),
-    ("grid", "grid detection from point lists"),
-];
-
-/// The capture readers (`crates/nlos-transient/src/formats` children) a target enters; the board keys its
-/// row to them and to those they use.
-pub(crate) fn readers(target: &str) -> &'static [&'static str] {
-    match target {
-        "mat_v5" | "znlos_mat" | "general_nlos" => &["mat"],
-        "hdf5" => &["hdf5"],
-        "npy" | "grid" => &["npy"],
-        "exr" => &["exr"],
-        "maps" => &["npy", "mat", "exr"],
-        _ => &[],
-    }
-}
+use crate::board::FUZZ_TARGETS as TARGETS;
 
 /// Seed files for a target's corpus (those that exist), relative to the workspace root; `prefix` is put
 /// before each (the maps target's first byte picks the reader).

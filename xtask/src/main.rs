@@ -27,6 +27,7 @@
 mod accept;
 mod board;
 mod fuzz;
+mod refresh;
 mod znlos;
 
 use std::path::{Path, PathBuf};
@@ -37,7 +38,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("reconstruct") if args.len() > 1 => nlos(&args.iter().map(String::as_str).collect::<Vec<_>>()),
         Some("reconstruct") => demo(),
-        Some("accept") if args.iter().any(|a| a == "--stale") => board::refresh(&workspace_root(), &args[1..]),
+        Some("accept") if args.iter().any(|a| a == "--stale") => refresh::refresh(&workspace_root(), &args[1..]),
         Some("accept") => accept::accept(&workspace_root(), &args[1..]),
         Some("guard") => board::guard::guard(&workspace_root(), &args[1..]),
         Some("fixtures") => fixtures(),

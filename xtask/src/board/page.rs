@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::Command;
 
 use crate::board::inputs::{Fingerprints, INPUTS_LINE};
-use crate::board::rows;
+use crate::board::{Scenarios, rows};
 
 pub(crate) const RESULTS: &str = "docs/results.md";
 const RESULTS_HEAD: &str = "# Results\n\n\
@@ -42,7 +42,7 @@ pub(crate) const CAPTURE_ENV: &str = "NLOS_BOARD_CAPTURE";
 /// Writes `md` (a section starting `## NAME — PASS|FAIL — DATE`) as the section of row `name` of
 /// `docs/results.md`, replacing the previous one, with the commit it ran on and its inputs
 /// ([`crate::board::row_inputs`]) after its title, and regenerates the README's status table.
-pub(crate) fn record(root: &Path, name: &str, md: &str) -> Result<(), String> {
+pub(crate) fn record(root: &Path, name: &str, md: &str, scenarios: &Scenarios) -> Result<(), String> {
     if let Some(file) = std::env::var_os(CAPTURE_ENV) {
         let (open, close) = markers(name);
         let mut kept = std::fs::read_to_string(&file).unwrap_or_default();
@@ -65,9 +65,9 @@ pub(crate) fn record(root: &Path, name: &str, md: &str) -> Result<(), String> {
     let md = md
         .replace(&format!("{}/", root.display()), "")
         .replace(&format!("{}/", shared.canonicalize().unwrap_or(shared.clone()).display()), "../shared/data/");
-    let doc = replace_section(&doc, name, md.trim_end());
+    let doc = replace_section(&doc, name, md.trim_end(), scenarios);
     std::fs::write(&f, doc).map_err(|e| format!("{}: {e}", f.display()))?;
-    update_readme(root)
+    update_readme(root, scenarios)
 }
 
 fn markers(name: &str) -> (String, String) {
@@ -76,9 +76,9 @@ fn markers(name: &str) -> (String, String) {
 
 /// `doc` with the section of `name` replaced by `body` (inserted in the order of [`rows`] when absent; a
 /// section of no row is dropped).
-pub(crate) fn replace_section(doc: &str, name: &str, body: &str) -> String {
+pub(crate) fn replace_section(doc: &str, name: &str, body: &str, scenarios: &Scenarios) -> String {
     let mut sections: Vec<(String, String)> = Vec::new();
-    for (row, _) in rows() {
+    for (row, _) in rows(scenarios) {
         if row == name {
             sections.push((row, body.trim().to_string()));
         } else if let Some(b) = crate::board::section(doc, &row) {
@@ -98,12 +98,16 @@ pub(crate) fn replace_section(doc: &str, name: &str, body: &str) -> String {
 /// The README's status table, made from `docs/results.md`: one row per scenario with its latest status,
 /// date and the targets it missed; a section `stale` finds stale ([`staleness`], given the scenario and its
 /// section) says so beside its status.
-pub fn status_table(results: &str, mut stale: impl FnMut(&str, &str) -> Option<String>) -> String {
+pub fn status_table(
+    results: &str,
+    scenarios: &Scenarios,
+    mut stale: impl FnMut(&str, &str) -> Option<String>,
+) -> String {
     let mut t =
         String::from("| row | what it checks | latest run | status | targets missed |\n|---|---|---|---|---|\n");
     // The fuzz targets, each a row of the board, share one line of the README's table.
     let mut fuzz: Vec<(String, Option<Cells>)> = Vec::new();
-    for (name, what) in rows() {
+    for (name, what) in rows(scenarios) {
         let cells = crate::board::section(results, &name).map(|body| Cells::of(body, stale(&name, body)));
         if let Some(target) = crate::board::fuzz_target(&name) {
             fuzz.push((target.to_string(), cells));
@@ -123,7 +127,7 @@ pub fn status_table(results: &str, mut stale: impl FnMut(&str, &str) -> Option<S
         t.push('\n');
     }
     if !fuzz.is_empty() {
-        let what = crate::accept::SCENARIOS.iter().find(|(n, _)| *n == "fuzz").map_or("", |(_, w)| *w);
+        let what = scenarios.iter().find(|(n, _)| *n == "fuzz").map_or("", |(_, w)| *w);
         let ran: Vec<&Cells> = fuzz.iter().filter_map(|(_, c)| c.as_ref()).collect();
         let date = ran.iter().map(|c| c.date.as_str()).max().unwrap_or("never");
         let done = ran.iter().filter(|c| c.status == "PASS" && c.stale.is_none()).count();
@@ -195,11 +199,12 @@ const STALE: &str = " (stale: ";
 pub fn readme_with_status(
     readme: &str,
     results: &str,
+    scenarios: &Scenarios,
     stale: impl FnMut(&str, &str) -> Option<String>,
 ) -> Option<String> {
     let i = readme.find(STATUS_BEGIN)? + STATUS_BEGIN.len();
     let j = readme.find(STATUS_END)?;
-    Some(format!("{}\n{}{}", &readme[..i], status_table(results, stale), &readme[j..]))
+    Some(format!("{}\n{}{}", &readme[..i], status_table(results, scenarios, stale), &readme[j..]))
 }
 
 /// `text` without the stale marks of its status table (what the table says whatever the commits since).
@@ -217,7 +222,7 @@ fn without_stale_marks(text: &str) -> String {
 
 /// `cargo xtask status`: rewrites the README's status table from `docs/results.md`, each scenario whose
 /// section is older than the code it describes marked stale ([`staleness`]), and lists those.
-pub fn update_readme(root: &Path) -> Result<(), String> {
+pub fn update_readme(root: &Path, scenarios: &Scenarios) -> Result<(), String> {
     let (rf, sf) = (root.join("README.md"), root.join(RESULTS));
     let readme = std::fs::read_to_string(&rf).map_err(|e| format!("{}: {e}", rf.display()))?;
     let results = std::fs::read_to_string(&sf).map_err(|e| format!("{}: {e}", sf.display()))?;
@@ -230,14 +235,17 @@ pub fn update_readme(root: &Path) -> Result<(), String> {
         }
         why
     };
-    let new = readme_with_status(&readme, &results, stale)
+    let new = readme_with_status(&readme, &results, scenarios, stale)
         .ok_or_else(|| format!("{}: no status table markers ({STATUS_BEGIN} … {STATUS_END})", rf.display()))?;
     std::fs::write(&rf, &new).map_err(|e| format!("{}: {e}", rf.display()))?;
     for l in &marked {
         println!("{l}");
     }
-    let never: Vec<String> =
-        rows().into_iter().filter(|(n, _)| crate::board::section(&results, n).is_none()).map(|(n, _)| n).collect();
+    let never: Vec<String> = rows(scenarios)
+        .into_iter()
+        .filter(|(n, _)| crate::board::section(&results, n).is_none())
+        .map(|(n, _)| n)
+        .collect();
     for name in &never {
         println!("never ran: {name}");
     }
@@ -256,9 +264,10 @@ mod tests {
 
     #[test]
     fn sections_are_replaced_in_place_and_inserted_in_order() {
-        let doc = replace_section("# Results\n", "soap", "## soap — FAIL — d1\n\n- FAIL x");
-        let doc = replace_section(&doc, "bunny", "## bunny — PASS — d2");
-        let doc = replace_section(&doc, "soap", "## soap — PASS — d3");
+        let s = &crate::accept::SCENARIOS;
+        let doc = replace_section("# Results\n", "soap", "## soap — FAIL — d1\n\n- FAIL x", s);
+        let doc = replace_section(&doc, "bunny", "## bunny — PASS — d2", s);
+        let doc = replace_section(&doc, "soap", "## soap — PASS — d3", s);
         assert!(doc.starts_with("# Results\n"));
         let (b, s) = (doc.find("## bunny").expect("bunny"), doc.find("## soap — PASS — d3").expect("soap"));
         assert!(b < s && !doc.contains("d1"), "{doc}");
@@ -270,7 +279,8 @@ mod tests {
         let root = crate::workspace_root();
         let readme = std::fs::read_to_string(root.join("README.md")).expect("README");
         let results = std::fs::read_to_string(root.join("docs/results.md")).expect("docs/results.md");
-        let generated = readme_with_status(&readme, &results, |_, _| None).expect("the README has the status markers");
+        let generated = readme_with_status(&readme, &results, &crate::accept::SCENARIOS, |_, _| None)
+            .expect("the README has the status markers");
         assert!(
             without_stale_marks(&generated) == without_stale_marks(&readme),
             "the README's status table is stale: run `cargo xtask status`"
