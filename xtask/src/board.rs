@@ -15,7 +15,7 @@ pub(crate) mod inputs;
 pub(crate) mod legacy;
 pub(crate) mod page;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use inputs::{Fingerprints, Inputs};
 
@@ -173,4 +173,25 @@ pub(crate) fn section<'a>(doc: &'a str, name: &str) -> Option<&'a str> {
     let i = doc.find(&open)? + open.len();
     let j = doc[i..].find(&close)? + i;
     Some(&doc[i..j])
+}
+
+/// The scenarios' cached renders (`out/accept/*_clean.*`) are made by the code that made them: removed when
+/// the `nlos` binary's code is not what the last refresh or guard ran.
+pub(crate) fn invalidate_renders(root: &Path, fp: &mut Fingerprints) -> Result<(), String> {
+    let code = fp.component(&format!("code {BINARY_PACKAGE}"))?;
+    let out = root.join("out/accept");
+    let key = out.join("renders.code");
+    if std::fs::read_to_string(&key).is_ok_and(|k| k.trim() == code) {
+        return Ok(());
+    }
+    if let Ok(dir) = std::fs::read_dir(&out) {
+        for e in dir.flatten() {
+            if e.file_name().to_string_lossy().contains("_clean.") {
+                println!("removing {} (rendered by other code)", e.path().display());
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    std::fs::write(&key, &code).map_err(|e| format!("{}: {e}", key.display()))
 }

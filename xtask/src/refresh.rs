@@ -6,7 +6,7 @@ use std::path::Path;
 
 use crate::accept::SCENARIOS;
 use crate::board::inputs::{self, Fingerprints, Inputs};
-use crate::board::{BINARY_PACKAGE, fuzz_target, legacy, page, rows, section, shared, staleness};
+use crate::board::{fuzz_target, legacy, page, rows, section, shared, staleness};
 
 /// Seconds a row last took: a scenario's "scenario wall time", the benchmark's "in all", a fuzz target's
 /// campaign (`fuzz_minutes`); 0 when its section says none.
@@ -19,27 +19,6 @@ fn expected_seconds(name: &str, body: Option<&str>, fuzz_minutes: f64) -> f64 {
     let before =
         |m: &str| body.split(m).next().filter(|b| b.len() < body.len())?.split_whitespace().last()?.parse().ok();
     after("scenario wall time ").or_else(|| before(" s in all")).unwrap_or(0.0)
-}
-
-/// The scenarios' cached renders (`out/accept/*_clean.*`) are made by the code that made them: removed when
-/// the `nlos` binary's code is not what the last refresh ran.
-fn invalidate_renders(root: &Path, fp: &mut Fingerprints) -> Result<(), String> {
-    let code = fp.component(&format!("code {BINARY_PACKAGE}"))?;
-    let out = root.join("out/accept");
-    let key = out.join("renders.code");
-    if std::fs::read_to_string(&key).is_ok_and(|k| k.trim() == code) {
-        return Ok(());
-    }
-    if let Ok(dir) = std::fs::read_dir(&out) {
-        for e in dir.flatten() {
-            if e.file_name().to_string_lossy().contains("_clean.") {
-                println!("removing {} (rendered by other code)", e.path().display());
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
-    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    std::fs::write(&key, &code).map_err(|e| format!("{}: {e}", key.display()))
 }
 
 /// `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: every stale row re-run, longest first, each
@@ -105,7 +84,7 @@ pub fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
     if dry || stale.is_empty() {
         return Ok(());
     }
-    invalidate_renders(root, &mut fp)?;
+    crate::board::invalidate_renders(root, &mut fp)?;
     let mut failed = Vec::new();
     for (_, name, _) in &stale {
         let res = match (fuzz_target(name), name.as_str()) {

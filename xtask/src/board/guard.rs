@@ -113,6 +113,8 @@ pub(crate) fn guard(root: &Path, args: &[String]) -> Result<(), String> {
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let capture = dir.join("sections.md");
     let _ = std::fs::remove_file(&capture);
+    // A render cached by other code is not this code's (a clean checkout, as in CI, has none).
+    super::invalidate_renders(root, &mut super::inputs::Fingerprints::new(root))?;
     let exe = std::env::current_exe().map_err(|e| format!("the xtask binary: {e}"))?;
     let started = std::time::Instant::now();
     for (scenario, fixtures) in SUBSET {
