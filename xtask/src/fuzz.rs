@@ -255,7 +255,7 @@ pub fn fuzz(root: &Path, args: &[String]) -> Result<(), String> {
         // The campaigns so far, when they ran on the code as it is.
         let mut fp = crate::board::inputs::Fingerprints::new(root);
         let mut lines = match crate::board::section(&doc, &row) {
-            Some(body) if crate::board::staleness(&mut fp, &row, body).is_none() => campaign_lines(body),
+            Some(body) if crate::board::staleness(&mut fp, body).is_none() => campaign_lines(body),
             _ => Vec::new(),
         };
         lines.push(campaign_line(&c, &date));

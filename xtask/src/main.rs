@@ -12,8 +12,8 @@
 //!   with ground-truth maps beside it: LCT, f-k and the surface fit, scored against the maps); its table
 //!   replaces the `znlos` section of `docs/results.md`.
 //! - `cargo xtask fuzz [--minutes N] [TARGET…]`: a fuzzing campaign, N minutes (default 60) per target of
-//!   `fuzz/` (cargo-fuzz on nightly, installed when missing); its table replaces the `fuzz` section of
-//!   `docs/results.md` (see `fuzz.rs`).
+//!   `fuzz/` (cargo-fuzz on nightly, installed when missing); each target's campaign adds to its row of
+//!   `docs/results.md` when it ran on the same code (see `fuzz.rs`).
 //! - `cargo xtask status`: regenerates the README's status table from `docs/results.md`, marking stale each
 //!   row whose inputs changed since it ran (see `board.rs`).
 //! - `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: re-runs every stale row, longest first.

@@ -1,12 +1,11 @@
 //! `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: every stale row of the board re-run, longest
-//! first, each section written as it lands; a section from before inputs were recorded whose code is as it ran
-//! gets its inputs line instead ([`crate::board`]).
+//! first, each section written as it lands ([`crate::board`]).
 
 use std::path::Path;
 
 use crate::accept::SCENARIOS;
-use crate::board::inputs::{self, Fingerprints, Inputs};
-use crate::board::{fuzz_target, legacy, page, rows, section, shared, staleness};
+use crate::board::inputs::Fingerprints;
+use crate::board::{fuzz_target, page, rows, section, shared, staleness};
 
 /// Seconds a row last took: a scenario's "scenario wall time", the benchmark's "in all", a fuzz target's
 /// campaign (`fuzz_minutes`); 0 when its section says none.
@@ -22,8 +21,7 @@ fn expected_seconds(name: &str, body: Option<&str>, fuzz_minutes: f64) -> f64 {
 }
 
 /// `cargo xtask accept --stale [--fuzz-minutes M] [--dry-run]`: every stale row re-run, longest first, each
-/// section written as it lands; a section from before inputs were recorded whose code is unchanged gets its
-/// inputs line instead. Fuzz targets run M minutes each (default 5), adding to their total on the same code.
+/// section written as it lands. Fuzz targets run M minutes each (default 5), adding to their total on the same code.
 pub fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
     let mut fuzz_minutes = 5.0;
     let mut dry = false;
@@ -43,37 +41,18 @@ pub fn refresh(root: &Path, args: &[String]) -> Result<(), String> {
         }
     }
     let results = root.join(page::RESULTS);
-    let mut doc = std::fs::read_to_string(&results).map_err(|e| format!("{}: {e}", results.display()))?;
+    let doc = std::fs::read_to_string(&results).map_err(|e| format!("{}: {e}", results.display()))?;
     let mut fp = Fingerprints::new(root);
     let mut stale = Vec::new();
     for (name, _) in rows(&SCENARIOS) {
-        let current = doc.clone();
-        let body = section(&current, &name);
+        let body = section(&doc, &name);
         let why = match body {
             None => Some("never ran".to_string()),
-            Some(b) if Inputs::parse(b).is_none() && !b.contains(inputs::INPUTS_LINE) => {
-                match legacy::equivalent(&mut fp, &name, b) {
-                    Ok(inputs) => {
-                        let commit = legacy::commit_of(b).unwrap_or("?");
-                        let what = if dry { "its inputs would be recorded" } else { "inputs recorded" };
-                        println!("{name}: its code is as it ran ({commit}); {what}");
-                        if !dry {
-                            doc = page::replace_section(&doc, &name, &legacy::rekeyed(b, &inputs), &SCENARIOS);
-                        }
-                        None
-                    }
-                    Err(why) => Some(why),
-                }
-            }
-            Some(b) => staleness(&mut fp, &name, b),
+            Some(b) => staleness(&mut fp, b),
         };
         if let Some(why) = why {
             stale.push((expected_seconds(&name, body, fuzz_minutes), name, why));
         }
-    }
-    if !dry {
-        std::fs::write(&results, &doc).map_err(|e| format!("{}: {e}", results.display()))?;
-        page::update_readme(root, &SCENARIOS)?;
     }
     stale.sort_by(|a, b| b.0.total_cmp(&a.0));
     let total: f64 = stale.iter().map(|s| s.0).sum();

@@ -21,7 +21,7 @@ fn git(root: &Path, args: &[&str]) -> Option<(i32, String)> {
     Some((out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).trim().to_string()))
 }
 
-pub(crate) const CODE_LINE: &str = "code: commit `";
+const CODE_LINE: &str = "code: commit `";
 const UNCOMMITTED: &str = " with uncommitted changes";
 
 /// The section's line naming the commit it ran on, and whether the working tree had changes to code then (for
@@ -229,7 +229,7 @@ pub fn update_readme(root: &Path, scenarios: &Scenarios) -> Result<(), String> {
     let mut fp = Fingerprints::new(root);
     let mut marked = Vec::new();
     let stale = |name: &str, body: &str| {
-        let why = crate::board::staleness(&mut fp, name, body);
+        let why = crate::board::staleness(&mut fp, body);
         if let Some(w) = &why {
             marked.push(format!("stale: {name} ({w})"));
         }
@@ -297,14 +297,14 @@ mod tests {
         assert!(inputs.0.contains_key("code nlos-cli") && inputs.0.contains_key("scenario holes"), "{inputs:?}");
         assert!(inputs.0.contains_key("reader hdf5"), "the capture is HDF5: {inputs:?}");
         let body = |line: &str| format!("## holes — PASS — d\n\ncode: commit `x`\n{line}\n\n- PASS x\n");
-        assert_eq!(staleness(&mut fp, "holes", &body(&inputs.line())), None);
+        assert_eq!(staleness(&mut fp, &body(&inputs.line())), None);
         let mut changed = inputs.clone();
         changed.0.insert("scenario holes".into(), "000000000000".into());
-        let why = staleness(&mut fp, "holes", &body(&changed.line())).expect("stale");
+        let why = staleness(&mut fp, &body(&changed.line())).expect("stale");
         assert_eq!(why, "changed: scenario holes");
-        let why = staleness(&mut fp, "holes", &body("inputs: unknown (no metadata)")).expect("stale");
+        let why = staleness(&mut fp, &body("inputs: unknown (no metadata)")).expect("stale");
         assert!(why.starts_with("inputs unknown"), "{why}");
-        let why = staleness(&mut fp, "holes", "## holes — PASS — d\n\n- PASS x\n").expect("stale");
+        let why = staleness(&mut fp, "## holes — PASS — d\n\n- PASS x\n").expect("stale");
         assert!(why.contains("no inputs"), "{why}");
         let marked = "| **PASS** (stale: changed: code nlos-cli) | x |";
         assert_eq!(without_stale_marks(marked), "| **PASS** | x |");
