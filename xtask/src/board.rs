@@ -33,7 +33,7 @@ pub(crate) fn scenario_sources(name: &str) -> Vec<&'static str> {
         "nonconfocal" => &["accept/nonconfocal.rs", "accept/own_shapes.rs"],
         "relay" => &["accept/relay.rs"],
         "detail" => &["accept/detail.rs", "accept/relay.rs"],
-        "holes" => &["accept/holes.rs"],
+        "holes" => &["accept/holes.rs", "accept/holes/mc_noise.rs"],
         "znlos" => return vec!["znlos.rs"],
         _ => &[],
     };
@@ -64,6 +64,7 @@ pub(crate) fn scenario_data(name: &str) -> &'static [&'static str] {
         ],
         "relay" => &[BUNNY, GENERAL[0], GENERAL[1]],
         "detail" => &[CHART, GENERAL[0], GENERAL[1]],
+        "holes" => &["reference/plane_mc.hdf5", "reference/plane_quadrature.hdf5"],
         "znlos" => &["znlos"],
         _ => &[],
     }
