@@ -225,7 +225,8 @@ fn albedo_step(st: &mut RunRecord, params: &ReconstructParams, tv_weight: f64, g
         params: ap,
         tv_weight,
         lr: ap.lr * st.lr_scale,
-        recentre: params.data.solve_scale,
+        // An anchored albedo keeps its anchor's gauge (crate::anchor, "Gauge").
+        recentre: params.data.solve_scale && ap.band.is_none(),
     };
     albedo::step(&mut st.surface, &mut st.albedo_steps, grad_faces, &settings)
 }
