@@ -63,14 +63,11 @@ pub struct AlbedoParams {
     pub tv: f64,
     /// Largest relative albedo (default 8): a guard, so that a vertex that sees little light cannot run away.
     pub max: f64,
-    /// How far the fit may move a vertex's albedo from its anchor ([`crate::anchor`]), in relative albedo;
-    /// None: no anchor, the albedo starts at the mean and moves freely within `[0, max]`.
-    pub band: Option<f64>,
 }
 
 impl Default for AlbedoParams {
     fn default() -> Self {
-        Self { lr: 0.05, tv: 0.05, max: 8.0, band: None }
+        Self { lr: 0.05, tv: 0.05, max: 8.0 }
     }
 }
 
@@ -90,11 +87,6 @@ impl AlbedoParams {
         }
         if !(self.max.is_finite() && self.max > 1.0) {
             return bad("albedo.max", self.max, "the largest relative albedo must be finite and > 1 (the mean)");
-        }
-        if let Some(b) = self.band
-            && !(b.is_finite() && b >= 0.0)
-        {
-            return bad("albedo.band", b, "the band around the anchor must be finite and >= 0");
         }
         Ok(())
     }
@@ -197,17 +189,9 @@ pub fn step(surface: &mut Surface, steps: &mut u64, grad_faces: &[f32], settings
     *steps += 1;
     let delta = scalar_step(adam, *steps, surface.vertex_mut(ALBEDO_MOMENTS)?, &grad, lr);
     let (positions, triangles) = (surface.positions().to_vec(), surface.triangles().to_vec());
-    let anchor = match params.band {
-        Some(_) => Some(surface.vertex(crate::anchor::ANCHOR)?.to_vec()),
-        None => None,
-    };
     let albedo = surface.vertex_mut(ALBEDO)?;
-    for (v, (a, d)) in albedo.iter_mut().zip(&delta).enumerate() {
-        let (lo, hi) = match (&anchor, params.band) {
-            (Some(anchor), Some(band)) => ((anchor[v] - band).max(0.0), (anchor[v] + band).min(params.max)),
-            _ => (0.0, params.max),
-        };
-        *a = (*a + d).clamp(lo, hi.max(lo));
+    for (a, d) in albedo.iter_mut().zip(&delta) {
+        *a = (*a + d).clamp(0.0, params.max);
     }
     if recentre_mean {
         recentre(albedo, &positions, &triangles);

@@ -41,7 +41,6 @@
 
 pub mod adam;
 pub mod albedo;
-pub mod anchor;
 pub mod boundary_smoothing;
 pub mod builtin;
 pub mod data_term;

@@ -200,10 +200,7 @@ impl Prepared {
             ..ResidualParams::default()
         });
         p.sensor = self.sensor_fit(config)?;
-        p.albedo = (config.albedo == AlbedoChoice::Vertex).then(|| crate::AlbedoParams {
-            band: std::env::var("NLOS_ALBEDO_BAND").ok().and_then(|v| v.parse().ok()),
-            ..crate::AlbedoParams::default()
-        });
+        p.albedo = (config.albedo == AlbedoChoice::Vertex).then(crate::AlbedoParams::default);
         p.validate()?;
         Ok(p)
     }

@@ -225,8 +225,7 @@ fn albedo_step(st: &mut RunRecord, params: &ReconstructParams, tv_weight: f64, g
         params: ap,
         tv_weight,
         lr: ap.lr * st.lr_scale,
-        // An anchored albedo keeps its anchor's gauge (crate::anchor, "Gauge").
-        recentre: params.data.solve_scale && ap.band.is_none(),
+        recentre: params.data.solve_scale,
     };
     albedo::step(&mut st.surface, &mut st.albedo_steps, grad_faces, &settings)
 }

@@ -57,7 +57,6 @@ use std::ops::ControlFlow;
 
 use crate::adam::{Moments, VectorAdam, VertexAdam};
 use crate::albedo::{ALBEDO, face_weights};
-use crate::anchor::{ANCHOR, CaptureVolume};
 use crate::boundary_smoothing::BoundarySmoothing;
 use crate::error::{OptimError, Result};
 use crate::params::{ReconstructParams, SamplingSchedule};
@@ -427,11 +426,6 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
     let mut evolve: Option<&mut dyn Evolve> = hooks.evolve.take();
     let ctx = RunCtx::new(&st, params, Plan::new(params.schedule, measured.measurements(), params.sensor.is_some()));
 
-    // The capture's volume the albedo's anchor reads (crate::anchor), when the albedo is anchored.
-    let capture_volume = match &params.albedo {
-        Some(a) if a.band.is_some() => CaptureVolume::new(measured, params.reflectance.model())?,
-        _ => None,
-    };
     // The capture of the current stage (coarse to fine in time, crate::Schedule): made at a stage's first block.
     let mut stage_data: Option<StageData> = None;
     while st.finished.is_none() {
@@ -444,11 +438,6 @@ fn run(measured: &Transient, mut st: RunRecord, params: &ReconstructParams, mut 
         let norm = data_normaliser(params, stage_capture.data())?;
         // Step 1: topology (remeshing at the stage's edge), then the block's renderer and regularisers.
         let (boundary, remesh_refused) = prepare_topology(&mut st, target as f32, params, stage_capture)?;
-        if st.block_in_stage == 0
-            && let Some(cv) = &capture_volume
-        {
-            anchor_albedo(&mut st, cv, measured, params)?;
-        }
         let mut renderer = Renderer::new(
             st.surface.positions(),
             st.surface.triangles(),
@@ -580,32 +569,6 @@ fn progress(st: &RunRecord, event: ProgressEvent, planned: u64, loss: f64, targe
 /// Calls the progress hook, if any.
 fn report(hooks: &mut Hooks<'_>, p: &Progress) -> ControlFlow<()> {
     hooks.progress.as_mut().map_or(ControlFlow::Continue(()), |cb| cb(p))
-}
-
-/// Sets the anchor of every vertex's albedo from the current surface (crate::anchor) and brings the albedo
-/// within its band: the first stage starts at the anchor, later ones keep what the fit moved within the new band.
-fn anchor_albedo(st: &mut RunRecord, cv: &CaptureVolume, measured: &Transient, params: &ReconstructParams) -> Result<()> {
-    let Some(ap) = &params.albedo else { return Ok(()) };
-    let band = ap.band.unwrap_or(f64::INFINITY);
-    let mut rng = st.rng;
-    let render = render_params(params, st.stage, &mut rng);
-    let brdf = st.reflectance.brdf()?;
-    let anchors = cv.anchors(st.surface.positions(), st.surface.triangles(), measured, &brdf, render)?;
-    let first = st.stage == 0;
-    if let Ok(dir) = std::env::var("NLOS_DEBUG_ANCHOR") {
-        let mut out = String::new();
-        for (p, a) in st.surface.positions().iter().zip(&anchors) {
-            out += &format!("{} {} {} {}\n", p.x, p.y, p.z, a);
-        }
-        let _ = std::fs::write(format!("{dir}/anchor_{}.txt", st.stage), out);
-    }
-    st.surface.vertex_mut(ANCHOR)?.copy_from_slice(&anchors);
-    let albedo = st.surface.vertex_mut(ALBEDO)?;
-    for (a, &c) in albedo.iter_mut().zip(&anchors) {
-        let c = c.min(ap.max);
-        *a = if first { c } else { a.clamp((c - band).max(0.0), (c + band).min(ap.max)) };
-    }
-    Ok(())
 }
 
 /// Gives the renderer the per-triangle factors of the surface's albedo ([`crate::albedo::face_weights`];
