@@ -431,7 +431,7 @@ pub(super) fn holes(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
     let _ = writeln!(
         text,
         "\nintensities: the clean render with the independent path tracer's noise, measured on its Lambertian square \
-         (`var = {law_a:.3} · M² · (I/M)^{law_p:.2}`, its residuals' own shape; `accept/holes/mc_noise.rs`)"
+         (`var = {law_a:.2e} · M² · (I/M)^{law_p:.2}`, its residuals' own shape; `accept/holes/mc_noise.rs`)"
     );
     for (fixture, mesh) in fixtures(&r.out)? {
         let (clean, _) = r.clean_render(&mesh, &format!("holes_{}", fixture.name), &[])?;
@@ -573,9 +573,18 @@ mod tests {
         nlos_mesh::io::save_ply_with_albedo(&m, &vec![BRIGHT; soup.positions.len()], &cut).expect("ply");
         let j = judge(print, &cut).expect("judged");
         assert!(j.off < 0.02 && j.print_r.is_some_and(|r| r > 0.95), "off {}, r {:?}", j.off, j.print_r);
-        // Grey print may not open: the curved object's bands cut away are off.
-        let curved = all.iter().find(|(f, _)| f.name == "curved_print").expect("curved print");
-        assert!(!curved.0.print_may_open() && print.print_may_open());
+        // Grey print may not open: the curved object with its bands cut away is off there, by their share.
+        let (curved, _) = all.iter().find(|(f, _)| f.name == "curved_print").expect("curved print");
+        let outline = curved.parts[0];
+        let (mut pos, tris, _) =
+            flat_grid(outline, &curved.print, 0.0, 0.005, true, |x, y| !curved.print.iter().any(|r| r.contains(x, y)));
+        pos.iter_mut().for_each(|p| p.z = cap_depth(p.x, p.y));
+        let cut = dir.join("curved_cut.ply");
+        let m = nlos_mesh::SurfaceMesh::from_triangles(&pos, &tris).expect("manifold");
+        nlos_mesh::io::save_ply_with_albedo(&m, &vec![BRIGHT; pos.len()], &cut).expect("ply");
+        let j = judge(curved, &cut).expect("judged");
+        // The bands: 65 mm of the cap's 240 mm width over 200 of its 240 mm height, about 23 % of its pixels.
+        assert!(j.off > 0.2 && j.off < 0.26, "off {}", j.off);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
