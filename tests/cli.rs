@@ -25,6 +25,8 @@ fn reconstruct_eval_and_resume_on_the_builtin_capture() {
     }
     let mesh = run.join("mesh.obj").to_string_lossy().into_owned();
     assert_eq!(nlos(&["eval", &mesh, "--gt", &truth]), ExitCode::SUCCESS);
+    // The run itself: its start and its result side by side (as the demo ends).
+    assert_eq!(nlos(&["eval", &out, "--gt", &truth]), ExitCode::SUCCESS);
     // A finished run resumes to the same mesh.
     let before = std::fs::read(run.join("mesh.obj")).expect("mesh");
     assert_eq!(nlos(&["reconstruct", &capture, "--out", &out, "--resume", "--quiet"]), ExitCode::SUCCESS);

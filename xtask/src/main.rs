@@ -3,8 +3,8 @@
 //! - `cargo xtask reconstruct`: the built-in demo, no arguments or data needed — simulate the built-in scene
 //!   (a bumpy Lambertian patch 0.4 m behind the wall, rendered by `nlos-render` on a 24 × 24 confocal scan
 //!   with Poisson photon noise), then run the product on it exactly as a user would: `nlos info`,
-//!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the LCT
-//!   initial mesh and of the result against the ground truth. Outputs go to `out/reconstruct/`.
+//!   `nlos preview`, `nlos reconstruct` (LCT initialisation → optimised mesh) and `nlos eval` of the run: its
+//!   start and its result against the ground truth, side by side. Outputs go to `out/reconstruct/`.
 //! - `cargo xtask reconstruct ARGS…`: forwards to `nlos reconstruct ARGS…`.
 //! - `cargo xtask accept <bunny|soap|reference|ggx|real|preprocessed|sensor|nonconfocal|relay|detail|holes|all> [--quick] [--photons N] [--photon-seed S] [-- ARGS…]`:
 //!   the acceptance runs (see `accept.rs`); each replaces its scenario's section of `docs/results.md`.
@@ -142,12 +142,12 @@ fn demo() -> Result<(), String> {
         &s(&truth_file),
     ])?;
     println!("      reconstruction took {:.0} s", started.elapsed().as_secs_f64());
-    println!("[5/5] nlos eval against the ground truth (coverage, depth error in metres, Chamfer, normal error)");
-    for (what, mesh) in [("LCT initial mesh", run.join("init.obj")), ("reconstruction  ", run.join("mesh.obj"))] {
-        print!("      {what}: ");
-        std::io::Write::flush(&mut std::io::stdout()).map_err(|e| e.to_string())?;
-        nlos(&["eval", &s(&mesh), "--gt", &s(&truth_file)])?;
-    }
+    println!(
+        "[5/5] nlos eval {} --gt {}: the start (LCT) and the result against the truth",
+        run.display(),
+        truth_file.display()
+    );
+    nlos(&["eval", &s(&run), "--gt", &s(&truth_file)])?;
     println!("done: outputs in {}", out.display());
     Ok(())
 }

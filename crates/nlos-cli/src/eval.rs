@@ -1,11 +1,14 @@
-//! `nlos eval`: metrics of a reconstructed mesh against the ground truth, as one JSON line.
+//! `nlos eval`: metrics of a reconstructed mesh against the ground truth: the few that say whether it worked
+//! as a table ([`crate::table`]), or all of them as one JSON line with `--json`.
 //!
 //! Loads both meshes with [`nlos_mesh::metrics::load_for_eval`] ([`nlos_mesh::io`] readers; non-manifold
-//! triangle lists are accepted unwelded) and prints the [`nlos_mesh::metrics::Metrics`] of
-//! [`nlos_mesh::metrics::evaluate`] (coverage and depth error from a +z ray grid over the wall, Chamfer
-//! and Hausdorff distances, normal angular error over all vertices and over those within 1 cm of the truth,
-//! [`nlos_mesh::distance::NormalError::split`]) serialised by `serde_json`; with `--map`, also the
-//! coverage picture of `nlos_report::figures::coverage_figure`.
+//! triangle lists are accepted unwelded) and scores them with [`nlos_mesh::metrics::evaluate`] (coverage and
+//! depth error from a +z ray grid over the wall, Chamfer and Hausdorff distances, normal angular error over
+//! all vertices and over those within 1 cm of the truth, [`nlos_mesh::distance::NormalError::split`]); with
+//! `--map`, also the coverage picture of `nlos_report::figures::coverage_figure`.
+//!
+//! A run directory of `nlos reconstruct` in place of the mesh scores its start and its result side by side
+//! (with `--json`, one line each, start first); a mesh inside a run directory is named by its role there.
 //!
 //! With `--gt-depth DEPTH [--gt-normal NORMAL]` instead of `--gt`, the reconstruction is scored against
 //! ground-truth maps on a wall grid ([`nlos_mesh::map_metrics`]: the protocol of the methods that compare on
@@ -14,7 +17,9 @@
 //!
 //! With `--front-view CAPTURE` instead, no truth is needed: the mesh's lateral detail is scored against the
 //! capture's volume ([`nlos_init::front_view`]: r and coverage against the volume's front view — LCT on a
-//! confocal grid, the phasor field on any other scan, as `nlos init --volume` makes them).
+//! confocal grid, the phasor field on any other scan, as `nlos init --volume` makes them). The volume is made
+//! as the run made its start: with the run's own settings (its reflectance, its capture settings) when the mesh
+//! lies in a run directory, and the command says so; `--brdf` overrides the reflectance.
 
 use nlos_init::Method;
 use nlos_optim::pipeline::{Config, Prepared};
@@ -26,6 +31,9 @@ use nlos_mesh::{MeshError, SurfaceMesh};
 
 use crate::CliError;
 use crate::progress::Step;
+use crate::table::Table;
+use nlos_optim::pipeline::{INIT_FILE, SETTINGS_FILE};
+use nlos_report::MESH_FILE;
 
 /// How the ground-truth map files lay out their pixels ([`MapLayout`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -50,9 +58,13 @@ impl From<GtLayout> for MapLayout {
 /// Arguments of `nlos eval`.
 #[derive(Debug, clap::Args)]
 pub(crate) struct Args {
-    /// The reconstructed mesh (OBJ, PLY or GLB, detected from its content).
+    /// The reconstructed mesh (OBJ, PLY or GLB, detected from its content), or a run directory of `nlos
+    /// reconstruct`: its start and its result, side by side.
     #[arg(required_unless_present = "volume")]
     mesh: Option<PathBuf>,
+    /// Print every metric as one JSON line per mesh (start first for a run directory) instead of the table.
+    #[arg(long)]
+    json: bool,
     /// The ground-truth mesh (OBJ, PLY or GLB).
     #[arg(
         long,
@@ -66,9 +78,10 @@ pub(crate) struct Args {
     /// region, and the share of the volume's bright pixels the mesh covers (`nlos_init::front_view`).
     #[arg(long, value_name = "CAPTURE", conflicts_with_all = ["gt_depth", "volume"])]
     front_view: Option<PathBuf>,
-    /// The reflectance the volume of --front-view is weighted for (the same choice as the reconstruction's --brdf).
-    #[arg(long, value_parser = crate::choices::brdf_parser(), default_value = "lambert", requires = "front_view")]
-    brdf: nlos_init::Model,
+    /// The reflectance the volume of --front-view is weighted for (the same choice as the reconstruction's
+    /// --brdf) [default: the run's, for a mesh in a run directory; else lambert].
+    #[arg(long, value_parser = crate::choices::brdf_parser(), requires = "front_view")]
+    brdf: Option<nlos_init::Model>,
     /// Ground-truth depth map (.npy, .mat or one-channel .exr, metres along +z from the wall; 0, NaN or Inf: no
     /// surface) on the wall grid of --extent (or of --wall), laid out as --gt-layout says.
     #[arg(long, value_name = "DEPTH")]
@@ -125,12 +138,57 @@ fn load(path: &Path) -> Result<SurfaceMesh, CliError> {
     })
 }
 
-/// The reconstruction: the mesh file, or the surface of the volume of `--volume`.
-fn reconstruction(args: &Args) -> Result<SurfaceMesh, CliError> {
-    match &args.volume {
-        Some(capture) => volume_surface(capture, args.method),
-        None => load(args.mesh.as_deref().unwrap_or(Path::new(""))),
+/// The file of a run directory that holds its result with the fields (`albedo`) the front view counts.
+const RESULT_PLY: &str = "mesh.ply";
+
+/// The run directory `mesh` lies in: its folder, when that holds a run's settings ([`SETTINGS_FILE`]).
+fn run_dir_of(mesh: &Path) -> Option<&Path> {
+    let dir = mesh.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    dir.join(SETTINGS_FILE).is_file().then_some(dir)
+}
+
+/// The meshes the argument names, each with the name of its column: a run directory's start and result
+/// (the result's PLY where there is one), or one mesh, named by its role where it lies in a run directory.
+///
+/// # Errors
+/// [`CliError::Input`] for a folder that holds no run.
+fn columns(path: &Path) -> Result<Vec<(String, PathBuf)>, CliError> {
+    if path.is_dir() {
+        if !path.join(SETTINGS_FILE).is_file() {
+            return Err(CliError::Input(format!(
+                "{}: a folder, but not a run directory of `nlos reconstruct` (it has no {SETTINGS_FILE}); name a \
+                 mesh file or a run directory",
+                path.display()
+            )));
+        }
+        let ply = path.join(RESULT_PLY);
+        let result = if ply.is_file() { ply } else { path.join(MESH_FILE) };
+        return Ok(vec![("start".into(), path.join(INIT_FILE)), ("result".into(), result)]);
     }
+    let file = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let name = match (run_dir_of(path).is_some(), file.as_str()) {
+        (true, INIT_FILE) => "start".into(),
+        (true, MESH_FILE | RESULT_PLY) => "result".into(),
+        _ if file.is_empty() => "reconstruction".into(),
+        _ => file,
+    };
+    Ok(vec![(name, path.to_owned())])
+}
+
+/// The reconstructions to score, with their column names and files: the meshes of [`columns`], or the
+/// surface of the volume of `--volume`.
+fn reconstructions(args: &Args) -> Result<Vec<(String, PathBuf, SurfaceMesh)>, CliError> {
+    if let Some(capture) = &args.volume {
+        let name = format!("{} volume", args.method.name());
+        return Ok(vec![(name, capture.clone(), volume_surface(capture, args.method)?)]);
+    }
+    let step = Step::spinner("eval: reading the reconstruction");
+    let list = columns(args.mesh.as_deref().unwrap_or(Path::new("")))?
+        .into_iter()
+        .map(|(name, path)| load(&path).map(|mesh| (name, path, mesh)))
+        .collect::<Result<Vec<_>, _>>()?;
+    step.finish();
+    Ok(list)
 }
 
 /// The surface of a capture's volumetric reconstruction: the arg-max depth of the columns kept by the
@@ -148,21 +206,54 @@ pub(crate) fn volume_surface(capture: &Path, method: Method) -> Result<SurfaceMe
     Ok(nlos_init::volume_to_surface(&volume, &surface).map_err(|e| fail(e.to_string()))?.mesh)
 }
 
-/// The front-view detail of the mesh file `mesh` against the volume of `capture` ([`nlos_init::front_view`]):
-/// the volume `Method::for_scan` picks, from the capture prepared as `nlos reconstruct` prepares it, weighted
-/// for `brdf`. A hit counts the albedo of the nearest corner where the file has one (PLY's `albedo`), else 1.
-fn front_view(mesh: &Path, capture: &Path, brdf: nlos_init::Model) -> Result<nlos_init::FrontViewDetail, CliError> {
-    let bytes = std::fs::read(mesh).map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
-    let soup =
-        nlos_mesh::io::read_any(&bytes, &mesh.display().to_string()).map_err(|e| CliError::Input(e.to_string()))?;
+/// What the volume of `--front-view` is made with for the mesh `mesh`: the run's settings where it lies in a
+/// run directory, else the defaults; the reflectance it is weighted for (`--brdf` over the run's), and a note
+/// of where that came from.
+///
+/// # Errors
+/// [`CliError::Input`] for a run's settings file that cannot be read.
+fn front_view_settings(
+    mesh: &Path,
+    brdf: Option<nlos_init::Model>,
+) -> Result<(Config, nlos_init::Model, String), CliError> {
+    let run = run_dir_of(mesh);
+    let config = match run {
+        Some(dir) => nlos_optim::pipeline::saved_config(dir)
+            .map_err(|e| CliError::Input(format!("{}: {e}", dir.join(SETTINGS_FILE).display())))?
+            .unwrap_or_default(),
+        None => Config::default(),
+    };
+    Ok(match (brdf, run) {
+        (Some(m), _) => (config, m, format!("weighted for {m}, from --brdf")),
+        (None, Some(dir)) => {
+            let m = config.reflectance.model;
+            let note = format!("weighted for {m}, the run's reflectance in {}", dir.join(SETTINGS_FILE).display());
+            (config, m, note)
+        }
+        (None, None) => (config, nlos_init::Model::Lambert, "weighted for lambert: no run directory, no --brdf".into()),
+    })
+}
+
+/// The volume of `capture` the front view is scored against: the one `Method::for_scan` picks, from the capture
+/// prepared as `nlos reconstruct` prepares it with `config`, weighted for `brdf`.
+fn front_view_volume(capture: &Path, config: &Config, brdf: nlos_init::Model) -> Result<nlos_init::Volume, CliError> {
     let step = Step::spinner(format!("eval: the volume of {}", capture.display()));
     let t = nlos_transient::read(capture).map_err(CliError::input)?;
     let fail = |e: String| CliError::Input(format!("{}: {e}", capture.display()));
     let (method, _) = Method::for_scan(t.scan());
-    let prepared = Prepared::new(t, &Config::default()).map_err(|e| fail(e.to_string()))?;
+    let prepared = Prepared::new(t, config).map_err(|e| fail(e.to_string()))?;
     let volume = prepared.volume(method, brdf, None).map_err(|e| fail(e.to_string()))?;
     step.finish();
-    nlos_init::front_view_detail(&volume, &soup.positions, &soup.triangles, soup.albedo.as_deref()).map_err(|e| {
+    Ok(volume)
+}
+
+/// The front-view detail of the mesh file `mesh` against `volume` (of `capture`; [`nlos_init::front_view`]).
+/// A hit counts the albedo of the nearest corner where the file has one (PLY's `albedo`), else 1.
+fn front_view(mesh: &Path, volume: &nlos_init::Volume, capture: &Path) -> Result<nlos_init::FrontViewDetail, CliError> {
+    let bytes = std::fs::read(mesh).map_err(|e| CliError::Input(format!("{}: {e}", mesh.display())))?;
+    let soup =
+        nlos_mesh::io::read_any(&bytes, &mesh.display().to_string()).map_err(|e| CliError::Input(e.to_string()))?;
+    nlos_init::front_view_detail(volume, &soup.positions, &soup.triangles, soup.albedo.as_deref()).map_err(|e| {
         CliError::Input(format!("the front view of {} against {}: {e}", mesh.display(), capture.display()))
     })
 }
@@ -279,9 +370,9 @@ fn score_rendered(rec: &Maps, truth: &Maps, threshold: f64) -> Result<MapMetrics
     evaluate_maps(rec, truth, threshold).map_err(|e| CliError::Input(e.to_string()))
 }
 
-/// The coverage picture of the reconstruction's maps `rec` (of the mesh `what`) against depth maps
-/// (`--gt-depth … --map`), on the maps' grid.
-fn map_coverage_figure(rec: &Maps, what: &str, truth: (&Maps, &Path), png: &Path) -> Result<(), CliError> {
+/// The coverage picture of the reconstructions' maps `recs` (name, maps) against depth maps
+/// (`--gt-depth … --map`), on the maps' grid: one panel per reconstruction.
+fn map_coverage_figure(recs: &[(String, Maps)], truth: (&Maps, &Path), png: &Path) -> Result<(), CliError> {
     let (truth, depth_file) = truth;
     let grid = &truth.grid;
     if grid.width != grid.height {
@@ -295,12 +386,24 @@ fn map_coverage_figure(rec: &Maps, what: &str, truth: (&Maps, &Path), png: &Path
     // The maps' row 0 is the top (largest y); the picture's is the bottom.
     let bottom_up = |d: &[f32]| -> Vec<f32> { d.chunks(grid.width).rev().flatten().copied().collect() };
     let view = nlos_report::figures::DepthView { grid: grid.width, x_range: grid.x_range, y_range: grid.y_range };
-    let title =
-        Path::new(what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
-    let fig =
-        nlos_report::figures::coverage_figure(&[(&title, &bottom_up(&rec.depth))], &bottom_up(&truth.depth), &view)
-            .map_err(|e| CliError::Failure(format!("drawing the coverage picture: {e}")))?;
+    let depths: Vec<Vec<f32>> = recs.iter().map(|(_, m)| bottom_up(&m.depth)).collect();
+    let panels: Vec<(&str, &[f32])> = recs.iter().zip(&depths).map(|((n, _), d)| (n.as_str(), d.as_slice())).collect();
+    let fig = nlos_report::figures::coverage_figure(&panels, &bottom_up(&truth.depth), &view)
+        .map_err(|e| CliError::Failure(format!("drawing the coverage picture: {e}")))?;
     fig.save_png(png).map_err(|e| CliError::Failure(format!("cannot write {}: {e}", png.display())))
+}
+
+/// Prints `metrics` as one JSON line each, or as the table `table` makes of them.
+fn print<M: serde::Serialize>(args: &Args, metrics: &[M], table: impl FnOnce() -> Table) -> Result<(), CliError> {
+    if args.json {
+        for m in metrics {
+            let line = serde_json::to_string(m).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
+            outln!("{line}");
+        }
+    } else {
+        outln!("{}", table());
+    }
+    Ok(())
 }
 
 /// Runs `nlos eval`.
@@ -311,16 +414,16 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         }
         crate::check_output(png, "--map")?;
     }
-    let step = Step::spinner("eval: reading the reconstruction");
-    let reconstruction = reconstruction(args)?;
-    step.finish();
-    let what = args.mesh.as_ref().or(args.volume.as_ref()).map_or_else(String::new, |p| p.display().to_string());
     if let Some(capture) = &args.front_view {
-        let detail = front_view(Path::new(&what), capture, args.brdf)?;
-        let line = serde_json::to_string(&detail).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
-        outln!("{line}");
-        return Ok(());
+        let meshes = columns(args.mesh.as_deref().unwrap_or(Path::new("")))?;
+        let (config, brdf, note) = front_view_settings(&meshes[0].1, args.brdf)?;
+        eprintln!("eval: the volume {note}");
+        let volume = front_view_volume(capture, &config, brdf)?;
+        let detail = meshes.iter().map(|(_, m)| front_view(m, &volume, capture)).collect::<Result<Vec<_>, _>>()?;
+        let names = meshes.into_iter().map(|(n, _)| n).collect();
+        return print(args, &detail, || Table::front_view(names, &detail, &capture.display().to_string(), &note));
     }
+    let recs = reconstructions(args)?;
     if let Some(depth_file) = &args.gt_depth {
         let place = match (&args.wall, &args.volume, args.extent) {
             (Some(capture), _, _) | (None, Some(capture), None) => MapPlace::Wall(capture.clone()),
@@ -328,14 +431,19 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
         };
         let truth = truth_maps(depth_file, args.gt_normal.as_deref(), args.gt_layout.into(), &place)?;
         // One ray per pixel serves the scores and the picture.
-        let rec = reconstruction_maps(&reconstruction, &what, &truth)?;
-        let metrics = score_rendered(&rec, &truth, args.threshold)?;
+        let maps = recs
+            .iter()
+            .map(|(name, path, mesh)| {
+                Ok((name.clone(), reconstruction_maps(mesh, &path.display().to_string(), &truth)?))
+            })
+            .collect::<Result<Vec<_>, CliError>>()?;
+        let metrics =
+            maps.iter().map(|(_, m)| score_rendered(m, &truth, args.threshold)).collect::<Result<Vec<_>, _>>()?;
         if let Some(png) = &args.map {
-            map_coverage_figure(&rec, &what, (&truth, depth_file), png)?;
+            map_coverage_figure(&maps, (&truth, depth_file), png)?;
         }
-        let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
-        outln!("{line}");
-        return Ok(());
+        let names = maps.into_iter().map(|(n, _)| n).collect();
+        return print(args, &metrics, || Table::maps(names, &metrics, &depth_file.display().to_string()));
     }
     let gt = args.gt.as_deref().unwrap_or(Path::new(""));
     if args.grid == 0 || args.grid > MAX_GRID {
@@ -344,28 +452,29 @@ pub(crate) fn run(args: &Args) -> Result<(), CliError> {
     // either may be non-manifold (scanned or exported models): see `load_for_eval`
     let ground_truth = load(gt)?;
     let params = EvalParams { grid: args.grid, coverage_threshold: args.threshold, ..EvalParams::default() };
-    let step = Step::spinner(format!(
-        "eval: {} faces against {} faces of the truth",
-        reconstruction.n_faces(),
-        ground_truth.n_faces()
-    ));
-    let metrics = evaluate(&reconstruction, &ground_truth, &params)
-        .map_err(|e| CliError::Input(format!("evaluating {what} against {}: {e}", gt.display())))?;
-    step.finish();
+    let mut metrics = Vec::with_capacity(recs.len());
+    for (_, path, mesh) in &recs {
+        let step = Step::spinner(format!(
+            "eval: {} faces against {} faces of the truth",
+            mesh.n_faces(),
+            ground_truth.n_faces()
+        ));
+        metrics
+            .push(evaluate(mesh, &ground_truth, &params).map_err(|e| {
+                CliError::Input(format!("evaluating {} against {}: {e}", path.display(), gt.display()))
+            })?);
+        step.finish();
+    }
     if let Some(png) = &args.map {
         let view =
             nlos_report::figures::DepthView { grid: params.grid, x_range: params.x_range, y_range: params.y_range };
-        let title =
-            Path::new(&what).file_name().map_or_else(|| "reconstruction".into(), |n| n.to_string_lossy().into_owned());
-        let fig = nlos_report::figures::coverage_figure(
-            &[(&title, &metrics.depth_reconstruction)],
-            &metrics.depth_ground_truth,
-            &view,
-        )
-        .map_err(|e| CliError::Failure(format!("drawing the coverage picture: {e}")))?;
+        let panels: Vec<(&str, &[f32])> =
+            recs.iter().zip(&metrics).map(|((n, _, _), m)| (n.as_str(), m.depth_reconstruction.as_slice())).collect();
+        let truth_depth = metrics.first().map_or(&[][..], |m| m.depth_ground_truth.as_slice());
+        let fig = nlos_report::figures::coverage_figure(&panels, truth_depth, &view)
+            .map_err(|e| CliError::Failure(format!("drawing the coverage picture: {e}")))?;
         fig.save_png(png).map_err(|e| CliError::Failure(format!("cannot write {}: {e}", png.display())))?;
     }
-    let line = serde_json::to_string(&metrics).map_err(|e| CliError::Failure(format!("encoding JSON: {e}")))?;
-    outln!("{line}");
-    Ok(())
+    let names = recs.into_iter().map(|(n, _, _)| n).collect();
+    print(args, &metrics, || Table::meshes(names, &metrics, &gt.display().to_string()))
 }

@@ -28,6 +28,7 @@ mod progress;
 mod reconstruct;
 mod render;
 mod report;
+mod table;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -73,10 +74,12 @@ enum Command {
     /// The direct light off the wall is gated out by default (`--gate auto`) so that the hidden scene is
     /// visible. Scans whose sensor points are a list, not a grid, get the summed histogram instead.
     Preview(preview::Args),
-    /// Metrics of a reconstructed mesh against the ground truth, as one JSON line: coverage (within 5 mm)
-    /// and depth error (mean, median, RMS, inside) from a +z ray grid over the wall, Chamfer distance, normal
-    /// angular error (all vertices, and those within 1 cm of the truth); or against ground-truth depth and
-    /// normal maps (--gt-depth, --gt-normal).
+    /// Metrics of a reconstructed mesh, or of a run's start and result side by side, against the ground truth:
+    /// a table of coverage within 5 mm, depth error inside the silhouette, Chamfer distance and normal error;
+    /// with --json every metric as one JSON line per mesh (coverage, depth error mean, median, RMS and inside
+    /// from a +z ray grid over the wall, Chamfer and Hausdorff distances, normal angular error over all
+    /// vertices and those within 1 cm of the truth); or against ground-truth depth and normal maps
+    /// (--gt-depth, --gt-normal), or the capture's volume (--front-view).
     Eval(eval::Args),
     /// Volumetric reconstruction (LCT, f-k, phasor field, FBP or space carving; `auto` chooses) → initial
     /// surface mesh, with a front-view/depth PNG.

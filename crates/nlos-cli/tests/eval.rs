@@ -28,7 +28,7 @@ fn plane(quads: usize, z: f32) -> SurfaceMesh {
 
 /// Runs `nlos eval` and parses its single stdout line.
 fn eval_json(args: &[&str]) -> Value {
-    let o = nlos(args);
+    let o = nlos(&[args, &["--json"]].concat());
     assert!(o.status.success(), "nlos eval failed: {}", stderr(&o));
     let out = String::from_utf8(o.stdout).expect("utf-8");
     assert_eq!(out.lines().count(), 1, "one JSON line expected: {out}");
@@ -321,7 +321,93 @@ fn front_view_detail_scores_a_slot_the_volume_shows() {
     assert!(num(&truth, "r") > num(&mirrored, "r") + 0.15, "truth {truth}, mirrored {mirrored}");
     // The volume's halo lies above its threshold too: the truth covers most of it, not all.
     assert!(num(&truth, "coverage") > 0.6 && num(&truth, "coverage") < num(&closed, "coverage"));
+    // A mesh in a run directory is scored against the volume as the run weighted it (its settings say
+    // retroreflective), and the command says so; --brdf still wins.
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).expect("mkdir");
+    std::fs::write(run.join("settings.toml"), "[reflectance]\nmodel = \"retroreflective\"\n").expect("settings");
+    std::fs::copy(dir.join("truth.ply"), run.join("mesh.ply")).expect("copy");
+    let (m, c) = (run.join("mesh.ply"), capture.to_str().expect("utf-8"));
+    let m = m.to_str().expect("utf-8");
+    let o = nlos(&["eval", m, "--front-view", c, "--json"]);
+    assert!(o.status.success() && stderr(&o).contains("retroreflective, the run's reflectance"), "{}", stderr(&o));
+    let own: Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    let retro = eval_json(&["eval", m, "--front-view", c, "--brdf", "retroreflective"]);
+    let lambert = eval_json(&["eval", m, "--front-view", c, "--brdf", "lambert"]);
+    assert_eq!(num(&own, "r"), num(&retro, "r"), "the run's settings: {own}; --brdf retroreflective: {retro}");
+    assert_ne!(num(&own, "r"), num(&lambert, "r"), "the weighting changes the volume: {own}, {lambert}");
     // Without a truth or a capture there is nothing to score against.
     let o = nlos(&["eval", dir.join("truth.ply").to_str().expect("utf-8")]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// The figures of a table printed by `nlos eval`: per row label, the numbers of its cells (`–` is `None`).
+fn table_rows(text: &str) -> Vec<(String, Vec<Option<f64>>)> {
+    text.lines()
+        .skip(2) // the title and the column names
+        .map(|line| {
+            let cells: Vec<&str> = line.split("  ").map(str::trim).filter(|c| !c.is_empty()).collect();
+            let values = cells[1..]
+                .iter()
+                .map(|c| c.trim_end_matches(|ch: char| !ch.is_ascii_digit()).trim().parse::<f64>().ok())
+                .collect();
+            (cells[0].to_owned(), values)
+        })
+        .collect()
+}
+
+/// A run directory of two planes (its start 8 mm off the truth, its result on it) with the given settings.
+fn run_dir(name: &str, settings: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).expect("mkdir");
+    std::fs::write(run.join("settings.toml"), settings).expect("write settings");
+    nlos_mesh::io::save(&plane(6, 0.408), run.join("init.obj")).expect("write");
+    nlos_mesh::io::save(&plane(12, 0.4), run.join("mesh.obj")).expect("write");
+    let gt = dir.join("truth.obj");
+    nlos_mesh::io::save(&plane(10, 0.4), &gt).expect("write");
+    (run, gt)
+}
+
+#[test]
+fn the_table_says_what_the_json_says() {
+    let (run, gt) = run_dir("table", "seed = 1\n");
+    let (r, g) = (run.to_str().expect("utf-8"), gt.to_str().expect("utf-8"));
+    let o = nlos(&["eval", r, "--gt", g, "--grid", "32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).expect("utf-8");
+    eprintln!("{text}");
+    let header: Vec<&str> = text.lines().nth(1).expect("column names").split_whitespace().collect();
+    assert_eq!(header, ["start", "result"], "{text}");
+    // `--json`: one line per mesh, start first.
+    let o = nlos(&["eval", r, "--gt", g, "--grid", "32", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: Vec<Value> =
+        String::from_utf8(o.stdout).expect("utf-8").lines().map(|l| serde_json::from_str(l).expect("JSON")).collect();
+    assert_eq!(json.len(), 2);
+    let rows = table_rows(&text);
+    let expect = [
+        ("coverage within 5 mm", "coverage_within", 100.0, 0.05),
+        ("depth error inside the silhouette", "depth_error_mean_interior", 1e3, 0.005),
+        ("Chamfer distance", "chamfer", 1e3, 0.005),
+        ("normal error", "normal_error_mean_deg", 1.0, 0.05),
+    ];
+    assert_eq!(rows.len(), expect.len(), "{text}");
+    for ((label, values), (want, key, unit, half)) in rows.iter().zip(expect) {
+        assert_eq!(label, want, "{text}");
+        for (value, v) in values.iter().zip(&json) {
+            let printed = value.unwrap_or_else(|| panic!("{label}: no figure in {text}"));
+            assert!((printed - num(v, key) * unit).abs() <= half + 1e-9, "{label}: {printed} against {v}");
+        }
+    }
+    // The start is 8 mm off the truth, the result on it.
+    assert!(json[0]["coverage_within"].as_f64() == Some(0.0) && num(&json[1], "coverage_within") > 0.9, "{text}");
+    // A mesh inside the run is named by its role; a folder that holds no run is refused, naming it.
+    let o = nlos(&["eval", run.join("mesh.obj").to_str().expect("utf-8"), "--gt", g, "--grid", "32"]);
+    let text = String::from_utf8(o.stdout).expect("utf-8");
+    assert_eq!(text.lines().nth(1).map(str::trim), Some("result"), "{text}");
+    let empty = scratch("table_no_run");
+    let o = nlos(&["eval", empty.to_str().expect("utf-8"), "--gt", g]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not a run directory") && stderr(&o).contains("table_no_run"), "{}", stderr(&o));
 }

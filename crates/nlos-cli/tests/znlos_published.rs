@@ -28,7 +28,7 @@ fn files() -> Option<[PathBuf; 3]> {
 }
 
 fn eval_json(args: &[&str]) -> Value {
-    let o = nlos(args);
+    let o = nlos(&[args, &["--json"]].concat());
     assert!(o.status.success(), "nlos eval failed: {}", String::from_utf8_lossy(&o.stderr));
     serde_json::from_str(String::from_utf8(o.stdout).expect("utf-8").trim_end()).expect("one JSON line")
 }

@@ -21,7 +21,8 @@ pub(super) fn detail(r: &mut Runner, opts: &Opts) -> Result<Section, String> {
 
 /// `nlos eval MESH --front-view CAPTURE --brdf retroreflective`: (r, coverage).
 fn front_view(r: &mut Runner, mesh: &Path, capture: &Path) -> Result<(f64, f64), String> {
-    let ran = r.nlos(&[s("eval"), p(mesh), s("--front-view"), p(capture), s("--brdf"), s("retroreflective")])?;
+    let ran =
+        r.nlos(&[s("eval"), p(mesh), s("--front-view"), p(capture), s("--brdf"), s("retroreflective"), s("--json")])?;
     let line = ran.stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
     let v: serde_json::Value = serde_json::from_str(line).map_err(|e| format!("nlos eval --front-view: {e}"))?;
     let num = |k: &str| v[k].as_f64().ok_or_else(|| format!("nlos eval --front-view printed no `{k}`: {line}"));

@@ -189,7 +189,7 @@ impl Runner {
     }
 
     pub(super) fn eval(&mut self, mesh: &Path, gt: &Path) -> Result<Metrics, String> {
-        let r = self.nlos(&[s("eval"), p(mesh), s("--gt"), p(gt)])?;
+        let r = self.nlos(&[s("eval"), p(mesh), s("--gt"), p(gt), s("--json")])?;
         let line = r.stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or("");
         Metrics::parse(line)
     }
@@ -335,7 +335,7 @@ pub(super) fn reconstruct_and_eval(
     let recon = r.nlos(&a)?;
     let init = r.eval(&run_dir.join("init.obj"), gt)?;
     let result = r.eval(&run_dir.join("mesh.obj"), gt)?;
-    let fk = r.nlos(&[s("eval"), s("--volume"), p(capture), s("--method"), s("fk"), s("--gt"), p(gt)])?;
+    let fk = r.nlos(&[s("eval"), s("--volume"), p(capture), s("--method"), s("fk"), s("--gt"), p(gt), s("--json")])?;
     let fk = Metrics::parse(fk.stdout.lines().rev().find(|l| l.trim_start().starts_with('{')).unwrap_or(""))?;
     Ok(Outcome { init, fk, result, recon, run_dir: run_dir.to_path_buf() })
 }
