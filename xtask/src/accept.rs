@@ -291,7 +291,7 @@ pub const SCENARIOS: [(&str, &str); 13] = [
     ),
     (
         "holes",
-        "dark strips where the model is exact: a plate with slots, a plate with printed bars, a thin-stroked E, two plates apart — holes or print, never dents",
+        "dark strips where the model is exact: a plate with slots, a plate with printed bars, a thin-stroked E, two plates apart, a curved object plain and with grey print; each as photon counts and as intensities — holes or print, never dents",
     ),
     (
         "znlos",
