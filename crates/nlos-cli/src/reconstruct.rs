@@ -340,6 +340,15 @@ fn write_report(
         other => fail(other),
     })?;
     outln!("{}: {} figures", report.html.display(), report.images.len());
+    if let Some(u) = &report.unexplained {
+        let [before, within, after, none] = u.shares().map(|x| 100.0 * x);
+        outln!(
+            "unexplained: {:.4e} of half-deviance above the noise; {before:.0} % before each spot's return, \
+             {within:.0} % within it, {after:.0} % after it, {none:.0} % at spots where the surface makes no light \
+             (unexplained.png, residual.png)",
+            u.total()
+        );
+    }
     Ok(())
 }
 

@@ -50,6 +50,10 @@ pub struct LctParams {
     pub max_depth: Option<f64>,
     /// Use the adjoint (`conj(Ĥ)`) instead of the Wiener inverse: the LCT's fast backprojection.
     pub backprojection: bool,
+    /// Clamp the volume at 0, as the reference does (`max(real(vol), 0)`; default). Off, the volume is the
+    /// transform's real part, signed and linear in the data: the volume of a difference is the difference of
+    /// the volumes (a residual back-projected, [`crate::Method::signed_volume`]).
+    pub clamp: bool,
 }
 
 impl Default for LctParams {
@@ -61,6 +65,7 @@ impl Default for LctParams {
             gate: Gate::Auto,
             max_depth: None,
             backprojection: false,
+            clamp: true,
         }
     }
 }
@@ -202,6 +207,7 @@ pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) ->
     let c2r = RealFftPlanner::<f32>::new().plan_fft_inverse(d.pz);
     let scale = 1.0 / (d.px * d.py * d.pz) as f32;
     let mut out = vec![0.0f32; nx * ny * g.bins];
+    let clamp = params.clamp;
     out.par_chunks_mut(g.bins).zip(lanes.par_chunks_mut(d.nf)).for_each_init(
         || (c2r.make_output_vec(), c2r.make_scratch_vec(), vec![0.0f32; m], vec![0.0f32; m]),
         |(real, scratch, ul, tl), (o, lane)| {
@@ -225,8 +231,8 @@ pub(crate) fn lct_grid(g: &ConfocalGrid, params: &LctParams, laplacian: bool) ->
                 ul.copy_from_slice(tl);
             }
             resampler.adjoint(ul, tl);
-            for (a, b) in o.iter_mut().zip(tl.iter()) {
-                *a = b.max(0.0);
+            for (a, &b) in o.iter_mut().zip(tl.iter()) {
+                *a = if clamp { b.max(0.0) } else { b };
             }
         },
     );

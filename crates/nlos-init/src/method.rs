@@ -113,6 +113,24 @@ impl Method {
         }
     }
 
+    /// The method's volume of `gated` without the clamp at zero, where the method is linear in the data: the
+    /// LCT (its settings for `reflectance`, [`lct_params`], with [`LctParams::clamp`] off and no gate of its
+    /// own: `gated` is gated already). The volume of a difference is then the difference of the volumes, so a
+    /// residual back-projected keeps its sign, and its noise averages out instead of being cut in half. `None`
+    /// for the other methods: f-k and the phasor field take a magnitude, carving is not a transform, and
+    /// FBP's Laplacian is the LCT's.
+    pub fn signed_volume(self, gated: &Transient, reflectance: Model) -> Option<Result<Volume>> {
+        match self {
+            Method::Lct => Some(lct(gated, &LctParams { clamp: false, gate: Gate::None, ..lct_params(reflectance) })),
+            Method::Fk | Method::Fbp | Method::Pf | Method::Carve => None,
+        }
+    }
+
+    /// Whether [`Method::signed_volume`] has a linear form for this method.
+    pub fn signed_volume_is_linear(self) -> bool {
+        matches!(self, Method::Lct)
+    }
+
     /// The surface extraction of the method's start: the settings for compact objects for the LCT and the
     /// phasor field ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns,
     /// about half the bunny's silhouette from the LCT, a fifth from the one-laser phasor field), the plain

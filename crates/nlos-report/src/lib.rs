@@ -15,7 +15,8 @@
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo per vertex where the final mesh is seen (runs that fit one) |
-//! | `residual.png` | where the light is left unexplained: the capture's and the rendering's volumes by the start's method, their difference as a front view and an x–z slice ([`residual`]) |
+//! | `residual.png` | where the light is left unexplained: the residual back-projected by the start's method (the LCT's linear, signed form on confocal grids) as a front view and an x–z slice; for photon counts, coloured only beyond the back-projection of the model's own Poisson noise, shown beside it ([`residual`]) |
+//! | `unexplained.png` | photon counts: the data term above its noise floor per spot over the wall, and its split in time — before, within and after each spot's return ([`unexplained`]) |
 //! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth, by distance to the ground truth or by the final mesh's support (`nlos_optim::support`), embedded so it works offline from the folder alone ([`view3d`]) |
 //!
 //! **Rendering.** The final mesh is rendered with `nlos_render` at the capture's geometry and time axis,
@@ -39,6 +40,7 @@ pub mod figures;
 mod html;
 pub mod residual;
 mod run;
+pub mod unexplained;
 pub mod view3d;
 
 use std::path::{Path, PathBuf};
@@ -49,7 +51,7 @@ use nlos_mesh::metrics::Metrics;
 use nlos_optim::{DataTerm, Loss, Reflectance, RunLog, RunRecord, SensorFit};
 use nlos_render::{RenderParams, Renderer};
 use nlos_transient::Transient;
-use nlos_viz::RgbImage;
+use nlos_viz::{Extent, RgbImage};
 
 pub use error::{ReportError, Result};
 pub use figures::DepthView;
@@ -135,6 +137,8 @@ pub struct Report {
     pub metrics_init: Option<Metrics>,
     /// Metrics of the final mesh against the ground truth.
     pub metrics_final: Option<Metrics>,
+    /// Photon counts: where the data term above its noise floor lies ([`unexplained::split`]).
+    pub unexplained: Option<unexplained::Split>,
 }
 
 fn read(path: &Path) -> Result<Vec<u8>> {
@@ -235,7 +239,7 @@ pub fn write_report(
     }
     let rendered = renderer.forward_any(&reflectance.brdf()?);
     let measured_g = gated(measured)?;
-    let (scaled, scale) = match &opts.sensor {
+    let (scaled, scale, background) = match &opts.sensor {
         Some(sensor) => {
             // Expected counts as the sensor fit models them, scale solved on the whole capture like the run.
             let b = sensor.resolve_background(measured)?;
@@ -244,7 +248,7 @@ pub fn write_report(
             sensor.kernel.apply_f64(&x, ax.bins, &mut a)?;
             let alpha = SensorFit::optimal_scale_jittered(&a, measured.data(), b).unwrap_or(1.0);
             let mu: Vec<f32> = a.iter().map(|&v| (alpha * v + b) as f32).collect();
-            (gated(&Transient::new(measured.scan().clone(), ax, mu)?)?, alpha)
+            (gated(&Transient::new(measured.scan().clone(), ax, mu)?)?, alpha, Some(b))
         }
         None => {
             let rendered = gated(&Transient::new(measured.scan().clone(), ax, rendered)?)?;
@@ -252,7 +256,7 @@ pub fn write_report(
             let scale = term.optimal_scale(rendered.data(), measured_g.data()).unwrap_or(1.0);
             let mut scaled = rendered;
             scaled.data_mut().iter_mut().for_each(|v| *v = (f64::from(*v) * scale) as f32);
-            (scaled, scale)
+            (scaled, scale, None)
         }
     };
     let (mut num, mut den) = (0.0f64, 0.0f64);
@@ -308,9 +312,22 @@ pub fn write_report(
     }
     let method = opts.backprojection.unwrap_or_else(|| Method::for_scan(measured.scan()).0);
     // A method that cannot take the scan (or finds nothing in it) leaves the picture out, not the report.
-    if let Ok(b) = residual::backproject(method, reflectance.model(), &measured_g, &scaled) {
+    // Photon counts: the residual judged against a Poisson draw of the model (seed fixed, so a report is
+    // reproducible).
+    let draw = opts.sensor.is_some().then_some(1);
+    if let Ok(b) = residual::backproject(method, reflectance.model(), &measured_g, &scaled, draw) {
         let note = format!("the final mesh rendered as the fit saw it ({gate_note})");
         save(&residual::residual_figure(&b, &note)?, dir, "residual.png", &mut images)?;
+    }
+    let unexplained = background.map(|b| unexplained::split(&measured_g, &scaled, b)).transpose()?;
+    if let (Some(split), Some((nx, ny))) = (&unexplained, measured.sensor_grid()) {
+        // One measurement per spot: a confocal grid (the spots' bounds span the grid's centres).
+        if split.per_measurement.len() == nx * ny {
+            let (lo, hi) = measured.scan().sensors().bounds().unwrap_or_default();
+            let ex = Extent::from_centres(f64::from(lo.x), f64::from(hi.x), nx)?;
+            let ey = Extent::from_centres(f64::from(lo.y), f64::from(hi.y), ny)?;
+            save(&unexplained::unexplained_figure(split, nx, ny, ex, ey)?, dir, "unexplained.png", &mut images)?;
+        }
     }
     let pixel = f64::from(view.x_range[1] - view.x_range[0]) / view.grid as f64;
     let radius = ((opts.relief_box / pixel / 2.0).round() as usize).clamp(1, view.grid.max(2) / 2);
@@ -342,8 +359,16 @@ pub fn write_report(
         save(&fig, dir, "coverage.png", &mut images)?;
     }
 
-    let report =
-        Report { html: dir.join(REPORT_FILE), images, scale, relative_residual, gate, metrics_init, metrics_final };
+    let report = Report {
+        html: dir.join(REPORT_FILE),
+        images,
+        scale,
+        relative_residual,
+        gate,
+        metrics_init,
+        metrics_final,
+        unexplained,
+    };
     let mut shown = Vec::new();
     if let Some(m) = &init_mesh {
         shown.push(view3d::ViewMesh { name: "initial surface", mesh: m, support: None });

@@ -1,17 +1,24 @@
-//! Where the light is left unexplained: the residual back-projected by the start's own volumetric method.
+//! Where the light is left unexplained: the residual back-projected by the start's own volumetric method,
+//! against the same back-projection of the model's own noise.
 //!
-//! The capture `m` and the final rendering as the fit saw it (`s*·I`, or the sensor fit's expected counts)
-//! are each turned into a volume by the same method ([`nlos_init::Method::volume`]: the LCT on a confocal
-//! grid, the phasor field otherwise), and the picture is their difference `V(m) − V(s*·I)`: where it is
+//! The capture `m` and the final rendering as the fit saw it (`μ`: `s*·I`, or the sensor fit's expected
+//! counts) are turned into volumes by the same method, and the residual is `V(m) − V(μ)`: where it is
 //! positive the capture holds light the mesh does not make (a part missing, or too dark), where negative the
-//! mesh makes light the capture lacks (a part too far out, too bright, or where there is none). Both volumes
-//! go through the method as it is (the LCT and the phasor field clamp at zero), so the difference of the
-//! volumes is shown rather than the volume of the difference, which clamping would cut in half.
+//! mesh makes light the capture lacks (a part too far out, too bright, or where there is none). On a confocal
+//! grid `V` is the LCT without its clamp at zero ([`nlos_init::Method::signed_volume`]), linear in the data,
+//! so the residual is the volume of `m − μ` and its noise averages out as the back-projection sums; the other
+//! methods are not linear, and their residual is the difference of their volumes as they are.
 //!
-//! [`residual_figure`] draws three panels: the capture's front view (maximum over depth), the residual's
-//! front view (per column, the signed value of largest magnitude) and its x–z slice through the row that
-//! holds most of it — in units of the capture volume's peak, so that 0.2 reads "a fifth as bright as the
-//! brightest thing in the capture".
+//! For photon counts the residual is judged against the model's own noise: the same back-projection of a
+//! Poisson draw of `μ` minus `μ` (seed fixed), which is what the residual would be were the model exact.
+//! A column of the residual's front view is coloured only where it exceeds 1.5 times the largest magnitude
+//! that noise reaches within two columns of it ([`Backprojected::beyond_noise`]): light a surface could
+//! explain, not light a surface would only fit to the noise.
+//!
+//! [`residual_figure`] draws the capture's front view (maximum over depth), the residual's front view (per
+//! column, the signed value of largest magnitude) beyond the noise, the noise's own front view on the same
+//! scale, and the residual's x–z slice through the row that holds most of it — in units of the capture
+//! volume's peak, so that 0.2 reads "a fifth as bright as the brightest thing in the capture".
 
 use nlos_init::{Method, Model, Volume};
 use nlos_transient::Transient;
@@ -19,46 +26,139 @@ use nlos_viz::{Colormap, Extent, Figure, Norm, Panel, RgbImage, ScalarGrid, Scal
 
 use crate::error::{ReportError, Result};
 
-/// The capture's and the rendering's volumes by one method: what [`residual_figure`] draws.
+/// The capture's and the rendering's volumes by one method, and the residual's: what [`residual_figure`]
+/// draws.
 #[derive(Debug, Clone)]
 pub struct Backprojected {
-    /// The method that made both volumes.
+    /// The method that made the volumes.
     pub method: Method,
-    /// The capture's volume.
+    /// The capture's volume (as the method makes it: the front view's panel).
     pub measured: Volume,
     /// The rendering's volume, on the same voxels.
     pub rendered: Volume,
+    /// `V(m) − V(μ)` on the same voxels: the method's signed volume of the difference where it is linear,
+    /// else the difference of the two volumes.
+    pub difference: Vec<f32>,
+    /// The same for a Poisson draw of the rendering in place of the capture (photon counts only): the
+    /// residual of an exact model.
+    pub noise: Option<Vec<f32>>,
 }
 
 /// The volumes of `measured` and of `rendered` (the same scan and time axis; both gated) by `method`,
-/// weighted for `reflectance` as the start's volume is.
+/// weighted for `reflectance` as the start's volume is, and the residual's ([module docs](self)); with
+/// `counts`, also the residual of a Poisson draw of `rendered` (expected counts), drawn with `seed`.
 ///
 /// # Errors
 /// [`ReportError::Init`] when the method cannot take the scan or a volume is empty;
-/// [`ReportError::InvalidOption`] when the two volumes do not share their voxels.
+/// [`ReportError::InvalidOption`] when the volumes do not share their voxels.
 pub fn backproject(
     method: Method,
     reflectance: Model,
     measured: &Transient,
     rendered: &Transient,
+    counts: Option<u64>,
 ) -> Result<Backprojected> {
     let m = method.volume(measured, reflectance, None)?;
     let r = method.volume(rendered, reflectance, None)?;
-    if (m.nx, m.ny, m.nz) != (r.nx, r.ny, r.nz) {
-        return Err(ReportError::InvalidOption {
-            name: "rendered",
-            reason: format!("volume {}x{}x{} against the capture's {}x{}x{}", r.nx, r.ny, r.nz, m.nx, m.ny, m.nz),
-        });
-    }
-    Ok(Backprojected { method, measured: m, rendered: r })
+    let same = |v: &Volume, what: &'static str| {
+        if (m.nx, m.ny, m.nz) == (v.nx, v.ny, v.nz) {
+            Ok(())
+        } else {
+            Err(ReportError::InvalidOption {
+                name: what,
+                reason: format!("volume {}x{}x{} against the capture's {}x{}x{}", v.nx, v.ny, v.nz, m.nx, m.ny, m.nz),
+            })
+        }
+    };
+    same(&r, "rendered")?;
+    // V(a) − V(μ): the signed volume of the difference where the method is linear, else the volumes' difference.
+    let residual_of = |a: &Transient, va: Option<&Volume>| -> Result<Vec<f32>> {
+        let diff: Vec<f32> = a.data().iter().zip(rendered.data()).map(|(x, y)| x - y).collect();
+        let diff = Transient::new(a.scan().clone(), *a.time(), diff)?;
+        match method.signed_volume(&diff, reflectance) {
+            Some(v) => {
+                let v = v?;
+                same(&v, "residual")?;
+                Ok(v.data)
+            }
+            None => {
+                let owned;
+                let va = match va {
+                    Some(v) => v,
+                    None => {
+                        owned = method.volume(a, reflectance, None)?;
+                        &owned
+                    }
+                };
+                same(va, "draw")?;
+                Ok(va.data.iter().zip(&r.data).map(|(x, y)| x - y).collect())
+            }
+        }
+    };
+    let difference = residual_of(measured, Some(&m))?;
+    let noise = counts.map(|seed| residual_of(&poisson_draw(rendered, seed)?, None)).transpose()?;
+    Ok(Backprojected { method, measured: m, rendered: r, difference, noise })
 }
 
+/// A Poisson draw of expected counts `mu` (each measurement its own stream of the PCG32 generator, `seed`).
+fn poisson_draw(mu: &Transient, seed: u64) -> Result<Transient> {
+    let bins = mu.bins().max(1);
+    let mut out = vec![0.0f32; mu.data().len()];
+    for (m, (o, h)) in out.chunks_exact_mut(bins).zip(mu.data().chunks_exact(bins)).enumerate() {
+        let mut rng = nlos_transient::rng::Pcg32::new(seed, m as u64);
+        for (o, &l) in o.iter_mut().zip(h) {
+            *o = if l > 0.0 { rng.poisson(f64::from(l)) as f32 } else { 0.0 };
+        }
+    }
+    Ok(Transient::new(mu.scan().clone(), *mu.time(), out)?)
+}
+
+/// How far above the noise's local maximum a residual column must reach to be coloured. A new draw of the
+/// same noise beats the largest of the 25 columns around it about once in 26: at a margin of 1 an exact model
+/// colours 40 of 1,024 columns of a rendered plate, at 1.25 three, at 1.5 none (`tests`), where a 6 cm square
+/// the model lacks is shown whole at any of these margins.
+const NOISE_MARGIN: f32 = 1.5;
+
 impl Backprojected {
-    /// `V(m) − V(s*·I)` voxel by voxel, in units of the capture volume's peak (0 everywhere when it has none).
-    pub fn residual(&self) -> Vec<f32> {
+    /// The capture volume's peak as a scale: `1/peak` (0 when it has none).
+    fn unit(&self) -> f32 {
         let peak = self.measured.data.iter().fold(0.0f32, |a, &v| a.max(v));
-        let unit = if peak > 0.0 { 1.0 / peak } else { 0.0 };
-        self.measured.data.iter().zip(&self.rendered.data).map(|(m, r)| (m - r) * unit).collect()
+        if peak > 0.0 { 1.0 / peak } else { 0.0 }
+    }
+
+    /// `V(m) − V(μ)` voxel by voxel, in units of the capture volume's peak (0 everywhere when it has none).
+    pub fn residual(&self) -> Vec<f32> {
+        let unit = self.unit();
+        self.difference.iter().map(|d| d * unit).collect()
+    }
+
+    /// The residual of a Poisson draw of the model, in the same units (photon counts only).
+    pub fn noise_residual(&self) -> Option<Vec<f32>> {
+        let unit = self.unit();
+        self.noise.as_ref().map(|n| n.iter().map(|d| d * unit).collect())
+    }
+
+    /// The residual's front view (per column, the signed value of largest magnitude), 0 in every column where
+    /// it is within the noise: no larger than [`NOISE_MARGIN`] times the largest magnitude the noise's front
+    /// view reaches within two columns. Without a noise (intensities), the front view as it is.
+    pub fn beyond_noise(&self) -> Vec<f32> {
+        let (nx, ny, nz) = (self.measured.nx, self.measured.ny, self.measured.nz);
+        let front = signed_front_view(&self.residual(), nz);
+        let Some(noise) = self.noise_residual() else { return front };
+        let noise = signed_front_view(&noise, nz);
+        let reach = 2usize;
+        (0..nx * ny)
+            .map(|c| {
+                let (ix, iy) = (c % nx, c / nx);
+                let mut level = 0.0f32;
+                for jy in iy.saturating_sub(reach)..=(iy + reach).min(ny - 1) {
+                    for jx in ix.saturating_sub(reach)..=(ix + reach).min(nx - 1) {
+                        level = level.max(noise[jx + nx * jy].abs());
+                    }
+                }
+                if front[c].abs() > NOISE_MARGIN * level { front[c] } else { 0.0 }
+            })
+            .collect()
     }
 }
 
@@ -84,7 +184,8 @@ pub fn residual_figure(b: &Backprojected, note: &str) -> Result<RgbImage> {
     let peak = v.data.iter().fold(0.0f32, |a, &x| a.max(x));
     let unit = if peak > 0.0 { 1.0 / peak } else { 0.0 };
     let front: Vec<f32> = v.max_projection().iter().map(|x| x * unit).collect();
-    let front_residual = signed_front_view(&residual, nz);
+    let front_residual = b.beyond_noise();
+    let front_noise = b.noise_residual().map(|n| signed_front_view(&n, nz));
     // The row (fixed y) holding most of the residual's energy, as an x–z slice: z up the page.
     let energy =
         |iy: usize| -> f64 { residual[iy * nx * nz..(iy + 1) * nx * nz].iter().map(|&x| f64::from(x).powi(2)).sum() };
@@ -113,18 +214,33 @@ pub fn residual_figure(b: &Backprojected, note: &str) -> Result<RgbImage> {
             slice[ix + nx * k] = residual[(ix + nx * row) * nz + iz];
         }
     }
-    let reach = front_residual.iter().fold(0.0f32, |a, &x| a.max(x.abs())).max(1e-3);
+    let all = signed_front_view(&residual, nz);
+    let reach = all.iter().chain(front_noise.iter().flatten()).fold(0.0f32, |a, &x| a.max(x.abs())).max(1e-3);
     let signed = Norm::linear(-f64::from(reach), f64::from(reach))?;
     let ex = Extent::from_centres(v.x.at(0), v.x.at(nx - 1), nx)?;
     let ey = Extent::from_centres(v.y.at(0), v.y.at(ny - 1), ny)?;
     let ez = Extent::from_centres(v.z.at(z0), v.z.at(z1), depths)?;
     let mut fig = Figure::new(format!("where the light is left unexplained ({} back-projection)", b.method));
     fig.notes.push(note.to_string());
+    let form = if b.method.signed_volume_is_linear() {
+        "the volume of the capture minus the rendering (signed, linear)"
+    } else {
+        "the capture's volume minus the rendering's"
+    };
     fig.notes.push(format!(
-        "capture volume minus rendering volume, in units of the capture's peak; red: light the mesh does not \
-         make, blue: light it makes that the capture lacks; largest {:.0} % of the peak",
+        "{form}, in units of the capture's peak; red: light the mesh does not make, blue: light it makes that \
+         the capture lacks; largest {:.0} % of the peak",
         100.0 * reach
     ));
+    let beyond = front_residual.iter().filter(|&&x| x != 0.0).count();
+    if front_noise.is_some() {
+        fig.notes.push(format!(
+            "coloured where the residual exceeds the model's own Poisson noise within two columns: {beyond} of {} \
+             columns ({:.0} %)",
+            nx * ny,
+            100.0 * beyond as f64 / (nx * ny).max(1) as f64
+        ));
+    }
     fig.panels = vec![
         Panel::image(ScalarGrid::new(&front, nx, ny, ex, ey)?, Norm::auto(&front, Scale::Linear)?)
             .with_colormap(Colormap::Grey)
@@ -133,13 +249,27 @@ pub fn residual_figure(b: &Backprojected, note: &str) -> Result<RgbImage> {
         Panel::image(ScalarGrid::new(&front_residual, nx, ny, ex, ey)?, signed)
             .with_colormap(Colormap::Diverging)
             .with_labels("x (m)", "y (m)")
-            .with_title("residual, front view (largest magnitude over depth)"),
+            .with_title(if front_noise.is_some() {
+                "residual beyond the noise, front view"
+            } else {
+                "residual, front view (largest magnitude over depth)"
+            }),
+    ];
+    if let Some(n) = &front_noise {
+        fig.panels.push(
+            Panel::image(ScalarGrid::new(n, nx, ny, ex, ey)?, signed)
+                .with_colormap(Colormap::Diverging)
+                .with_labels("x (m)", "y (m)")
+                .with_title("the model's own noise, front view"),
+        );
+    }
+    fig.panels.push(
         Panel::image(ScalarGrid::new(&slice, nx, depths, ex, ez)?, signed)
             .with_colormap(Colormap::Diverging)
             .with_labels("x (m)", "depth z (m)")
             .with_title(format!("residual, x–z slice at y = {:.3} m", v.y.at(row)))
             .with_colorbar("share of the capture's peak"),
-    ];
+    );
     Ok(fig.render()?)
 }
 
@@ -159,10 +289,63 @@ mod tests {
         // 2 × 1 columns of 3 voxels: the capture peaks at 4 in column 0; the rendering makes column 1's light.
         let m = volume(vec![0.0, 4.0, 0.0, 0.0, 0.0, 0.0], 2, 1, 3);
         let r = volume(vec![0.0, 1.0, 0.0, 0.0, 2.0, 0.0], 2, 1, 3);
-        let b = Backprojected { method: Method::Lct, measured: m, rendered: r };
+        let difference = m.data.iter().zip(&r.data).map(|(a, b)| a - b).collect();
+        let b = Backprojected { method: Method::Lct, measured: m, rendered: r, difference, noise: None };
         assert_eq!(b.residual(), vec![0.0, 0.75, 0.0, 0.0, -0.5, 0.0]);
         assert_eq!(signed_front_view(&b.residual(), 3), vec![0.75, -0.5]);
         let img = residual_figure(&b, "test").unwrap();
         assert!(img.width() > 100 && img.height() > 50);
+    }
+    /// Expected counts of a 0.24 m plate at 0.35 m (and of a 6 cm square 5 cm in front of it, with `extra`),
+    /// on a 32 × 32 confocal scan, about 40 counts at the brightest bin, gated at 0.3 m of path.
+    fn plate_counts(extra: bool) -> Transient {
+        use nlos_render::{Kernel, RenderParams, Renderer, Visibility};
+        use nlos_transient::{PointSet, Scan, TimeAxis};
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let mut quad = |x0: f32, y0: f32, w: f32, z: f32| {
+            let b = positions.len() as u32;
+            for (dx, dy) in [(0.0, 0.0), (w, 0.0), (0.0, w), (w, w)] {
+                positions.push(glam::Vec3::new(x0 + dx, y0 + dy, z));
+            }
+            triangles.extend([[b, b + 2, b + 1], [b + 1, b + 2, b + 3]]);
+        };
+        for j in 0..6 {
+            for i in 0..6 {
+                quad(-0.12 + 0.04 * i as f32, -0.12 + 0.04 * j as f32, 0.04, 0.35);
+            }
+        }
+        if extra {
+            quad(0.1, 0.1, 0.06, 0.3);
+        }
+        let scan = Scan::confocal(PointSet::wall_grid(32, 32, 0.25, 0.25).unwrap());
+        let time = TimeAxis::new(0.0, 0.004, 256).unwrap();
+        let params = RenderParams { kernel: Kernel::Box, visibility: Visibility::Off, ..RenderParams::default() };
+        let r = Renderer::new(&positions, &triangles, &scan, &time, params).unwrap();
+        let t = r.forward_transient(&nlos_brdf::Lambertian::new(1.0f32).unwrap()).unwrap();
+        let peak = t.data().iter().fold(0.0f32, |a, &v| a.max(v));
+        let data = t.data().iter().map(|v| v * 40.0 / peak).collect();
+        Transient::new(t.scan().clone(), *t.time(), data).unwrap().gate(0.3).unwrap()
+    }
+
+    /// A capture the model explains exactly (a Poisson draw of its own expected counts) shows nothing beyond
+    /// the noise; one with a part the model lacks shows that part.
+    #[test]
+    fn only_light_beyond_the_models_noise_is_coloured() {
+        let model = plate_counts(false);
+        let exact = poisson_draw(&model, 7).unwrap();
+        let b = backproject(Method::Lct, Model::Lambert, &exact, &model, Some(1)).unwrap();
+        let beyond = b.beyond_noise().iter().filter(|&&x| x != 0.0).count();
+        assert_eq!(beyond, 0, "columns beyond the noise of an exact model");
+        let missing = poisson_draw(&plate_counts(true), 7).unwrap();
+        let b = backproject(Method::Lct, Model::Lambert, &missing, &model, Some(1)).unwrap();
+        let fv = b.beyond_noise();
+        // The square spans x, y in [0.1, 0.16]: scan columns 22–25 of 32 (spacing 0.5/31 m).
+        let inside = |c: usize| (22..=25).contains(&(c % 32)) && (22..=25).contains(&(c / 32));
+        let found = (0..1024).filter(|&c| inside(c) && fv[c] > 0.0).count();
+        assert!(found >= 12, "{found} of the missing square's 16 columns shown");
+        // The plain difference of clamped volumes would not be signed-linear; this one is: V(a) − V(a) = 0.
+        let same = backproject(Method::Lct, Model::Lambert, &model, &model, None).unwrap();
+        assert!(same.difference.iter().all(|&x| x == 0.0));
     }
 }

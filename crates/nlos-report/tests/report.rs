@@ -242,8 +242,8 @@ fn missing_files_and_bad_options_are_typed_errors() {
 }
 
 /// The residual's back-projection shows where the mesh misses light: measured the whole plane, rendered
-/// only its left half (x < 0), the difference of the LCT volumes is the right half's light, positive, and
-/// next to nothing over the left half that both hold.
+/// only its left half (x < 0), the LCT's signed volume of the difference is the right half's light, positive,
+/// and next to nothing over the left half that both hold.
 #[test]
 fn the_residual_back_projection_lights_up_where_the_mesh_is_missing() {
     let full = plane(0.35, 0.0);
@@ -251,8 +251,14 @@ fn the_residual_back_projection_lights_up_where_the_mesh_is_missing() {
     let left: Vec<[u32; 3]> = t.iter().copied().filter(|f| f.iter().all(|&v| p[v as usize].x <= 0.0)).collect();
     let half = SurfaceMesh::from_triangles(&p, &left).expect("left half");
     let (measured, rendered) = (measure(&full), measure(&half));
-    let b = nlos_report::residual::backproject(nlos_init::Method::Lct, nlos_init::Model::Lambert, &measured, &rendered)
-        .expect("back-projection");
+    let b = nlos_report::residual::backproject(
+        nlos_init::Method::Lct,
+        nlos_init::Model::Lambert,
+        &measured,
+        &rendered,
+        None,
+    )
+    .expect("back-projection");
     let (v, residual) = (&b.measured, b.residual());
     // Columns well inside each half (the LCT blurs a few voxels across x = 0).
     let (mut right, mut left) = (Vec::new(), Vec::new());
