@@ -141,14 +141,19 @@ fn demo() -> Result<(), String> {
         "--gt",
         &s(&truth_file),
     ])?;
-    println!("      reconstruction took {:.0} s", started.elapsed().as_secs_f64());
+    println!(
+        "      reconstruction took {:.0} s; outputs in {} (the report: {})",
+        started.elapsed().as_secs_f64(),
+        out.display(),
+        run.join("report.html").display()
+    );
+    // The demo ends with the figures that say whether it worked.
     println!(
         "[5/5] nlos eval {} --gt {}: the start (LCT) and the result against the truth",
         run.display(),
         truth_file.display()
     );
     nlos(&["eval", &s(&run), "--gt", &s(&truth_file)])?;
-    println!("done: outputs in {}", out.display());
     Ok(())
 }
 
