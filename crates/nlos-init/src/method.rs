@@ -126,11 +126,6 @@ impl Method {
         }
     }
 
-    /// Whether [`Method::signed_volume`] has a linear form for this method.
-    pub fn signed_volume_is_linear(self) -> bool {
-        matches!(self, Method::Lct)
-    }
-
     /// The surface extraction of the method's start: the settings for compact objects for the LCT and the
     /// phasor field ([`SurfaceParams::object`]: Otsu's threshold alone keeps only the brightest columns,
     /// about half the bunny's silhouette from the LCT, a fifth from the one-laser phasor field), the plain

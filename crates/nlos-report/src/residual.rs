@@ -42,11 +42,15 @@ pub struct Backprojected {
     /// The same for a Poisson draw of the rendering in place of the capture (photon counts only): the
     /// residual of an exact model.
     pub noise: Option<Vec<f32>>,
+    /// Whether `difference` is the method's signed, linear volume of the difference
+    /// ([`nlos_init::Method::signed_volume`]).
+    pub linear: bool,
 }
 
 /// The volumes of `measured` and of `rendered` (the same scan and time axis; both gated) by `method`,
 /// weighted for `reflectance` as the start's volume is, and the residual's ([module docs](self)); with
-/// `counts`, also the residual of a Poisson draw of `rendered` (expected counts), drawn with `seed`.
+/// `noise_seed` (photon counts), also the residual of a Poisson draw of `rendered` (expected counts) drawn
+/// with that seed.
 ///
 /// # Errors
 /// [`ReportError::Init`] when the method cannot take the scan or a volume is empty;
@@ -56,7 +60,7 @@ pub fn backproject(
     reflectance: Model,
     measured: &Transient,
     rendered: &Transient,
-    counts: Option<u64>,
+    noise_seed: Option<u64>,
 ) -> Result<Backprojected> {
     let m = method.volume(measured, reflectance, None)?;
     let r = method.volume(rendered, reflectance, None)?;
@@ -72,14 +76,15 @@ pub fn backproject(
     };
     same(&r, "rendered")?;
     // V(a) − V(μ): the signed volume of the difference where the method is linear, else the volumes' difference.
-    let residual_of = |a: &Transient, va: Option<&Volume>| -> Result<Vec<f32>> {
+    // With whether it is the signed, linear form.
+    let residual_of = |a: &Transient, va: Option<&Volume>| -> Result<(Vec<f32>, bool)> {
         let diff: Vec<f32> = a.data().iter().zip(rendered.data()).map(|(x, y)| x - y).collect();
         let diff = Transient::new(a.scan().clone(), *a.time(), diff)?;
         match method.signed_volume(&diff, reflectance) {
             Some(v) => {
                 let v = v?;
                 same(&v, "residual")?;
-                Ok(v.data)
+                Ok((v.data, true))
             }
             None => {
                 let owned;
@@ -91,13 +96,13 @@ pub fn backproject(
                     }
                 };
                 same(va, "draw")?;
-                Ok(va.data.iter().zip(&r.data).map(|(x, y)| x - y).collect())
+                Ok((va.data.iter().zip(&r.data).map(|(x, y)| x - y).collect(), false))
             }
         }
     };
-    let difference = residual_of(measured, Some(&m))?;
-    let noise = counts.map(|seed| residual_of(&poisson_draw(rendered, seed)?, None)).transpose()?;
-    Ok(Backprojected { method, measured: m, rendered: r, difference, noise })
+    let (difference, linear) = residual_of(measured, Some(&m))?;
+    let noise = noise_seed.map(|seed| residual_of(&poisson_draw(rendered, seed)?, None).map(|r| r.0)).transpose()?;
+    Ok(Backprojected { method, measured: m, rendered: r, difference, noise, linear })
 }
 
 /// A Poisson draw of expected counts `mu` (each measurement its own stream of the PCG32 generator, `seed`).
@@ -222,7 +227,7 @@ pub fn residual_figure(b: &Backprojected, note: &str) -> Result<RgbImage> {
     let ez = Extent::from_centres(v.z.at(z0), v.z.at(z1), depths)?;
     let mut fig = Figure::new(format!("where the light is left unexplained ({} back-projection)", b.method));
     fig.notes.push(note.to_string());
-    let form = if b.method.signed_volume_is_linear() {
+    let form = if b.linear {
         "the volume of the capture minus the rendering (signed, linear)"
     } else {
         "the capture's volume minus the rendering's"
@@ -290,7 +295,7 @@ mod tests {
         let m = volume(vec![0.0, 4.0, 0.0, 0.0, 0.0, 0.0], 2, 1, 3);
         let r = volume(vec![0.0, 1.0, 0.0, 0.0, 2.0, 0.0], 2, 1, 3);
         let difference = m.data.iter().zip(&r.data).map(|(a, b)| a - b).collect();
-        let b = Backprojected { method: Method::Lct, measured: m, rendered: r, difference, noise: None };
+        let b = Backprojected { method: Method::Lct, measured: m, rendered: r, difference, noise: None, linear: false };
         assert_eq!(b.residual(), vec![0.0, 0.75, 0.0, 0.0, -0.5, 0.0]);
         assert_eq!(signed_front_view(&b.residual(), 3), vec![0.75, -0.5]);
         let img = residual_figure(&b, "test").unwrap();
