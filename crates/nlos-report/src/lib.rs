@@ -15,7 +15,7 @@
 //! | `relief.png` | the final (and ground-truth) depth minus its local mean: small relief such as lettering |
 //! | `coverage.png` | with a ground truth: the evaluation's ray grid coloured by hit, missed, extra and off pixels, for the initial and final meshes ([`figures::coverage_figure`]) |
 //! | `albedo.png` | the fitted albedo per vertex where the final mesh is seen (runs that fit one) |
-//! | `residual.png` | where the light is left unexplained: the residual back-projected by the start's method (the LCT's linear, signed form on confocal grids) as a front view and an x–z slice; for photon counts, coloured only beyond the back-projection of the model's own Poisson noise, shown beside it ([`residual`]) |
+//! | `residual.png` | where the light is left unexplained: the residual back-projected by the start's method (the LCT's linear, signed form on confocal grids) as a front view and an x–z slice; for photon counts on a confocal grid, coloured only beyond the back-projection of the model's own Poisson noise, shown beside it ([`residual`]) |
 //! | `unexplained.png` | photon counts: the data term above its noise floor per spot over the wall, and its split in time — before, within and after each spot's return ([`unexplained`]) |
 //! | `report.html` | one page: run parameters, metrics, per-stage table, the images, and an interactive 3-D view of the initial and final meshes (and the ground truth), coloured by depth, by distance to the ground truth or by the final mesh's support (`nlos_optim::support`), embedded so it works offline from the folder alone ([`view3d`]) |
 //!
